@@ -1,0 +1,3 @@
+from feedlog.cli import main
+
+raise SystemExit(main())

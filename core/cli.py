@@ -1,0 +1,78 @@
+"""The `feedlog` command: a thin layer that parses arguments and calls one library function.
+
+Subcommands live with the stage they belong to. Each is a module with
+`configure(parser: argparse.ArgumentParser) -> None` and `run(args: argparse.Namespace) -> int`,
+registered below by name and imported only when used, so `feedlog program` does not pay for torch.
+Our errors (FeedlogError) become one line on stderr and exit code 1; anything else is a bug.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from feedlog import __version__
+from feedlog.errors import FeedlogError
+
+# name -> (module, one-line help). One line per subcommand.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "program": ("feedlog.toolpath.cli", "summarise a part program (blocks, length, CAM time)"),
+    "profile": ("feedlog.profile_cli", "show a machine profile, or list the shipped ones"),
+    "sim": ("feedlog.sim.cli", "simulate the NC interpolator on a part program"),
+    "import": ("feedlog.ingest.cli_import", "convert MCAP, CAN or CSV data into a feedlog recording"),
+    "info": ("feedlog.ingest.cli_info", "summarise a recording"),
+    "record": ("feedlog.ingest.cli_record", "record a live session (CAN bus, sim, LinuxCNC)"),
+    "align": ("feedlog.align.cli", "align recordings with their part program"),
+    "train": ("feedlog.train.cli_train", "train feed and cycle-time models on aligned data"),
+    "predict": ("feedlog.train.cli_predict", "predict cycle time of a part program with a trained model"),
+    "view": ("feedlog.viz.cli", "show a recording in Rerun"),
+    "demo": ("feedlog.viz.demo", "run the whole pipeline on the bundled recordings"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="feedlog", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"feedlog {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (_, help_text) in COMMANDS.items():
+        sub.add_parser(name, help=help_text, add_help=False)
+    return parser
+
+
+def _command_module(name: str):
+    module_name = COMMANDS[name][0]
+    try:
+        return importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name == module_name:
+            raise FeedlogError(f"feedlog {name} is not available in this version") from None
+        raise
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    top = build_parser()
+    if not argv or argv[0] not in COMMANDS:
+        top.parse_args(argv)  # prints help, version or a usage error
+        top.print_help()
+        return 2
+    name, rest = argv[0], argv[1:]
+    try:
+        module = _command_module(name)
+        parser = argparse.ArgumentParser(prog=f"feedlog {name}", description=COMMANDS[name][1])
+        module.configure(parser)
+        args = parser.parse_args(rest)
+        return int(module.run(args) or 0)
+    except FeedlogError as exc:
+        print(f"feedlog {name}: error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"feedlog {name}: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,1 @@
+"""feedlog.viz"""
