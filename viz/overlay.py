@@ -1,0 +1,180 @@
+"""Log a `ViewData` to Rerun: 3D paths, feed series, per-axis feeds, residuals and block times.
+
+Recorded series go out columnar with `rr.send_columns` (one call per entity), never sample by
+sample. Three timelines index the series:
+- `time`: duration since the program's first block started (measured, simulated and learned align);
+- `block`: the active block as a sequence, to scrub block by block;
+- `path_um`: cumulative path length in micrometres, to read feeds along the path.
+
+Entity paths (ENTITY_* below) are the contract the tests check in the saved .rrd.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from feedlog.viz.colors import feed_colors, residual_colors, source_color
+from feedlog.viz.prepare import AXIS_COLUMNS, ViewData
+
+APPLICATION_ID = "feedlog"
+TIMELINE_TIME, TIMELINE_BLOCK, TIMELINE_PATH = "time", "block", "path_um"
+ENTITY_PROGRAMMED = "path/programmed"
+ENTITY_MEASURED_PATH = "path/measured"
+ENTITY_RESIDUAL_PATH = "path/residual"
+ENTITY_TOOL = "path/tool"
+ENTITY_ORIENTATION = "path/orientation"
+FEED, AXES, RESIDUAL, BLOCKS = "feed", "axes", "residual", "blocks"
+ENTITY_PROGRAM_TEXT = "blocks/program"
+
+
+def _indexes(t_rel_ns, block=None, s_mm=None) -> list[rr.TimeColumn]:
+    cols = [rr.TimeColumn(TIMELINE_TIME, duration=np.asarray(t_rel_ns, dtype=np.int64).astype("timedelta64[ns]"))]
+    if block is not None:
+        cols.append(rr.TimeColumn(TIMELINE_BLOCK, sequence=np.asarray(block, dtype=np.int64)))
+    if s_mm is not None:
+        cols.append(rr.TimeColumn(TIMELINE_PATH, sequence=np.rint(np.asarray(s_mm) * 1000.0).astype(np.int64)))
+    return cols
+
+
+def _series(stream: rr.RecordingStream, entity: str, values: np.ndarray, indexes_of, *, label: str,
+            color: tuple[int, int, int], counts: dict[str, int], finite_only: bool = True) -> None:
+    """One scalar series in one `send_columns` call (non-finite samples left out: Rerun draws a gap)."""
+    values = np.asarray(values, dtype=np.float64)
+    keep = np.isfinite(values) if finite_only else np.ones(len(values), dtype=bool)
+    if not keep.any():
+        return
+    stream.log(entity, rr.SeriesLines(colors=[color], names=[label]), static=True)
+    stream.send_columns(entity, indexes=indexes_of(keep), columns=rr.Scalars.columns(scalars=values[keep]))
+    counts[entity] = int(keep.sum())
+
+
+def log_view(data: ViewData, stream: rr.RecordingStream) -> dict[str, int]:
+    """Log every overlay of `data` to `stream`; returns entity path -> samples sent over time."""
+    counts: dict[str, int] = {}
+    m = data.measured
+    m_t, m_block, m_s = m["t_rel_ns"].to_numpy(), m["block"].to_numpy(), m["s_mm"].to_numpy()
+
+    def measured_idx(keep):
+        return _indexes(m_t[keep], m_block[keep], m_s[keep])
+
+    xyz = m[["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=np.float32)
+    # 3D: programmed path, measured path coloured by feed (and residual), moving tool, orientation
+    if data.programmed_path is not None and len(data.programmed_path):
+        pts = data.programmed_path[["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=np.float32)
+        stream.log(ENTITY_PROGRAMMED, rr.LineStrips3D([pts], colors=[source_color("programmed")], radii=[0.05]),
+                   static=True)
+    stream.log(ENTITY_MEASURED_PATH, rr.Points3D(xyz, colors=feed_colors(m["feed_mm_min"].to_numpy()),
+                                                 radii=[0.15]), static=True)
+    if data.model_series or data.sim is not None:
+        first = next(iter(data.model_series), "sim")
+        stream.log(ENTITY_RESIDUAL_PATH, rr.Points3D(xyz, colors=residual_colors(data.residuals[first]),
+                                                     radii=[0.15]), static=True)
+    all_rows = np.ones(len(m), dtype=bool)
+    stream.send_columns(ENTITY_TOOL, indexes=measured_idx(all_rows), columns=rr.Points3D.columns(positions=xyz))
+    counts[ENTITY_TOOL] = len(m)
+    if data.orientation is not None and len(data.orientation):
+        o = data.orientation
+        scale = max(float(np.ptp(xyz, axis=0).max()) * 0.05, 1.0)
+        stream.log(ENTITY_ORIENTATION, rr.Arrows3D(origins=o[["x_mm", "y_mm", "z_mm"]].to_numpy(np.float32),
+                                                   vectors=o[["i", "j", "k"]].to_numpy(np.float32) * scale,
+                                                   colors=[(200, 60, 60)]), static=True)
+
+    # path feed: measured, commanded, simulated, learned
+    _series(stream, f"{FEED}/measured", m["feed_mm_min"].to_numpy(), measured_idx, label="measured",
+            color=source_color("measured"), counts=counts)
+    if "commanded_feed_mm_min" in m.columns:
+        _series(stream, f"{FEED}/commanded", m["commanded_feed_mm_min"].to_numpy(), measured_idx,
+                label="commanded F", color=source_color("commanded"), counts=counts)
+    if data.sim is not None:
+        s = data.sim
+        s_t, s_block, s_s = s["t_rel_ns"].to_numpy(), s["block"].to_numpy(), s["s_mm"].to_numpy()
+
+        def sim_idx(keep):
+            path = s_s[keep] if np.isfinite(s_s).all() else None
+            return _indexes(s_t[keep], s_block[keep], path)
+
+        _series(stream, f"{FEED}/sim", s["feed_mm_min"].to_numpy(), sim_idx, label="simulated",
+                color=source_color("sim"), counts=counts)
+        for a in data.axes:
+            if f"v{a}" in s.columns:
+                _series(stream, f"{AXES}/{a}/sim", s[f"v{a}"].to_numpy(), sim_idx, label=f"{a} simulated",
+                        color=source_color("sim"), counts=counts)
+    for i, (name, series) in enumerate(data.model_series.items()):
+        mt = series["t_rel_ns"].to_numpy()
+        _series(stream, f"{FEED}/{name}", series["feed_mm_min"].to_numpy(), lambda keep, mt=mt: _indexes(mt[keep]),
+                label=name, color=source_color(name, i), counts=counts)
+
+    # per-axis feeds and residuals
+    for a in data.axes:
+        unit = "deg/min" if AXIS_COLUMNS[a].endswith("deg") else "mm/min"
+        _series(stream, f"{AXES}/{a}/measured", m[f"v{a}"].to_numpy(), measured_idx,
+                label=f"{a} measured ({unit})", color=source_color("measured"), counts=counts)
+    for i, (name, residual) in enumerate(data.residuals.items()):
+        _series(stream, f"{RESIDUAL}/{name}", residual, measured_idx, label=f"measured - {name}",
+                color=source_color(name, i - 1), counts=counts)
+
+    # per block: measured vs predicted block times, on the block timeline and at the block's start time
+    _log_blocks(data, stream, counts)
+    return counts
+
+
+def _log_blocks(data: ViewData, stream: rr.RecordingStream, counts: dict[str, int]) -> None:
+    blocks = data.blocks
+    if not len(blocks):
+        return
+    starts = (data.measured[data.measured["block"] >= 0].groupby("block")["t_rel_ns"].min())
+    t_start = blocks["block"].map(starts).to_numpy(dtype=np.float64)
+    has_time = np.isfinite(t_start)
+    block_ids = blocks["block"].to_numpy(dtype=np.int64)
+
+    def block_idx(keep):
+        keep = keep & has_time
+        return _indexes(t_start[keep].astype(np.int64), block_ids[keep])
+
+    columns = [c for c in blocks.columns if c.endswith("_s")]
+    for i, col in enumerate(columns):
+        name = col[:-2]
+        values = blocks[col].to_numpy(dtype=np.float64)
+        _series(stream, f"{BLOCKS}/{name}", np.where(has_time, values, np.nan), block_idx,
+                label=f"{name} block time (s)", color=source_color(name, i - 2), counts=counts)
+
+
+def view_blueprint(data: ViewData) -> rrb.Blueprint:
+    """The default layout: 3D paths left, feeds/axes/residuals/blocks right."""
+    series_views = [rrb.TimeSeriesView(origin=f"/{FEED}", name="path feed (mm/min)")]
+    series_views.append(rrb.Tabs(*[rrb.TimeSeriesView(origin=f"/{AXES}/{a}", name=f"{a} feed")
+                                   for a in data.axes], name="axis feeds"))
+    if data.residuals:
+        series_views.append(rrb.TimeSeriesView(origin=f"/{RESIDUAL}", name="feed residual (mm/min)"))
+    series_views.append(rrb.TimeSeriesView(origin=f"/{BLOCKS}", name="block times (s)"))
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial3DView(origin="/path", name=f"{data.name}: toolpath"),
+            rrb.Vertical(*series_views),
+            column_shares=[2, 3],
+        ),
+        rrb.TimePanel(timeline=TIMELINE_TIME),
+        collapse_panels=False,
+    )
+
+
+def new_stream(name: str) -> rr.RecordingStream:
+    """A recording stream of its own (not the global one), named after the recording."""
+    return rr.RecordingStream(APPLICATION_ID, recording_id=f"feedlog-{name}")
+
+
+def save_view(data: ViewData, path: str | Path) -> dict[str, int]:
+    """Write `data` with its blueprint to an .rrd file; returns entity -> samples sent over time."""
+    stream = new_stream(data.name)
+    stream.save(str(path), default_blueprint=view_blueprint(data))
+    try:
+        stream.send_recording_name(data.name)
+        counts = log_view(data, stream)
+    finally:
+        stream.flush()
+        stream.disconnect()
+    return counts
