@@ -1,0 +1,234 @@
+"""Writing feedlog recordings (MCAP, format v1): `RecordingWriter` for live appends, `write_recording`.
+
+`RecordingWriter` keeps each stream's appended rows in memory only until a message is full
+(`rows_per_message`) or `flush_interval_s` has passed; then it closes the MCAP chunk and flushes the
+file, so a process killed with SIGKILL loses at most that interval. A failed write (disk full, file
+size limit) truncates the file back to the last complete chunk and raises `IngestError`: everything
+written before stays readable (`read_recording(path, recover=True)`).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+from typing import BinaryIO
+
+import pandas as pd
+import pyarrow as pa
+from mcap.writer import CompressionType, IndexType, Writer
+
+from feedlog.errors import IngestError
+from feedlog.ingest import mcap_format as fmt
+from feedlog.ingest.recording import Recording
+
+COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+
+
+class RecordingWriter:
+    """Append batches of samples to a feedlog recording; use as a context manager.
+
+    `write(stream, table)` appends rows (a DataFrame, Arrow table/batch or dict of arrays whose first
+    column is `t_ns` int64); the first write of a stream fixes its columns and types. Set
+    `dropped_frames` at any time; it is stored with every flush and at close.
+    """
+
+    def __init__(self, path: str | os.PathLike, *, metadata: dict[str, str] | None = None,
+                 attachments: dict[str, bytes] | None = None, overwrite: bool = False,
+                 flush_interval_s: float = 1.0, rows_per_message: int = 16384,
+                 chunk_size: int = 4 * 1024 * 1024, compression: str = "lz4") -> None:
+        if flush_interval_s <= 0 or rows_per_message < 1:
+            raise ValueError(f"flush_interval_s={flush_interval_s} and rows_per_message={rows_per_message} "
+                             "must be positive")
+        if compression not in COMPRESSIONS:
+            raise ValueError(f"compression {compression!r} is not one of {sorted(COMPRESSIONS)}")
+        self.path = Path(path)
+        if self.path.exists() and not overwrite:
+            raise IngestError("output exists; pass overwrite=True (--overwrite) to replace it", file=str(self.path))
+        self.flush_interval_s = flush_interval_s
+        self.rows_per_message = rows_per_message
+        self.dropped_frames = 0
+        self._stored_drops: int | None = None
+        self._file: BinaryIO = open(self.path, "wb")
+        self._mcap = Writer(self._file, chunk_size=chunk_size, compression=COMPRESSIONS[compression],
+                            index_types=IndexType.ALL)
+        self._channels: dict[str, int] = {}
+        self._schemas: dict[str, pa.Schema] = {}
+        self._pending: dict[str, list[pa.RecordBatch]] = {}
+        self._pending_rows: dict[str, int] = {}
+        self._last_t: dict[str, int] = {}
+        self._samples = 0
+        self._closed = False
+        self._failed: IngestError | None = None
+        self._good_offset = 0
+        self._last_flush = time.monotonic()
+        self._guard(self._start, metadata or {}, attachments or {})
+
+    # -- public API ----------------------------------------------------------------------------------
+    def write(self, stream: str, table: pd.DataFrame | pa.Table | pa.RecordBatch | dict) -> None:
+        """Append rows to `stream` (its t_ns must continue where the last batch ended)."""
+        self._check_open()
+        batch = fmt.table_to_batch(stream, table, self._schemas.get(stream))
+        if stream not in self._schemas:
+            self._register(stream, batch.schema)
+        if batch.num_rows:
+            t = batch.column(0).to_numpy()
+            first_back = _first_backwards(t, self._last_t.get(stream))
+            if first_back is not None:
+                raise IngestError(f"stream {stream!r}: time goes backwards at sample {first_back} of this batch",
+                                  file=str(self.path))
+            self._last_t[stream] = int(t[-1])
+            self._pending[stream].append(batch)
+            self._pending_rows[stream] += batch.num_rows
+            self._samples += batch.num_rows
+            if self._pending_rows[stream] >= self.rows_per_message:
+                self._guard(self._emit, stream, False)
+        self.flush_if_due()
+
+    def add_attachment(self, name: str, data: bytes) -> None:
+        self._check_open()
+        self._guard(self._mcap.add_attachment, time.time_ns(), 0, name, fmt.media_type(name), bytes(data))
+
+    def flush_if_due(self) -> None:
+        """Flush when `flush_interval_s` has passed since the last flush (call it from idle loops too)."""
+        if not self._closed and time.monotonic() - self._last_flush >= self.flush_interval_s:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write every pending sample as a complete MCAP chunk and push it to the operating system."""
+        self._check_open()
+        self._guard(self._flush_all)
+
+    def close(self) -> None:
+        """Write what is pending, the statistics and the MCAP summary. Safe to call twice."""
+        if self._closed:
+            return
+        try:
+            if self._failed is None:
+                self._guard(self._finish)
+        finally:
+            self._closed = True
+            self._file.close()
+
+    @property
+    def samples_written(self) -> int:
+        return self._samples
+
+    @property
+    def streams(self) -> list[str]:
+        return list(self._channels)
+
+    def __enter__(self) -> RecordingWriter:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close()
+
+    # -- internals -----------------------------------------------------------------------------------
+    def _start(self, metadata: dict[str, str], attachments: dict[str, bytes]) -> None:
+        self._mcap.start(profile=fmt.PROFILE, library=fmt.LIBRARY)
+        self._mcap.add_metadata(fmt.META_FORMAT, {"format_version": str(fmt.FORMAT_VERSION), "writer": fmt.LIBRARY,
+                                                  "message_encoding": fmt.MESSAGE_ENCODING})
+        self._mcap.add_metadata(fmt.META_SESSION, {str(k): str(v) for k, v in metadata.items()})
+        for name, data in attachments.items():
+            self._mcap.add_attachment(time.time_ns(), 0, name, fmt.media_type(name), bytes(data))
+        self._sync()
+
+    def _register(self, stream: str, schema: pa.Schema) -> None:
+        schema_id = self._mcap.register_schema(fmt.SCHEMA_PREFIX + stream, fmt.SCHEMA_ENCODING,
+                                               fmt.schema_bytes(stream, schema))
+        self._channels[stream] = self._mcap.register_channel(
+            stream, fmt.MESSAGE_ENCODING, schema_id, {"columns": fmt.column_summary(schema)})
+        self._schemas[stream] = schema
+        self._pending[stream] = []
+        self._pending_rows[stream] = 0
+
+    def _emit(self, stream: str, everything: bool) -> None:
+        """Turn pending rows of `stream` into messages of `rows_per_message` rows (all rows if asked)."""
+        rows = self._pending_rows[stream]
+        if rows == 0 or (not everything and rows < self.rows_per_message):
+            return
+        table = pa.Table.from_batches(self._pending[stream], schema=self._schemas[stream]).combine_chunks()
+        step = self.rows_per_message
+        end = rows if everything else rows - rows % step
+        channel = self._channels[stream]
+        for start in range(0, end, step):
+            piece = table.slice(start, min(step, end - start)).to_batches()[0]
+            t0 = max(int(piece.column(0)[0].as_py()), 0)
+            self._mcap.add_message(channel, t0, fmt.batch_bytes(piece), t0)
+        rest = table.slice(end)
+        self._pending[stream] = rest.to_batches() if rest.num_rows else []
+        self._pending_rows[stream] = rest.num_rows
+
+    def _flush_all(self) -> None:
+        for stream in self._channels:
+            self._emit(stream, True)
+        if self._stored_drops != self.dropped_frames:
+            self._write_stats(closed=False)
+        self._mcap.flush()
+        self._sync()
+
+    def _finish(self) -> None:
+        for stream in self._channels:
+            self._emit(stream, True)
+        self._write_stats(closed=True)
+        self._mcap.finish()
+        self._sync()
+
+    def _write_stats(self, *, closed: bool) -> None:
+        self._mcap.add_metadata(fmt.META_STATS, {"dropped_frames": str(int(self.dropped_frames)),
+                                                 "closed": "true" if closed else "false"})
+        self._stored_drops = self.dropped_frames
+
+    def _sync(self) -> None:
+        self._file.flush()
+        self._good_offset = self._file.tell()
+        self._last_flush = time.monotonic()
+
+    def _guard(self, action, *args) -> None:
+        """Run a write; on an OS error keep the file as it was after the last complete flush."""
+        try:
+            action(*args)
+        except OSError as exc:
+            self._failed = IngestError(f"write failed ({exc.strerror or exc}); the recording keeps the data "
+                                       f"up to byte {self._good_offset}", file=str(self.path),
+                                       position=f"byte {self._good_offset}")
+            try:
+                self._file.truncate(self._good_offset)
+            except OSError:
+                pass
+            raise self._failed from None
+
+    def _check_open(self) -> None:
+        if self._failed is not None:
+            raise self._failed
+        if self._closed:
+            raise IngestError("recording writer is closed", file=str(self.path))
+
+
+def _first_backwards(t, previous: int | None) -> int | None:
+    import numpy as np
+
+    if previous is not None and len(t) and t[0] < previous:
+        return 0
+    back = np.flatnonzero(np.diff(t) < 0)
+    return int(back[0]) + 1 if len(back) else None
+
+
+def write_recording(path: str | os.PathLike, recording: Recording, *, overwrite: bool = False,
+                    compression: str = "lz4") -> None:
+    """Write a whole recording. The file appears under `path` only once it is complete."""
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise IngestError("output exists; pass overwrite=True (--overwrite) to replace it", file=str(path))
+    partial = path.with_name(path.name + ".partial")
+    try:
+        with RecordingWriter(partial, metadata=recording.metadata, attachments=recording.attachments,
+                             overwrite=True, compression=compression) as writer:
+            for name, table in recording.streams.items():
+                writer.write(name, table)
+            writer.dropped_frames = recording.dropped_frames
+        os.replace(partial, path)
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
