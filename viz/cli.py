@@ -1,0 +1,88 @@
+"""`feedlog view RECORDING [--program P] [--sim] [--model M] [--save out.rrd | --connect | --serve]`.
+
+Builds the Rerun overlays of one recording (programmed vs measured path, measured / commanded /
+simulated / learned feeds, residuals, block times) with a blueprint made in code, and sends them to
+a file, a running viewer, a served web viewer, or a freshly spawned viewer (the default).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from feedlog.errors import FeedlogError
+from feedlog.viz.overlay import log_view, new_stream, view_blueprint
+from feedlog.viz.plots import plot_view
+from feedlog.viz.predictions import model_prediction
+from feedlog.viz.prepare import prepare_view
+from feedlog.viz.sources import gather
+from feedlog.viz.stages import stage_function
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("recording", type=Path, help="feedlog recording (.mcap)")
+    parser.add_argument("--program", type=Path, help="part program (default: the one attached to the recording)")
+    parser.add_argument("--profile", help="machine profile name or TOML (default: the attached one)")
+    parser.add_argument("--sim", action="store_true", help="overlay the simulated feed (needs a profile)")
+    parser.add_argument("--model", type=Path, action="append", default=[],
+                        help="trained model checkpoint (.pt) whose prediction to overlay; repeatable")
+    parser.add_argument("--no-align", action="store_true",
+                        help="take block times from the recording's line stream instead of aligning")
+    parser.add_argument("--arrow-every", type=int, default=50, help="five-axis: one orientation arrow per N samples")
+    parser.add_argument("--png", type=Path, metavar="DIR", help="also write the overlays as PNG plots into DIR")
+    sink = parser.add_mutually_exclusive_group()
+    sink.add_argument("--save", type=Path, metavar="OUT.rrd", help="write a .rrd file instead of showing")
+    sink.add_argument("--connect", nargs="?", const="", metavar="URL",
+                      help="send to a running Rerun viewer (default URL when none given)")
+    sink.add_argument("--serve", action="store_true", help="serve a web viewer and keep running until Ctrl-C")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --save file")
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.save is not None and args.save.exists() and not args.overwrite:
+        raise FeedlogError(f"{args.save} exists; pass --overwrite to replace it")
+    recording = stage_function("read_recording")(args.recording)
+    name = args.recording.stem
+    gathered = gather(recording, name=name, program=args.program, profile=args.profile, simulate=args.sim,
+                      align=not args.no_align, arrow_every=args.arrow_every)
+    for checkpoint in args.model:
+        if gathered.program is None:
+            raise FeedlogError(f"--model {checkpoint}: a model predicts from the part program, and there is none")
+        gathered.inputs.models.append(model_prediction(checkpoint, gathered.program, profile=gathered.profile))
+    if args.sim and gathered.sim is None:
+        gathered.notes.append("--sim given but no simulation could run (see above)")
+    data = prepare_view(gathered.inputs)
+    for note in gathered.notes + data.notes:
+        print(f"note: {note}")
+
+    stream = new_stream(name)
+    blueprint = view_blueprint(data)
+    if args.save is not None:
+        stream.save(str(args.save), default_blueprint=blueprint)
+    elif args.connect is not None:
+        stream.connect_grpc(args.connect or None, default_blueprint=blueprint)
+    elif args.serve:
+        uri = stream.serve_grpc(default_blueprint=blueprint)
+        import rerun as rr
+        rr.serve_web_viewer(open_browser=False, connect_to=uri)
+        print(f"serving {uri}; open the web viewer printed above; Ctrl-C to stop")
+    else:
+        stream.spawn(default_blueprint=blueprint)
+    stream.send_recording_name(name)
+    counts = log_view(data, stream)
+    stream.flush()
+    print(f"{name}: {sum(counts.values())} samples over {len(counts)} series")
+    if args.png is not None:
+        for kind, path in plot_view(data, args.png).items():
+            print(f"{kind} plot: {path}")
+    if args.save is not None:
+        stream.disconnect()
+        print(f"saved {args.save}; open it with: rerun {args.save}")
+    if args.serve:
+        try:
+            while True:
+                time.sleep(1)
+        except KeyboardInterrupt:
+            pass
+    return 0

@@ -1,0 +1,151 @@
+"""The overlays as static PNG plots (matplotlib, Agg backend) for reports and the README.
+
+Each function draws one figure from a `ViewData` (or the cycle-time table) and returns the path
+it wrote. Colours match the Rerun overlays (`viz.colors`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # no display: figures only go to files
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from feedlog.viz.colors import source_color  # noqa: E402
+from feedlog.viz.prepare import ViewData  # noqa: E402
+
+DPI = 110
+
+
+def _c(name: str, index: int = 0) -> tuple[float, float, float]:
+    return tuple(v / 255 for v in source_color(name, index))
+
+
+def _save(fig, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def plot_feed(data: ViewData, path: str | Path) -> Path:
+    """Path feed over time: measured, commanded F, simulated, learned; the residual below."""
+    fig, (ax, res) = plt.subplots(2, 1, figsize=(10, 6), sharex=True, height_ratios=[3, 1],
+                                  layout="constrained")
+    m = data.measured
+    t = m["t_rel_ns"].to_numpy() / 1e9
+    ax.plot(t, m["feed_mm_min"], color=_c("measured"), lw=1.2, label="measured")
+    if "commanded_feed_mm_min" in m.columns:
+        ax.plot(t, m["commanded_feed_mm_min"], color=_c("commanded"), lw=1, ls="--", label="commanded F")
+    if data.sim is not None:
+        ax.plot(data.sim["t_rel_ns"] / 1e9, data.sim["feed_mm_min"], color=_c("sim"), lw=1, label="simulated")
+    for i, (name, s) in enumerate(data.model_series.items()):
+        ax.plot(s["t_rel_ns"] / 1e9, s["feed_mm_min"], color=_c(name, i), lw=1, label=name)
+    ax.set_ylabel("path feed (mm/min)")
+    ax.set_title(f"{data.name}: path feed")
+    ax.legend(loc="upper right", fontsize=8)
+    ax.grid(alpha=0.3)
+    for i, (name, r) in enumerate(data.residuals.items()):
+        res.plot(t, r, color=_c(name, i - 1), lw=0.8, label=f"measured - {name}")
+    if data.residuals:
+        res.legend(loc="upper right", fontsize=8)
+    else:
+        res.text(0.5, 0.5, "no prediction to compare with", ha="center", va="center", transform=res.transAxes)
+    res.set_ylabel("residual (mm/min)")
+    res.set_xlabel("time since program start (s)")
+    res.grid(alpha=0.3)
+    return _save(fig, Path(path))
+
+
+def plot_axes(data: ViewData, path: str | Path) -> Path:
+    """Per-axis feeds, measured vs simulated, one panel per axis."""
+    fig, axs = plt.subplots(len(data.axes), 1, figsize=(10, 1.8 * len(data.axes) + 1), sharex=True,
+                            layout="constrained", squeeze=False)
+    m = data.measured
+    for ax, a in zip(axs[:, 0], data.axes, strict=True):
+        ax.plot(m["t_rel_ns"] / 1e9, m[f"v{a}"], color=_c("measured"), lw=1, label="measured")
+        if data.sim is not None and f"v{a}" in data.sim.columns:
+            ax.plot(data.sim["t_rel_ns"] / 1e9, data.sim[f"v{a}"], color=_c("sim"), lw=1, label="simulated")
+        ax.set_ylabel(f"{a} ({'deg' if a in 'abc' else 'mm'}/min)")
+        ax.grid(alpha=0.3)
+    axs[0, 0].legend(loc="upper right", fontsize=8)
+    axs[0, 0].set_title(f"{data.name}: axis feeds")
+    axs[-1, 0].set_xlabel("time since program start (s)")
+    return _save(fig, Path(path))
+
+
+def plot_path(data: ViewData, path: str | Path) -> Path:
+    """Top view (XY) of the programmed path and the measured path coloured by measured feed."""
+    fig, ax = plt.subplots(figsize=(7, 6), layout="constrained")
+    if data.programmed_path is not None and len(data.programmed_path):
+        ax.plot(data.programmed_path["x_mm"], data.programmed_path["y_mm"], color=_c("programmed"), lw=2,
+                label="programmed", zorder=1)
+    m = data.measured
+    pts = ax.scatter(m["x_mm"], m["y_mm"], c=m["feed_mm_min"], s=2, cmap="viridis", zorder=2, label="measured")
+    fig.colorbar(pts, ax=ax, label="measured feed (mm/min)")
+    if data.orientation is not None and len(data.orientation):
+        o = data.orientation
+        ax.quiver(o["x_mm"], o["y_mm"], o["i"], o["j"], color="tab:red", width=0.003, label="tool orientation")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title(f"{data.name}: toolpath (top view)")
+    ax.legend(loc="best", fontsize=8)
+    return _save(fig, Path(path))
+
+
+def plot_block_times(data: ViewData, path: str | Path) -> Path:
+    """Measured vs predicted block times: predicted over measured, with the identity line."""
+    fig, ax = plt.subplots(figsize=(6, 6), layout="constrained")
+    b = data.blocks
+    predicted = [c for c in b.columns if c.endswith("_s") and c != "measured_s"]
+    top = 0.0
+    for i, col in enumerate(predicted):
+        ok = b["measured_s"].notna() & b[col].notna() if "measured_s" in b.columns else b[col].isna()
+        ax.scatter(b.loc[ok, "measured_s"], b.loc[ok, col], s=10, color=_c(col[:-2], i - 1), label=col[:-2])
+        top = max(top, float(b.loc[ok, ["measured_s", col]].to_numpy().max(initial=0.0)))
+    if not predicted:
+        ax.text(0.5, 0.5, "no predicted block times", ha="center", va="center", transform=ax.transAxes)
+    else:
+        ax.plot([0, top], [0, top], color="k", lw=0.8, ls=":")
+        ax.legend(loc="upper left", fontsize=8)
+    ax.set_xlabel("measured block time (s)")
+    ax.set_ylabel("predicted block time (s)")
+    ax.set_title(f"{data.name}: block times")
+    ax.grid(alpha=0.3)
+    return _save(fig, Path(path))
+
+
+def plot_cycle_times(table: pd.DataFrame, path: str | Path) -> Path:
+    """Grouped bars: cycle time per program for every source present in the table (seconds)."""
+    sources = [c for c in table.columns if c.endswith("_s") and table[c].notna().any()]
+    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(table) + 3), 4.5), layout="constrained")
+    x = np.arange(len(table))
+    width = 0.8 / max(len(sources), 1)
+    for i, col in enumerate(sources):
+        name = col[:-2]
+        ax.bar(x + (i - (len(sources) - 1) / 2) * width, table[col].to_numpy(dtype=np.float64), width,
+               label=name, color=_c(name, i - 3))
+    ax.set_xticks(x, table["program"], rotation=20, ha="right")
+    ax.set_ylabel("cycle time (s)")
+    ax.set_title("cycle time per program")
+    ax.legend(fontsize=8)
+    ax.grid(axis="y", alpha=0.3)
+    return _save(fig, Path(path))
+
+
+def plot_view(data: ViewData, out_dir: str | Path, *, stem: str | None = None) -> dict[str, Path]:
+    """All per-recording plots into `out_dir`; returns kind -> path."""
+    out = Path(out_dir)
+    stem = stem or data.name
+    return {
+        "feed": plot_feed(data, out / f"{stem}_feed.png"),
+        "axes": plot_axes(data, out / f"{stem}_axes.png"),
+        "path": plot_path(data, out / f"{stem}_path.png"),
+        "blocks": plot_block_times(data, out / f"{stem}_blocks.png"),
+    }

@@ -1,0 +1,125 @@
+"""Gather what can be overlaid on one recording by calling the other stages (through viz.stages).
+
+`gather()` parses the recording's program (attached or given), loads its machine profile, aligns,
+simulates and predicts with whichever stages are available, and returns `ViewInputs` plus the
+stage results (for the demo's table) and notes saying what was left out and why.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from feedlog.errors import FeedlogError
+from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
+from feedlog.profile import MachineProfile, load_profile
+from feedlog.viz.prepare import ModelPrediction, ViewInputs
+from feedlog.viz.stages import StageMissing, stage_function
+
+
+@dataclass
+class Gathered:
+    inputs: ViewInputs
+    program: Any = None            # toolpath Program
+    profile: MachineProfile | None = None
+    aligned: Any = None            # align's result (.points, .blocks, .cycle_time_s)
+    sim: Any = None                # SimResult
+    notes: list[str] = field(default_factory=list)
+
+
+def recording_profile(recording: Recording, *, override: str | Path | None = None) -> MachineProfile | None:
+    """The profile named on the command line, else the one attached to the recording, else None."""
+    if override is not None:
+        return load_profile(override)
+    data = recording.attachments.get(PROFILE_ATTACHMENT)
+    if data is not None:
+        return MachineProfile.from_toml(data.decode("utf-8"), source=f"{recording.source}:{PROFILE_ATTACHMENT}")
+    machine = recording.metadata.get("machine", "")
+    if machine:
+        try:
+            return load_profile(machine)
+        except FeedlogError:
+            return None
+    return None
+
+
+def load_program(recording: Recording, *, program: str | Path | None = None, name: str = "program"):
+    """Parse the given program file, else the program attached to the recording; None when neither."""
+    parse_program = stage_function("parse_program")
+    if program is not None:
+        return parse_program(Path(program))
+    text = recording.program_text
+    if text is None:
+        return None
+    return parse_program(text, name=f"{name}.ngc")
+
+
+def measured_blocks_of(aligned: Any) -> pd.DataFrame | None:
+    """align's block table restricted to the columns viz reads."""
+    blocks = getattr(aligned, "blocks", None)
+    if blocks is None or not len(blocks):
+        return None
+    return blocks[["block", "t_start_ns", "t_end_ns", "duration_s"]].copy()
+
+
+def gather(recording: Recording, *, name: str, program: str | Path | None = None,
+           profile: str | Path | MachineProfile | None = None, simulate: bool = True, align: bool = True,
+           models: list[ModelPrediction] | None = None, arrow_every: int = 50) -> Gathered:
+    """Everything available to overlay on `recording`; what is not is named in `.notes`."""
+    notes: list[str] = []
+    prof = profile if isinstance(profile, MachineProfile) else recording_profile(recording, override=profile)
+    if prof is None:
+        notes.append("no machine profile (none attached, none given): no simulation, rapids not drawn as commanded")
+
+    prog = path = None
+    try:
+        prog = load_program(recording, program=program, name=name)
+        if prog is None:
+            notes.append("no part program (none attached, none given): programmed path and blocks not shown")
+        else:
+            path = stage_function("cl_points")(prog)
+    except StageMissing as exc:
+        notes.append(f"toolpath: {exc}")
+
+    aligned = None
+    if align and prog is not None:
+        try:
+            aligned = stage_function("align_recording")(recording, prog, profile=prof)
+        except StageMissing as exc:
+            notes.append(f"align: {exc}; block times taken from the recording's line stream")
+        except FeedlogError as exc:
+            notes.append(f"align failed: {exc}; block times taken from the recording's line stream")
+
+    sim = None
+    if simulate and prog is not None and prof is not None:
+        try:
+            sim = stage_function("simulate")(prog, prof)
+        except StageMissing as exc:
+            notes.append(f"sim: {exc}")
+        except FeedlogError as exc:
+            notes.append(f"simulation failed: {exc}")
+
+    inputs = ViewInputs(
+        recording=recording, name=name,
+        program_blocks=None if prog is None else prog.blocks,
+        program_path=path,
+        sim_series=None if sim is None else sim.series,
+        sim_blocks=None if sim is None else sim.blocks,
+        measured_blocks=None if aligned is None else measured_blocks_of(aligned),
+        models=list(models or []),
+        rapid_mm_min=None if prof is None else prof.rapid_mm_min,
+        arrow_every=arrow_every,
+    )
+    return Gathered(inputs=inputs, program=prog, profile=prof, aligned=aligned, sim=sim, notes=notes)
+
+
+def finite_or_none(value: Any) -> float | None:
+    """A float for tables and JSON, None for missing or non-finite values."""
+    if value is None:
+        return None
+    value = float(value)
+    return value if np.isfinite(value) else None
