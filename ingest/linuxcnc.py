@@ -1,0 +1,152 @@
+"""The `linuxcnc` recording source: run a part program on LinuxCNC and record every servo period.
+
+`feedlog record --source linuxcnc --ini MACHINE.ini PROGRAM.ngc -o recordings/NAME.mcap` starts
+LinuxCNC headless with feedlog's driver and recorder HAL (linuxcnc_session), homes, runs the program
+and writes a feedlog recording (streams axes, joints, feed, line, status at the servo rate) with the
+program, the INI and the matching machine profile attached. `record_linuxcnc()` is the same as a
+function. Attaching to an already running LinuxCNC is described in docs/linuxcnc.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import shutil
+from pathlib import Path
+from typing import Any
+
+from feedlog.errors import FeedlogError, IngestError
+from feedlog.ingest.linuxcnc_capture import load_capture, motion_span
+from feedlog.ingest.linuxcnc_session import MachineIni, cleanup, run_session, session_error
+from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording
+from feedlog.ingest.writer import write_recording
+from feedlog.profile import load_profile
+
+INI_ATTACHMENT = "machine.ini"
+CONTROLLER = "LinuxCNC"
+# INI [KINS] KINEMATICS module -> shipped machine profile
+PROFILE_BY_KINEMATICS = {"trivkins": "linuxcnc-xyz", "xyzac-trt-kins": "linuxcnc-xyzac"}
+
+
+def profile_for_ini(ini: MachineIni) -> str:
+    """The shipped profile that matches the INI's kinematics (`--profile` overrides it)."""
+    kins = (ini.get("KINS", "KINEMATICS") or "").split()
+    module = kins[0] if kins else ""
+    name = PROFILE_BY_KINEMATICS.get(module)
+    if name is None:
+        raise IngestError(f"no shipped machine profile for kinematics {module!r}; pass --profile "
+                          f"(known: {', '.join(f'{k} -> {v}' for k, v in PROFILE_BY_KINEMATICS.items())})",
+                          file=str(ini.path))
+    return name
+
+
+def _profile_toml(profile: str | None, ini: MachineIni) -> tuple[str, bytes]:
+    spec = profile or profile_for_ini(ini)
+    loaded = load_profile(spec)
+    path = Path(spec)
+    if path.suffix == ".toml" and path.is_file():
+        return loaded.name, path.read_bytes()
+    from importlib import resources
+    return loaded.name, resources.files("feedlog.profiles").joinpath(f"{spec}.toml").read_bytes()
+
+
+def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, profile: str | None = None,
+                    isolate: bool = False, timeout_s: float = 600.0, overwrite: bool = False,
+                    compression: str = "zstd", notes: str = "") -> dict[str, Any]:
+    """Run `program` on the LinuxCNC machine `ini`, write the recording to `out`, return a summary.
+
+    A G-code error raises ProgramError (file, line, LinuxCNC's message); if the machine had already
+    moved, what was recorded up to then is still written to `out` (metadata `status = aborted`).
+    """
+    ini_cfg = MachineIni.read(ini)
+    program = Path(program)
+    out = Path(out)
+    if not program.is_file():
+        raise IngestError("program not found", file=str(program))
+    if out.exists() and not overwrite:
+        raise IngestError("output exists; pass --overwrite to replace it", file=str(out))
+    profile_name, profile_toml = _profile_toml(profile, ini_cfg)
+    period_ns = ini_cfg.servo_period_ns
+    session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s)
+    try:
+        report = session.report
+        error = session_error(report, program)
+        streams, missing = load_capture(session.sample_files, session.layout, period_ns=period_ns,
+                                        linear_units=ini_cfg.linear_units, source=str(program))
+    finally:
+        cleanup(session)
+    span = motion_span(streams["axes"], period_ns)
+    if error is not None and span is None:
+        raise error  # nothing moved: no recording to keep
+    motion_time_s = float(report.get("motion_time_end_s", float("nan"))) - float(report.get("motion_time_start_s", 0.0))
+    metadata = {
+        "machine": profile_name,
+        "controller": f"{CONTROLLER} {report.get('linuxcnc_version', '')}".strip(),
+        "units": "mm, deg, s",
+        "nominal_rate_hz": f"{1e9 / period_ns:g}",
+        "start_time": dt.datetime.fromtimestamp(float(report.get("run_wall_start", 0.0)),
+                                                tz=dt.timezone.utc).isoformat(timespec="milliseconds"),
+        "notes": notes,
+        "source": "linuxcnc",
+        "program": program.name,
+        "ini": Path(ini).name,
+        "servo_period_ns": str(period_ns),
+        "cycle_time_s": f"{span.cycle_time_s:.6f}" if span else "",
+        "motion_start_ns": str(int(streams["axes"]["t_ns"].iloc[span.first])) if span else "",
+        "motion_end_ns": str(int(streams["axes"]["t_ns"].iloc[span.last])) if span else "",
+        "linuxcnc_motion_time_s": f"{motion_time_s:.6f}",
+        "sampler_overruns": str(int(report.get("overruns", 0))),
+        "status": "complete" if error is None else f"aborted: {error}",
+    }
+    attachments = {
+        PROGRAM_ATTACHMENT: program.read_bytes(),
+        INI_ATTACHMENT: ini_cfg.text.encode(),
+        PROFILE_ATTACHMENT: profile_toml,
+    }
+    recording = Recording(streams=streams, metadata=metadata, attachments=attachments,
+                          dropped_frames=missing + int(report.get("overruns", 0)), source=str(out))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    write_recording(out, recording, overwrite=overwrite, compression=compression)
+    if error is not None:
+        error.message = f"{error.message} (recording up to the error kept in {out})"
+        error.args = (error._render(),)
+        raise error
+    return {
+        "out": str(out),
+        "program": str(program),
+        "machine": profile_name,
+        "samples": int(len(streams["axes"])),
+        "dropped_frames": recording.dropped_frames,
+        "cycle_time_s": span.cycle_time_s if span else 0.0,
+        "linuxcnc_motion_time_s": motion_time_s,
+        "duration_s": recording.duration_s,
+        "wall_s": round(session.wall_s, 3),
+    }
+
+
+# ---- source registry interface (feedlog.ingest.cli_record) ---------------------------------------
+
+def add_arguments(group: argparse._ArgumentGroup) -> None:
+    group.add_argument("--ini", type=Path, help="LinuxCNC machine INI (e.g. configs/xyz.ini)")
+    group.add_argument("--isolate", action="store_true",
+                       help="run LinuxCNC in private namespaces (root only; allows parallel sessions)")
+    group.add_argument("--attach", action="store_true",
+                       help="record a LinuxCNC that is already running (see docs/linuxcnc.md)")
+    group.add_argument("--timeout-s", type=float, default=600.0, help="give up after this long (default 600)")
+
+
+def record(args: argparse.Namespace) -> dict[str, Any]:
+    if getattr(args, "attach", False):
+        from feedlog.ingest.linuxcnc_attach import attach_linuxcnc
+        return attach_linuxcnc(args.ini, args.out, program=getattr(args, "program", None),
+                               profile=getattr(args, "profile", None), timeout_s=args.timeout_s,
+                               overwrite=getattr(args, "overwrite", False))
+    if args.ini is None:
+        raise FeedlogError("--source linuxcnc needs --ini MACHINE.ini")
+    if getattr(args, "program", None) is None:
+        raise FeedlogError("--source linuxcnc needs a PROGRAM.ngc to run")
+    if shutil.which("linuxcnc") is None:
+        raise FeedlogError("LinuxCNC is not installed here (apt-get install linuxcnc-uspace)")
+    return record_linuxcnc(args.ini, args.program, args.out, profile=getattr(args, "profile", None),
+                           isolate=args.isolate, timeout_s=args.timeout_s,
+                           overwrite=getattr(args, "overwrite", False))

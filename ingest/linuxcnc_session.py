@@ -1,0 +1,276 @@
+"""Start LinuxCNC headless on one program with feedlog's driver and recorder, and collect what it wrote.
+
+The machine INI is copied into a private work directory with two changes: `[DISPLAY] DISPLAY` names
+our driver (linuxcnc_driver.py, run by Debian's python3) and the recorder haltcl file
+(linuxcnc_hal.recorder_tcl) replaces the INI's recording HALFILE (one named `record*.tcl`) or is
+appended after the last HALFILE. Relative HALFILE/TOOL_TABLE paths keep pointing at the INI's folder.
+
+As root, `rtapi_app` needs `RTAPI_UID` (a non-root uid) and `RTAPI_FIFO_PATH` in a folder that uid can
+write. `isolate=True` runs the whole stack in private IPC/PID/mount/net/UTS namespaces with its own
+/tmp, so several sessions (or a teammate's) never share LinuxCNC's shared memory, lock file or port.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from feedlog.errors import FeedlogError, IngestError, ProgramError
+from feedlog.ingest.linuxcnc_hal import ENABLE_SIGNAL, MOTION_TIME_COMPONENT, SamplerLayout, recorder_tcl, \
+    standard_layout
+
+DRIVER_SOURCE = Path(__file__).with_name("linuxcnc_driver.py")
+DEBIAN_PYTHON = "/usr/bin/python3"
+NOBODY_UID = 65534
+_SECTION = re.compile(r"^\s*\[([^\]]+)\]\s*$")
+_KEY = re.compile(r"^\s*([A-Za-z0-9_]+)\s*=\s*(.*?)\s*$")
+_LINE_IN_TEXT = re.compile(r"(?:on|near) line (\d+)", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class MachineIni:
+    """The parts of a LinuxCNC INI the recorder needs (all values as written, first occurrence)."""
+
+    path: Path
+    text: str
+    values: dict[tuple[str, str], list[str]] = field(default_factory=dict)
+
+    @classmethod
+    def read(cls, path: str | os.PathLike) -> "MachineIni":
+        p = Path(path)
+        try:
+            text = p.read_text()
+        except OSError as exc:
+            raise IngestError(f"cannot read LinuxCNC INI: {exc.strerror}", file=str(p)) from None
+        values: dict[tuple[str, str], list[str]] = {}
+        section = ""
+        for raw in text.splitlines():
+            line = raw.split("#", 1)[0] if raw.lstrip().startswith("#") else raw
+            m = _SECTION.match(line)
+            if m:
+                section = m.group(1).strip().upper()
+                continue
+            m = _KEY.match(line)
+            if m and section:
+                values.setdefault((section, m.group(1).upper()), []).append(m.group(2))
+        ini = cls(path=p.resolve(), text=text, values=values)
+        for key in (("TRAJ", "COORDINATES"), ("KINS", "JOINTS"), ("EMCMOT", "SERVO_PERIOD")):
+            if ini.get(*key) is None:
+                raise IngestError(f"LinuxCNC INI lacks [{key[0]}] {key[1]}", file=str(p))
+        return ini
+
+    def get(self, section: str, key: str) -> str | None:
+        found = self.values.get((section.upper(), key.upper()))
+        return found[0] if found else None
+
+    @property
+    def coordinates(self) -> str:
+        return str(self.get("TRAJ", "COORDINATES")).replace(" ", "").upper()
+
+    @property
+    def joints(self) -> int:
+        return int(str(self.get("KINS", "JOINTS")))
+
+    @property
+    def servo_period_ns(self) -> int:
+        return int(float(str(self.get("EMCMOT", "SERVO_PERIOD"))))
+
+    @property
+    def linear_units(self) -> str:
+        return (self.get("TRAJ", "LINEAR_UNITS") or "mm").strip()
+
+    def layout(self) -> SamplerLayout:
+        return standard_layout(self.coordinates, self.joints)
+
+    def rewritten(self, *, display: str, recorder: Path) -> str:
+        """INI text with our DISPLAY and recorder HALFILE; relative file paths made absolute."""
+        out: list[str] = []
+        section = ""
+        placed = False
+        last_halfile = -1
+        for raw in self.text.splitlines():
+            m = _SECTION.match(raw)
+            if m:
+                section = m.group(1).strip().upper()
+                out.append(raw)
+                continue
+            m = _KEY.match(raw) if not raw.lstrip().startswith("#") else None
+            key = m.group(1).upper() if m else ""
+            value = m.group(2) if m else ""
+            if section == "DISPLAY" and key == "DISPLAY":
+                out.append(f"DISPLAY = {display}")
+                continue
+            if section == "HAL" and key == "HALFILE":
+                first = value.split()[0] if value.split() else ""
+                if re.match(r"record.*\.tcl$", Path(first).name):
+                    out.append(f"HALFILE = {recorder}")
+                    placed = True
+                    last_halfile = len(out) - 1
+                    continue
+                if first and not first.startswith("LIB:") and not Path(first).is_absolute():
+                    value = value.replace(first, str(self.path.parent / first), 1)
+                out.append(f"HALFILE = {value}")
+                last_halfile = len(out) - 1
+                continue
+            if section == "EMCIO" and key == "TOOL_TABLE" and not Path(value).is_absolute():
+                src = self.path.parent / value
+                out.append(f"TOOL_TABLE = {src if src.exists() else 'feedlog.tbl'}")
+                continue
+            out.append(raw)
+        if not placed:
+            if last_halfile < 0:
+                raise IngestError("LinuxCNC INI has no [HAL] HALFILE to attach the recorder after",
+                                  file=str(self.path))
+            out.insert(last_halfile + 1, f"HALFILE = {recorder}")
+        return "\n".join(out) + "\n"
+
+
+@dataclass
+class SessionResult:
+    """What one LinuxCNC run left behind: per-sampler capture files and the driver's report."""
+
+    workdir: Path
+    sample_files: list[Path]
+    layout: SamplerLayout
+    report: dict
+    log: str
+    wall_s: float
+
+
+def linuxcnc_available() -> str | None:
+    """None when LinuxCNC can run here, else the reason it cannot."""
+    for tool in ("linuxcnc", "halsampler", "halcmd"):
+        if shutil.which(tool) is None:
+            return f"LinuxCNC is not installed ({tool} not on PATH; apt-get install linuxcnc-uspace)"
+    if not Path(DEBIAN_PYTHON).exists():
+        return f"{DEBIAN_PYTHON} (which carries the linuxcnc module) is missing"
+    return None
+
+
+def _workdir(isolate: bool) -> Path:
+    # an isolated session gets a private /tmp, so its files must live elsewhere to be seen from here
+    base = "/var/tmp" if isolate and Path("/var/tmp").is_dir() else None
+    path = Path(tempfile.mkdtemp(prefix="feedlog-linuxcnc-", dir=base))
+    path.chmod(0o755)
+    return path
+
+
+def _launch_command(ini_path: Path, *, isolate: bool) -> list[str]:
+    if not isolate:
+        return ["linuxcnc", "-r", str(ini_path)]
+    inner = f"mount -t tmpfs tmpfs /tmp && ip link set lo up && exec linuxcnc -r '{ini_path}'"
+    return ["unshare", "--ipc", "--pid", "--mount", "--net", "--uts", "--fork", "--mount-proc",
+            "sh", "-c", inner]
+
+
+def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeout_s: float = 600.0,
+                keep_workdir: bool = False) -> SessionResult:
+    """Run `program` on the machine `ini` from homing to program end; return the capture.
+
+    Errors of the run itself (G-code errors, aborts) are in the report: see session_error(). Call
+    cleanup() once the capture files are read. keep_workdir keeps the folder also when this raises.
+    """
+    reason = linuxcnc_available()
+    if reason:
+        raise IngestError(reason)
+    if isolate and os.geteuid() != 0:
+        raise IngestError("isolate=True needs root (unshare of mount/net/pid namespaces)")
+    layout = ini.layout()
+    workdir = _workdir(isolate)
+    try:
+        driver = workdir / "driver.py"
+        shutil.copyfile(DRIVER_SOURCE, driver)
+        driver.chmod(0o755)
+        recorder = workdir / "record.tcl"
+        recorder.write_text(recorder_tcl(layout))
+        (workdir / "feedlog.tbl").write_text("T1 P1 D6.0 ;feedlog placeholder tool\n")
+        job_path = workdir / "job.json"
+        sample_files = [workdir / f"sampler{c}.txt" for c in layout.channels]
+        # a private /tmp hides the caller's files: the program runs from a copy in the work directory
+        (workdir / "program").mkdir()
+        program_copy = workdir / "program" / program.name
+        try:
+            shutil.copyfile(program, program_copy)
+        except OSError as exc:
+            raise IngestError(f"cannot read program: {exc.strerror}", file=str(program)) from None
+        job = {"program": str(program_copy), "channels": layout.channels,
+               "sample_files": [str(p) for p in sample_files], "result": str(workdir / "result.json"),
+               "enable_signal": ENABLE_SIGNAL, "motion_time_pin": f"{MOTION_TIME_COMPONENT}.out",
+               "timeout_s": timeout_s}
+        job_path.write_text(json.dumps(job))
+        ini_path = workdir / "machine.ini"
+        ini_path.write_text(ini.rewritten(display=f"{driver} {job_path}", recorder=recorder))
+        fifo = workdir / "rtapi_fifo"
+        fifo.mkdir(mode=0o777)
+        fifo.chmod(0o777)
+        env = dict(os.environ, HOME=str(workdir), RTAPI_FIFO_PATH=str(fifo / "rtapi_fifo"))
+        env.pop("DISPLAY", None)
+        if os.geteuid() == 0:
+            env["RTAPI_UID"] = str(NOBODY_UID)
+        log_path = workdir / "linuxcnc.log"
+        t0 = time.monotonic()
+        with open(log_path, "w") as log:
+            proc = subprocess.Popen(_launch_command(ini_path, isolate=isolate), cwd=workdir, env=env,
+                                    stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                                    start_new_session=True)
+            try:
+                proc.wait(timeout=timeout_s + 30)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGTERM)
+                try:
+                    proc.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                    proc.wait()
+        wall_s = time.monotonic() - t0
+        log_text = log_path.read_text(errors="replace")
+        result_path = Path(job["result"])
+        if not result_path.exists():
+            tail = "\n".join(log_text.strip().splitlines()[-12:])
+            raise IngestError(f"LinuxCNC did not run the driver to the end (exit {proc.returncode}); "
+                              f"log tail:\n{tail}", file=str(ini.path))
+        report = json.loads(result_path.read_text())
+    except BaseException:
+        if not keep_workdir:
+            shutil.rmtree(workdir, ignore_errors=True)
+        raise
+    # the caller reads the captures (also of an aborted run: recorded data is kept) and then cleans up
+    return SessionResult(workdir=workdir, sample_files=sample_files, layout=layout, report=report,
+                         log=log_text, wall_s=wall_s)
+
+
+def cleanup(result: SessionResult) -> None:
+    shutil.rmtree(result.workdir, ignore_errors=True)
+
+
+def session_error(report: dict, program: Path) -> FeedlogError | None:
+    """What went wrong in a session, as our error; None when it ran to the end."""
+    if report.get("errors"):
+        return program_error(report, program)
+    if report.get("abort") or not report.get("ok"):
+        return IngestError(f"LinuxCNC session aborted in phase {report.get('phase')}: "
+                           f"{report.get('abort', 'unknown reason')}", file=str(program))
+    return None
+
+
+def program_error(report: dict, program: Path) -> ProgramError:
+    """LinuxCNC's own G-code errors become a ProgramError naming the file and line."""
+    errors = report["errors"]
+    first = errors[0]
+    text = " ".join(str(first.get("text", "")).split())
+    m = _LINE_IN_TEXT.search(text)
+    line = int(m.group(1)) if m else (first.get("motion_line") or first.get("current_line") or None)
+    more = f" (+{len(errors) - 1} more)" if len(errors) > 1 else ""
+    return ProgramError(f"LinuxCNC: {text}{more}", file=str(program), line=line)
+
+
+__all__ = ["MachineIni", "SessionResult", "cleanup", "linuxcnc_available", "program_error", "run_session",
+           "session_error"]
