@@ -1,0 +1,250 @@
+"""Constrained nearest-point matching of the program's cutter-location (CL) points to the measured path.
+
+Sun et al. (2022, §2.2) give each CL point the measured feed of the closest measured point. Plain
+nearest-neighbour search breaks on programs that pass the same place twice (pocket rings, zig-zags,
+crossings, a finishing pass over a roughing pass): the closest sample may belong to another pass. Here
+every CL point is projected onto the measured *polyline* (segments between consecutive samples, so that
+5 Hz data with one sample every few mm still matches within the path tolerance), and the search is
+constrained to progress along the program:
+
+1. The measured path is reduced to vertices at least `resolution_mm` of path length apart (standstill
+   and dwell collapse to their first and last sample; nothing moves between them), and its cumulative
+   length S is computed.
+2. The first CL point that the tool reaches fixes the start: the *earliest* passage within `tol_mm`.
+3. CL points are then processed in order, in chunks. Within a chunk, CL point k may only match measured
+   segments whose length coordinate lies within +-W_k of its prediction S_anchor + (s_k - s_anchor),
+   where the anchor is the last well-matched point of the previous chunk and
+   W_k = window_mm + drift x (s_k - s_anchor) allows for corner blending, chords and noise. A pass that
+   comes back to the same place is a whole pass length away in S and so never inside the window.
+4. Progress is made monotone (a running maximum over the matched positions); a point pushed forward is
+   re-measured at its new position.
+
+Every match returns the fractional sample index, the time (interpolated between samples) and the
+distance. Points farther than `tol_mm` (among those checked) raise `AlignmentError` listing the worst.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from feedlog.errors import AlignmentError
+
+
+@dataclass(frozen=True)
+class MatchConfig:
+    tol_mm: float = 0.1            # largest allowed CL-point-to-measured-path distance
+    window_mm: float | None = None  # base half-window in path length; None: max(2 mm, 3 x sample spacing)
+    drift: float = 0.2             # extra window per mm of program since the anchor
+    chunk_points: int = 256        # CL points per chunk
+    chunk_mm: float = 50.0         # program length per chunk (at least one point)
+    resolution_mm: float = 1e-3    # vertex spacing of the reduced measured path
+
+    def __post_init__(self) -> None:
+        if not self.tol_mm > 0:
+            raise AlignmentError(f"tol_mm must be > 0, got {self.tol_mm}")
+        if self.window_mm is not None and not self.window_mm > 0:
+            raise AlignmentError(f"window_mm must be > 0, got {self.window_mm}")
+        if not 0 <= self.drift < 1:
+            raise AlignmentError(f"drift must be in [0, 1), got {self.drift}")
+        if self.chunk_points < 1 or not self.chunk_mm > 0:
+            raise AlignmentError(f"chunk_points >= 1 and chunk_mm > 0 needed, got {self.chunk_points}, {self.chunk_mm}")
+        if not self.resolution_mm > 0:
+            raise AlignmentError(f"resolution_mm must be > 0, got {self.resolution_mm}")
+
+
+@dataclass
+class Match:
+    """Per CL point: where on the measured path it matched."""
+
+    index: np.ndarray      # fractional index into the measured samples (NaN: unmatched)
+    t_ns: np.ndarray       # matched time, int64 (min int64 where unmatched)
+    dist_mm: np.ndarray    # distance CL point -> measured path (NaN: unmatched)
+    s_meas_mm: np.ndarray  # measured path length at the match
+    nearest: np.ndarray    # nearest measured sample index (int64, -1: unmatched)
+    t_depart_ns: np.ndarray  # when the tool left the point again (> t_ns after a stop or dwell)
+
+    @property
+    def matched(self) -> np.ndarray:
+        return np.isfinite(self.index)
+
+
+NO_TIME = np.iinfo(np.int64).min
+TIE_MM = 1e-6
+
+
+def reduce_path(positions: np.ndarray, resolution_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of vertices at least ~resolution_mm of path length apart (first and last sample of every
+    bin kept, so standstills keep their start and end) and the cumulative length at every sample."""
+    s = np.concatenate([[0.0], np.cumsum(np.sqrt((np.diff(positions, axis=0) ** 2).sum(axis=1)))])
+    b = np.floor(s / resolution_mm).astype(np.int64)
+    keep = np.zeros(len(s), dtype=bool)
+    keep[0] = keep[-1] = True
+    change = b[1:] != b[:-1]
+    keep[1:] |= change
+    keep[:-1] |= change
+    return np.flatnonzero(keep), s
+
+
+def _project(c: np.ndarray, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
+    """Project points c (..., 3) onto segments p0 + u d (..., 3); returns u in [0, 1] and distance."""
+    w = c - p0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = np.where(dd > 0, (w * d).sum(axis=-1) / np.where(dd > 0, dd, 1.0), 0.0)
+    u = np.clip(u, 0.0, 1.0)
+    r = w - u[..., None] * d
+    return u, np.sqrt((r * r).sum(axis=-1))
+
+
+def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray, *,
+                    s_mm: np.ndarray | None = None, config: MatchConfig | None = None,
+                    check: np.ndarray | None = None, labels: list[str] | None = None) -> Match:
+    """Match ordered CL points (k, 3) to the measured path (`t_ns` (n,), `positions` (n, 3)).
+
+    `s_mm`: the program's cumulative length at each CL point (default: chord length of `cl_xyz`).
+    `check`: which points the tolerance applies to (default all finite ones); `labels` name points in
+    the error message (e.g. "block 12 (line 40)").
+    """
+    cfg = config or MatchConfig()
+    cl = np.asarray(cl_xyz, dtype=np.float64)
+    pos = np.asarray(positions, dtype=np.float64)
+    t = np.asarray(t_ns, dtype=np.int64)
+    k_all = len(cl)
+    if len(pos) != len(t):
+        raise AlignmentError(f"{len(t)} timestamps but {len(pos)} positions")
+    if len(pos) < 2:
+        raise AlignmentError(f"the measured path needs at least 2 samples, got {len(pos)}")
+    finite_cl = np.isfinite(cl).all(axis=1)
+    if s_mm is None:
+        seg = np.sqrt((np.diff(np.where(finite_cl[:, None], cl, 0.0), axis=0) ** 2).sum(axis=1))
+        seg[~(finite_cl[1:] & finite_cl[:-1])] = 0.0
+        s_mm = np.concatenate([[0.0], np.cumsum(seg)])
+    s_prog = np.asarray(s_mm, dtype=np.float64)
+
+    keep, s_full = reduce_path(pos, cfg.resolution_mm)
+    v = pos[keep]
+    sv = s_full[keep]
+    p0, d = v[:-1], np.diff(v, axis=0)
+    dd = (d * d).sum(axis=1)
+    nseg = len(p0)
+    spacing = float(np.median(np.diff(sv))) if nseg else 0.0
+    w0 = cfg.window_mm if cfg.window_mm is not None else max(2.0, 3.0 * spacing, 4.0 * cfg.tol_mm)
+
+    seg_of = np.full(k_all, -1, dtype=np.int64)
+    u_of = np.full(k_all, np.nan)
+    dist = np.full(k_all, np.nan)
+
+    # 2. start: the earliest passage of the first reachable CL point within tolerance
+    order = np.flatnonzero(finite_cl)
+    start = None
+    for k in order[: min(len(order), 64)]:
+        u, dk = _project(cl[k][None, :], p0, d, dd)
+        near = np.flatnonzero(dk <= cfg.tol_mm)
+        if len(near):
+            j = int(near[0])
+            # walk to the local minimum of this passage
+            run_end = j
+            while run_end + 1 < nseg and dk[run_end + 1] <= cfg.tol_mm:
+                run_end += 1
+            j = j + int(np.argmin(dk[j:run_end + 1]))
+            seg_of[k], u_of[k], dist[k] = j, u[j], dk[j]
+            start = k
+            break
+    if start is None:
+        raise AlignmentError(f"the measured path never comes within {cfg.tol_mm} mm of the program's first "
+                             f"points (e.g. {np.round(cl[order[0]], 3).tolist() if len(order) else '-'}); wrong "
+                             "program, units or work offset?")
+    anchor_s, anchor_S = s_prog[start], sv[seg_of[start]] + u_of[start] * np.sqrt(dd[seg_of[start]])
+
+    # 3. chunks of CL points after the start
+    rest = order[order > start]
+    i = 0
+    seg_len = np.sqrt(dd)
+    while i < len(rest):
+        hi_i = min(i + cfg.chunk_points, len(rest))
+        limit = s_prog[rest[i]] + cfg.chunk_mm
+        cut = int(np.searchsorted(s_prog[rest[i:hi_i]], limit, side="right"))
+        hi_i = i + max(1, cut)
+        ks = rest[i:hi_i]
+        ds = np.maximum(s_prog[ks] - anchor_s, 0.0)
+        pred = anchor_S + ds
+        win = w0 + cfg.drift * ds
+        lo = np.clip(np.searchsorted(sv, pred - win, side="right") - 1, 0, max(nseg - 1, 0))
+        hi = np.clip(np.searchsorted(sv, pred + win, side="left"), 0, max(nseg - 1, 0))
+        band = int((hi - lo).max()) + 1
+        idx = lo[:, None] + np.arange(band)[None, :]
+        valid = idx <= hi[:, None]
+        idx = np.minimum(idx, nseg - 1)
+        u, dk = _project(cl[ks][:, None, :], p0[idx], d[idx], dd[idx])
+        dk = np.where(valid, dk, np.inf)
+        # earliest of the (near-)equally close candidates: arrival, not departure, at a standstill
+        near_best = dk <= dk.min(axis=1, keepdims=True) + TIE_MM
+        best = np.argmax(near_best, axis=1)
+        rows = np.arange(len(ks))
+        seg_of[ks] = idx[rows, best]
+        u_of[ks] = u[rows, best]
+        dist[ks] = dk[rows, best]
+        good = ks[dist[ks] <= cfg.tol_mm]
+        if len(good):
+            a = good[-1]
+            anchor_s, anchor_S = s_prog[a], sv[seg_of[a]] + u_of[a] * seg_len[seg_of[a]]
+        i = hi_i
+
+    # 4. monotone progress
+    m = seg_of >= 0
+    frac = np.where(m, seg_of + np.nan_to_num(u_of), np.nan)
+    mono = frac.copy()
+    mono[m] = np.maximum.accumulate(frac[m])
+    pushed = m & (mono > frac)
+    if pushed.any():
+        j = np.minimum(np.floor(mono[pushed]).astype(np.int64), nseg - 1)
+        uu = mono[pushed] - j
+        q = p0[j] + uu[:, None] * d[j]
+        dist[pushed] = np.sqrt(((cl[pushed] - q) ** 2).sum(axis=1))
+        seg_of[pushed], u_of[pushed] = j, uu
+
+    # map reduced segments back to samples and times
+    index = np.full(k_all, np.nan)
+    t_match = np.full(k_all, NO_TIME, dtype=np.int64)
+    s_meas = np.full(k_all, np.nan)
+    nearest = np.full(k_all, -1, dtype=np.int64)
+    depart = np.full(k_all, NO_TIME, dtype=np.int64)
+    if m.any():
+        j, uu = seg_of[m], u_of[m]
+        a, b = keep[j], keep[j + 1]
+        # inside a reduced segment the path is (nearly) straight: locate by length, not by sample count
+        s_at = sv[j] + uu * seg_len[j]
+        sub = np.searchsorted(s_full, s_at, side="left") - 1
+        sub = np.clip(np.maximum(sub, a), a, np.maximum(b - 1, a))
+        span = s_full[sub + 1] - s_full[sub] if len(s_full) > 1 else np.zeros(len(sub))
+        f = np.where(span > 0, (s_at - s_full[sub]) / np.where(span > 0, span, 1.0), 0.0)
+        f = np.clip(f, 0.0, 1.0)
+        index[m] = sub + f
+        t_match[m] = t[sub] + np.rint(f * (t[np.minimum(sub + 1, len(t) - 1)] - t[sub])).astype(np.int64)
+        s_meas[m] = s_at
+        nearest[m] = np.where(f < 0.5, sub, np.minimum(sub + 1, len(t) - 1))
+        # departure: the last sample still within resolution_mm of path length of the match
+        last_here = np.searchsorted(s_full, s_at + cfg.resolution_mm, side="right") - 1
+        depart[m] = np.maximum(t_match[m], t[np.clip(last_here, 0, len(t) - 1)])
+    result = Match(index=index, t_ns=t_match, dist_mm=dist, s_meas_mm=s_meas, nearest=nearest,
+                   t_depart_ns=depart)
+
+    checked = finite_cl if check is None else (np.asarray(check, dtype=bool) & finite_cl)
+    bad = checked & ~(dist <= cfg.tol_mm)
+    if bad.any():
+        raise AlignmentError(violation_message(np.flatnonzero(bad), dist, cl, cfg.tol_mm, labels))
+    return result
+
+
+def violation_message(bad: np.ndarray, dist: np.ndarray, cl: np.ndarray, tol_mm: float,
+                      labels: list[str] | None, worst: int = 5) -> str:
+    d = np.where(np.isfinite(dist[bad]), dist[bad], np.inf)
+    order = bad[np.argsort(-d)][:worst]
+    parts = []
+    for k in order:
+        name = labels[k] if labels is not None else f"CL point {k}"
+        dk = "unmatched" if not np.isfinite(dist[k]) else f"{dist[k]:.4f} mm"
+        parts.append(f"{name} at ({cl[k, 0]:.3f}, {cl[k, 1]:.3f}, {cl[k, 2]:.3f}): {dk}")
+    return (f"{len(bad)} of the program's CL points are farther than tol_mm={tol_mm} from the measured path; "
+            f"worst: " + "; ".join(parts))
