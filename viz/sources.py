@@ -68,9 +68,15 @@ def measured_blocks_of(aligned: Any) -> pd.DataFrame | None:
 
 def gather(recording: Recording, *, name: str, program: str | Path | None = None,
            profile: str | Path | MachineProfile | None = None, simulate: bool = True, align: bool = True,
-           models: list[ModelPrediction] | None = None, arrow_every: int = 50) -> Gathered:
-    """Everything available to overlay on `recording`; what is not is named in `.notes`."""
+           models: list[ModelPrediction] | None = None, arrow_every: int = 50,
+           catch_bugs: bool = False) -> Gathered:
+    """Everything available to overlay on `recording`; what is not is named in `.notes`.
+
+    With `catch_bugs` an unexpected exception inside align or sim becomes a note too (the demo must
+    finish with the stages that work); otherwise it propagates.
+    """
     notes: list[str] = []
+    caught = Exception if catch_bugs else FeedlogError
     prof = profile if isinstance(profile, MachineProfile) else recording_profile(recording, override=profile)
     if prof is None:
         notes.append("no machine profile (none attached, none given): no simulation, rapids not drawn as commanded")
@@ -84,6 +90,10 @@ def gather(recording: Recording, *, name: str, program: str | Path | None = None
             path = stage_function("cl_points")(prog)
     except StageMissing as exc:
         notes.append(f"toolpath: {exc}")
+    except Exception as exc:  # noqa: BLE001 - a bad program is the user's error in `view`, a note in the demo
+        if not catch_bugs:
+            raise
+        notes.append(f"toolpath failed: {_describe(exc)}")
 
     aligned = None
     if align and prog is not None:
@@ -91,8 +101,8 @@ def gather(recording: Recording, *, name: str, program: str | Path | None = None
             aligned = stage_function("align_recording")(recording, prog, profile=prof)
         except StageMissing as exc:
             notes.append(f"align: {exc}; block times taken from the recording's line stream")
-        except FeedlogError as exc:
-            notes.append(f"align failed: {exc}; block times taken from the recording's line stream")
+        except caught as exc:
+            notes.append(f"align failed: {_describe(exc)}; block times taken from the recording's line stream")
 
     sim = None
     if simulate and prog is not None and prof is not None:
@@ -100,8 +110,8 @@ def gather(recording: Recording, *, name: str, program: str | Path | None = None
             sim = stage_function("simulate")(prog, prof)
         except StageMissing as exc:
             notes.append(f"sim: {exc}")
-        except FeedlogError as exc:
-            notes.append(f"simulation failed: {exc}")
+        except caught as exc:
+            notes.append(f"simulation failed: {_describe(exc)}")
 
     inputs = ViewInputs(
         recording=recording, name=name,
@@ -115,6 +125,10 @@ def gather(recording: Recording, *, name: str, program: str | Path | None = None
         arrow_every=arrow_every,
     )
     return Gathered(inputs=inputs, program=prog, profile=prof, aligned=aligned, sim=sim, notes=notes)
+
+
+def _describe(exc: Exception) -> str:
+    return str(exc) if isinstance(exc, FeedlogError) else f"internal error ({type(exc).__name__}: {exc})"
 
 
 def finite_or_none(value: Any) -> float | None:

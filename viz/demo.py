@@ -1,0 +1,170 @@
+"""`feedlog demo [--out DIR] [--json]`: the main job, end to end on the bundled recordings.
+
+Verifies the recordings, aligns them, simulates, trains and predicts with every stage this
+installation has, then writes into DIR: `report.md` (the cycle-time table and PNG plots),
+`cycle_times.json`, one `.rrd` per recording under `rerun/`, the trained models under `models/`.
+It prints where everything is and how to open it. `--json` prints only the table (JSON rows).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+import time
+from pathlib import Path
+
+from feedlog.errors import FeedlogError
+from feedlog.viz.overlay import save_view
+from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, run_demo
+from feedlog.viz.plots import plot_cycle_times, plot_view
+from feedlog.viz.report import (ReportSection, TableRow, cycle_time_table, table_json, table_markdown,
+                                write_report)
+
+DEFAULT_RECORDINGS = Path("recordings")
+DEFAULT_OUT = Path("demo-out")
+MARKER = ".feedlog-demo"   # marks a folder the demo wrote, so a rerun may replace it
+OUTPUTS = ("report.md", "cycle_times.json", "plots", "rerun", "models", MARKER)
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default: {DEFAULT_OUT})")
+    parser.add_argument("--recordings", type=Path, default=None,
+                        help="recordings folder (default: the bundled recordings/)")
+    parser.add_argument("--json", action="store_true", help="print the cycle-time table as JSON rows only")
+    parser.add_argument("--no-train", action="store_true", help="skip training and prediction")
+    parser.add_argument("--models", help="comma-separated model names to train (default: the demo set)")
+
+
+def default_recordings() -> Path:
+    """`recordings/` of the working directory, else the one next to the installed sources."""
+    here = DEFAULT_RECORDINGS
+    if here.is_dir():
+        return here
+    repo = Path(__file__).resolve().parents[1] / "recordings"
+    return repo if repo.is_dir() else here
+
+
+def prepare_out(out: Path) -> None:
+    """Create `out`, or clear what an earlier demo wrote there; never touch a folder the demo did not make."""
+    if out.exists():
+        if not out.is_dir():
+            raise FeedlogError(f"{out} exists and is not a folder")
+        if any(out.iterdir()) and not (out / MARKER).exists():
+            raise FeedlogError(f"{out} exists, is not empty and was not written by feedlog demo; "
+                               "choose another --out")
+        for name in OUTPUTS:
+            target = out / name
+            if target.is_dir():
+                shutil.rmtree(target)
+            elif target.exists():
+                target.unlink()
+    out.mkdir(parents=True, exist_ok=True)
+    (out / MARKER).write_text("written by feedlog demo; rerunning the demo replaces this folder's outputs\n")
+
+
+def _rows(result: DemoResult) -> list[TableRow]:
+    rows = []
+    for run in result.runs:
+        models = {name: p.cycle_time_s for name, p in run.models.items()}
+        rows.append(TableRow(program=run.entry.program, recording=run.entry.name, split=run.entry.split,
+                             measured_s=run.measured_s, cam_s=run.cam_s, sim_s=run.sim_s, models=models))
+    return rows
+
+
+def write_outputs(result: DemoResult, out: Path, *, log) -> dict[str, Path]:
+    """Plots, .rrd files, JSON table and the Markdown report; returns what was written."""
+    plots_dir, rerun_dir = out / "plots", out / "rerun"
+    model_names = list(result.training.checkpoints) if result.training and result.training.available else []
+    table = cycle_time_table(_rows(result), model_names=model_names)
+    for run in result.runs:
+        if run.data is None:
+            continue
+        run.plots = plot_view(run.data, plots_dir, stem=run.entry.name)
+        rerun_dir.mkdir(parents=True, exist_ok=True)
+        run.rrd = rerun_dir / f"{run.entry.name}.rrd"
+        save_view(run.data, run.rrd)
+        log(f"{run.entry.name}: plots and {run.rrd.name} written")
+    bars = plot_cycle_times(table, plots_dir / "cycle_times.png") if len(table) else None
+    json_path = out / "cycle_times.json"
+    json_path.write_text(table_json(table) + "\n")
+    report = write_report(out / "report.md", title="feedlog demo: cycle times on the bundled recordings",
+                          intro=_intro(result, out), table=table, sections=_sections(result, bars))
+    return {"report": report, "json": json_path, "rerun": rerun_dir, "plots": plots_dir,
+            "models": out / "models", "table": table}
+
+
+def _intro(result: DemoResult, out: Path) -> list[str]:
+    lines = [f"Recordings: {len(result.runs)}. Run time {result.timings_s.get('total', 0):.1f} s "
+             f"({', '.join(f'{k} {v:.1f} s' for k, v in result.timings_s.items() if k != 'total')}).", "",
+             "Columns: measured cycle time (first block start to last block end), CAM (every block at its "
+             "programmed feed), simulation (feedlog.sim on the recording's machine profile), and each trained "
+             "model; errors are (predicted - measured) / measured. `n/a`: not available (see below).", "",
+             "### Pipeline stages", ""]
+    for stage, reason in result.stages.items():
+        lines.append(f"- {stage}: " + ("available" if reason is None else f"**not available** — {reason}"))
+    if result.training is not None:
+        if result.training.available:
+            lines.append(f"- trained models: {', '.join(f'`{p.relative_to(out)}`' for p in result.training.checkpoints.values()) or 'none'}")
+        else:
+            lines.append(f"- training skipped: {result.training.reason}")
+    else:
+        lines.append("- training skipped (--no-train)")
+    sources = sorted({r.measured_source for r in result.runs if r.measured_source})
+    if "line stream" in sources:
+        lines.append("- measured cycle times taken from the recordings' program-line stream (align not available)")
+    return lines
+
+
+def _sections(result: DemoResult, bars: Path | None) -> list[ReportSection]:
+    sections = []
+    if bars is not None:
+        sections.append(ReportSection("Cycle time per program", images=[("cycle times", bars)]))
+    for run in result.runs:
+        s = ReportSection(f"{run.entry.name} ({run.entry.split})")
+        s.lines.append(f"File `{run.entry.path}`; program `{run.entry.program}`.")
+        if run.summary:
+            streams = ", ".join(f"{k} {v}" for k, v in run.summary["streams"].items())
+            s.lines.append(f"Duration {run.summary['duration_s']} s; samples per stream: {streams}; "
+                           f"dropped frames {run.summary['dropped_frames']}.")
+        if run.measured_source:
+            s.lines.append(f"Measured cycle time from {run.measured_source}.")
+        if run.rrd is not None:
+            s.lines.append(f"Rerun: `rerun {run.rrd}`")
+        s.lines += [f"- error: {e}" for e in run.errors] + [f"- note: {n}" for n in run.notes]
+        if run.data is not None:
+            s.lines += [f"- note: {n}" for n in run.data.notes]
+        s.images = [(f"{run.entry.name} {kind}", path) for kind, path in run.plots.items()]
+        sections.append(s)
+    return sections
+
+
+def run(args: argparse.Namespace) -> int:
+    started = time.perf_counter()
+    log = (lambda msg: print(msg, file=sys.stderr)) if args.json else print
+    recordings = args.recordings or default_recordings()
+    models = tuple(m.strip() for m in args.models.split(",") if m.strip()) if args.models else None
+    config = DemoConfig(recordings=recordings, out=args.out, train=not args.no_train, models=models, log=log)
+    prepare_out(args.out)
+    result = run_demo(config)
+    written = write_outputs(result, args.out, log=log)
+    if args.json:
+        print(table_json(written["table"]))
+        return 0
+    rrds = [r.rrd for r in result.runs if r.rrd is not None]
+    print()
+    print(f"feedlog demo finished in {time.perf_counter() - started:.1f} s")
+    print(f"  report (Markdown + PNG plots): {written['report']}")
+    print(f"  cycle-time table (JSON):       {written['json']}")
+    if result.training is not None and result.training.available:
+        print(f"  trained models:                {written['models']}/<name>.pt  (feedlog predict PROGRAM --model ...)")
+    if rrds:
+        print(f"  Rerun recordings:              {written['rerun']}/")
+        print(f"  open them in Rerun with:       rerun {' '.join(str(p) for p in rrds)}")
+        print(f"  or one recording at a time:    feedlog view RECORDING --sim")
+    missing = [s for s, reason in result.stages.items() if reason]
+    if missing:
+        print(f"  stages not available here: {', '.join(missing)} (the report says why)")
+    print()
+    print(table_markdown(written["table"]))
+    return 0
