@@ -1,0 +1,394 @@
+"""RS274/NGC part program -> block table, vectorised.
+
+The lexer yields (line, letter, value) words. Here they are scattered into one row per source line,
+modal state (units, distance mode, plane, motion mode, feed, path mode, ...) is propagated with a
+vectorised forward fill, absolute positions come from a cumulative sum of incremental moves reset at
+every absolute word, and arcs are resolved for all rows at once (toolpath.arcs).
+
+Order of execution within a line follows RS274/NGC: feed mode and F, S, M codes, dwell, plane, units,
+path control, distance modes, then motion; so `G20 G91 G1 X1 F10` moves 25.4 mm at 254 mm/min.
+
+Tool orientation vectors: on a line in linear or rapid mode (G0/G1), I J K are the tool orientation
+vector of five-axis CL data (normalised; modal once given); in arc mode (G2/G3) they are the arc
+centre. LinuxCNC itself rejects I/J/K on G0/G1, so the two meanings never collide.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from feedlog.errors import ProgramError
+from feedlog.toolpath import arcs
+from feedlog.toolpath.lexer import Tokens, lex
+from feedlog.toolpath.program import Program, Unsupported
+from feedlog.toolpath.schema import (ARC_CCW, ARC_CW, BLOCK_COLUMNS, CONTINUOUS, DWELL, END_COLUMNS,
+                                     EXACT_PATH, EXACT_STOP, KINDS, LINEAR, NONE, PATH_MODES, RAPID,
+                                     START_COLUMNS)
+from feedlog.units import MM_PER_INCH
+
+# G code (x10, so G90.1 -> 901) -> modal group. Codes not listed are unsupported.
+G_GROUPS: dict[int, str] = {
+    0: "motion", 10: "motion", 20: "motion", 30: "motion", 800: "motion",
+    170: "plane", 180: "plane", 190: "plane",
+    200: "units", 210: "units",
+    900: "distance", 910: "distance",
+    901: "arc_distance", 911: "arc_distance",
+    930: "feed_mode", 940: "feed_mode",
+    610: "path", 611: "path", 640: "path",
+    40: "dwell",
+    # accepted, no effect on the programmed path in program coordinates
+    400: "cutter_comp", 430: "tool_length", 490: "tool_length",
+    540: "coords", 550: "coords", 560: "coords", 570: "coords", 580: "coords", 590: "coords",
+    591: "coords", 592: "coords", 593: "coords", 970: "spindle_mode", 980: "retract", 990: "retract",
+}
+_GROUP_NAMES = sorted(set(G_GROUPS.values()))
+_GROUP_LUT = np.full(1000, -1, dtype=np.int64)
+for _g, _name in G_GROUPS.items():
+    _GROUP_LUT[_g] = _GROUP_NAMES.index(_name)
+DEFAULTS = {"motion": -1, "plane": 170, "units": 210, "distance": 900, "arc_distance": 911,
+            "feed_mode": 940, "path": 640}
+# M codes kept as block metadata: program stop/end, spindle, tool change, coolant, overrides, pallet,
+# digital/analog outputs, user M100-M199.
+M_CODES = frozenset([0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 30, 48, 49, 50, 51, 52, 53, 60, 61,
+                     62, 63, 64, 65, 66, 67, 68, 70, 71, 72, 73] + list(range(100, 200)))
+PROGRAM_END = (2, 30)
+LETTERS = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
+L = {ch: i for i, ch in enumerate(LETTERS)}
+ACCEPTED_LETTERS = set("ABCFGHIJKMNOPQRSTXYZ")
+AXIS_LETTERS = "XYZABC"
+PATH_MODE_OF = {610: EXACT_PATH, 611: EXACT_STOP, 640: CONTINUOUS}
+KIND_OF_MOTION = {0: RAPID, 10: LINEAR, 20: ARC_CW, 30: ARC_CCW}
+RADIUS_TOL_MM, RADIUS_TOL_REL = 0.002, 0.001  # start vs end radius mismatch allowed on I/J/K arcs
+
+
+def _ffill(values: np.ndarray, present: np.ndarray, initial) -> np.ndarray:
+    """Forward-fill `values` from rows where `present`; `initial` before the first one."""
+    idx = np.where(present, np.arange(len(values)), -1)
+    np.maximum.accumulate(idx, out=idx)
+    out = values[np.maximum(idx, 0)]
+    return np.where(idx >= 0, out, initial)
+
+
+def _read_source(source: str | Path, name: str | None) -> tuple[str, Path | None, str]:
+    if isinstance(source, Path) or ("\n" not in source and len(source) < 4096 and (
+            Path(source).suffix.lower() in (".ngc", ".nc", ".gcode", ".tap", ".txt", ".cnc")
+            or Path(source).is_file())):
+        path = Path(source)
+        label = name or str(path)
+        try:
+            raw = path.read_bytes()
+        except OSError as exc:
+            raise ProgramError(f"cannot read part program: {exc.strerror or exc}", file=label) from None
+        return raw.decode("utf-8", errors="replace"), path, label
+    return source, None, name or "<string>"
+
+
+class _Rows:
+    """Words scattered into a per-row table, with strict/lenient reporting."""
+
+    def __init__(self, tok: Tokens, file: str, lenient: bool) -> None:
+        self.tok, self.file, self.lenient = tok, file, lenient
+        self.rows = tok.rows
+        self.n = len(tok.rows)
+        self.row_of = np.searchsorted(tok.rows, tok.line)
+        self.unsupported: list[Unsupported] = [Unsupported(i + 1, c, r) for i, c, r in tok.unsupported]
+        self.dirty_rows = np.zeros(self.n, dtype=bool)  # rows with a skipped code (lenient)
+
+    def error(self, row: int, message: str, code: str) -> ProgramError:
+        return ProgramError(message, file=self.file, line=int(self.rows[row]) + 1, code=code)
+
+    def reject(self, mask: np.ndarray, message: str, code_of, *, taints_line: bool = False) -> np.ndarray:
+        """Words in `mask` are unsupported: raise on the first, or (lenient) list and drop them.
+        `taints_line`: the code could change the meaning of the line's other words (a G code), so
+        the line's geometry words are dropped too."""
+        if not mask.any():
+            return np.ones(len(mask), dtype=bool)
+        hits = np.flatnonzero(mask)
+        if not self.lenient:
+            k = hits[np.argmin(self.row_of[hits])]
+            raise self.error(self.row_of[k], message, code_of(k))
+        for k in hits:
+            self.unsupported.append(Unsupported(int(self.rows[self.row_of[k]]) + 1, code_of(k), message))
+        if taints_line:
+            self.dirty_rows[self.row_of[hits]] = True
+        return ~mask
+
+
+def _word(letter: int, value: float) -> str:
+    text = f"{value:.4f}".rstrip("0").rstrip(".")
+    return f"{LETTERS[letter]}{text}"
+
+
+def parse_program(source: str | Path, *, lenient: bool = False, name: str | None = None) -> Program:
+    """Parse a part program (a path, or G-code text) into a Program with its block table.
+
+    Unsupported codes raise ProgramError naming file, line and code; with `lenient=True` they are
+    listed in `Program.unsupported` (and a warning) and skipped. Malformed text always raises.
+    """
+    text, path, file = _read_source(source, name)
+    tok = lex(text, file=file, lenient=lenient)
+    R = _Rows(tok, file, lenient)
+    n = R.n
+    letter, value, row_of = tok.letter, tok.value, R.row_of
+    code_of = lambda k: _word(int(letter[k]), float(value[k]))  # noqa: E731
+
+    keep = R.reject(~np.isin(letter, [L[c] for c in ACCEPTED_LETTERS]), "unsupported word", code_of)
+    is_g, is_m = letter == L["G"], letter == L["M"]
+    g10 = np.rint(value * 10).astype(np.int64)
+    known_g = (g10 >= 0) & (g10 < 1000) & np.isclose(value * 10, g10)
+    known_g[known_g] = _GROUP_LUT[g10[known_g]] >= 0
+    keep &= R.reject(is_g & ~known_g & keep, "unsupported G code", code_of, taints_line=True)
+    m_int = np.rint(value).astype(np.int64)
+    keep &= R.reject(is_m & ~(np.isin(m_int, list(M_CODES)) & (m_int == value)) & keep,
+                     "unsupported M code", code_of)
+    if R.dirty_rows.any():  # a line with a skipped code: drop its geometry words too
+        geo = np.isin(letter, [L[c] for c in "XYZABCIJKRPQ"])
+        keep &= ~(geo & R.dirty_rows[row_of])
+    letter, value, row_of, g10, m_int = letter[keep], value[keep], row_of[keep], g10[keep], m_int[keep]
+    is_g, is_m = letter == L["G"], letter == L["M"]
+    code_of = lambda k: _word(int(letter[k]), float(value[k]))  # noqa: E731
+
+    # -- modal groups of G codes -----------------------------------------------------------------
+    g_rows, g_codes = row_of[is_g], g10[is_g]
+    group = _GROUP_LUT[g_codes]
+    groups: dict[str, np.ndarray] = {}
+    for gi, gname in enumerate(_GROUP_NAMES):
+        sel = group == gi
+        col = np.full(n, -1, dtype=np.int64)
+        if sel.any():
+            counts = np.bincount(g_rows[sel], minlength=n)
+            if counts.max() > 1:
+                r = int(np.flatnonzero(counts > 1)[0])
+                codes = " ".join(f"G{c / 10:g}" for c in g_codes[sel][g_rows[sel] == r])
+                raise R.error(r, "two G codes of the same modal group on one line", codes)
+            col[g_rows[sel]] = g_codes[sel]
+        groups[gname] = col
+
+    # -- other words: one per letter and line ------------------------------------------------------
+    other = ~is_g & ~is_m
+    W = np.full((n, 26), np.nan)
+    if other.any():
+        key = row_of[other] * 26 + letter[other]
+        counts = np.bincount(key, minlength=n * 26)
+        if counts.max() > 1:
+            k = int(np.flatnonzero(counts > 1)[0])
+            raise R.error(k // 26, "word repeated on one line", LETTERS[k % 26])
+        W[row_of[other], letter[other]] = value[other]
+    has = ~np.isnan(W)
+
+    # -- modal state -------------------------------------------------------------------------------
+    modal = {g: _ffill(groups[g], groups[g] >= 0, DEFAULTS[g]) for g in DEFAULTS}
+    unit = np.where(modal["units"] == 200, MM_PER_INCH, 1.0)
+    motion_mode = np.where(modal["motion"] == 800, -1, modal["motion"])
+    is_dwell = groups["dwell"] == 40
+    axis_cols = [L[c] for c in AXIS_LETTERS]
+    has_axis = has[:, axis_cols].any(axis=1)
+    has_ijk = has[:, [L["I"], L["J"], L["K"]]].any(axis=1)
+    linear_mode = (motion_mode == 0) | (motion_mode == 10)
+    arc_mode = (motion_mode == 20) | (motion_mode == 30)
+    orient = has_ijk & linear_mode & ~is_dwell
+    is_motion = (has_axis | orient) & (motion_mode >= 0) & ~is_dwell
+
+    def first(mask: np.ndarray, message: str, letters: str) -> None:
+        if mask.any():
+            r = int(np.flatnonzero(mask)[0])
+            code = next((c for c in letters if c in L and has[r, L[c]]), letters)
+            raise R.error(r, message, code)
+
+    first(has_axis & is_dwell, "axis words with G4 dwell", AXIS_LETTERS)
+    first(has_axis & (motion_mode < 0) & ~is_dwell, "axis words without an active motion mode (G0-G3)",
+          AXIS_LETTERS)
+    first(arc_mode & has_ijk & ~has_axis & ~is_dwell, "arc without an end point (no axis words)", "IJK")
+    first(has_ijk & ~(is_motion & (arc_mode | orient)), "I/J/K without an arc or a five-axis move", "IJK")
+    first(has[:, L["R"]] & ~(is_motion & arc_mode), "R word without an arc", "R")
+    first(is_dwell & ~has[:, L["P"]], "G4 dwell needs a P word (seconds)", "G4")
+
+    kind_code = np.full(n, KINDS.index(NONE), dtype=np.int8)
+    for mode, kind in KIND_OF_MOTION.items():
+        kind_code[is_motion & (motion_mode == mode)] = KINDS.index(kind)
+    kind_code[is_dwell] = KINDS.index(DWELL)
+    is_arc = is_motion & arc_mode
+
+    # -- positions ---------------------------------------------------------------------------------
+    incremental = modal["distance"] == 910
+    end = np.empty((n, 6))
+    for j, ch in enumerate(AXIS_LETTERS):
+        v = W[:, L[ch]] * (unit if j < 3 else 1.0)
+        set_here = has[:, L[ch]] & is_motion
+        delta = np.where(set_here & incremental, v, 0.0)
+        cs = np.cumsum(delta)
+        absolute = set_here & ~incremental
+        offset = _ffill(np.where(absolute, v - cs, 0.0), absolute, 0.0)
+        end[:, j] = cs + offset
+    start = np.vstack([np.zeros((1, 6)), end[:-1]])
+
+    # -- arcs --------------------------------------------------------------------------------------
+    centre = np.full((n, 3), np.nan)
+    radius = np.full(n, np.nan)
+    sweep_deg = np.full(n, np.nan)
+    turns = np.zeros(n, dtype=np.int16)
+    length = np.hypot(np.hypot(end[:, 0] - start[:, 0], end[:, 1] - start[:, 1]), end[:, 2] - start[:, 2])
+    plane = modal["plane"] // 10
+    if is_arc.any():
+        a = np.flatnonzero(is_arc)
+        p_turns = W[a, L["P"]]
+        bad = ~np.isnan(p_turns) & ((p_turns < 1) | (p_turns != np.rint(p_turns)))
+        if bad.any():
+            raise R.error(a[bad][0], "arc P (turns) must be a positive integer", f"P{p_turns[bad][0]:g}")
+        turns[a] = np.where(np.isnan(p_turns), 1, p_turns).astype(np.int16)
+        idx = arcs.plane_index(plane[a])
+        s_uvw = arcs.to_plane(start[a, :3], idx)
+        e_uvw = arcs.to_plane(end[a, :3], idx)
+        ijk = np.nan_to_num(W[a][:, [L["I"], L["J"], L["K"]]]) * unit[a, None]
+        ijk_has = has[a][:, [L["I"], L["J"], L["K"]]]
+        off_uvw = arcs.to_plane(ijk, idx)
+        has_uvw = arcs.to_plane(ijk_has, idx)
+        ccw = motion_mode[a] == 30
+        use_r = has[a, L["R"]]
+        if (use_r & has_uvw[:, :2].any(axis=1)).any():
+            raise R.error(a[use_r & has_uvw[:, :2].any(axis=1)][0], "arc with both R and I/J/K", "R")
+        if has_uvw[:, 2].any():
+            k = np.flatnonzero(has_uvw[:, 2])[0]
+            word = "IJK"[int(idx[k, 2])]
+            raise R.error(a[k], f"{word} word names the normal axis of the arc's plane G{plane[a[k]]}", word)
+        if (~use_r & ~has_uvw[:, :2].any(axis=1)).any():
+            raise R.error(a[~use_r & ~has_uvw[:, :2].any(axis=1)][0], "arc needs R or centre words", "G2/G3")
+        c_uv = np.where((modal["arc_distance"][a] == 901)[:, None], off_uvw[:, :2], s_uvw[:, :2] + off_uvw[:, :2])
+        if use_r.any():
+            rr = W[a[use_r], L["R"]] * unit[a[use_r]]
+            c_r, ok = arcs.centre_from_radius(s_uvw[use_r, :2], e_uvw[use_r, :2], rr, ccw[use_r])
+            if not ok.all():
+                k = a[use_r][~ok][0]
+                raise R.error(k, "arc radius is shorter than half the chord (or start equals end)",
+                              f"R{W[k, L['R']]:g}")
+            c_uv[use_r] = c_r
+        r0 = np.hypot(*(s_uvw[:, :2] - c_uv).T)
+        r1 = np.hypot(*(e_uvw[:, :2] - c_uv).T)
+        mism = np.abs(r1 - r0) > np.maximum(RADIUS_TOL_MM, RADIUS_TOL_REL * r0)
+        if mism.any():
+            k = a[mism][0]
+            raise R.error(k, f"arc end radius {r1[mism][0]:.4f} differs from start radius "
+                             f"{r0[mism][0]:.4f} mm", "G3" if motion_mode[k] == 30 else "G2")
+        if (r0 <= 0).any():
+            raise R.error(a[r0 <= 0][0], "arc of zero radius", "G2/G3")
+        swept = arcs.sweep(s_uvw[:, :2], e_uvw[:, :2], c_uv, ccw, turns[a])
+        length[a] = arcs.arc_length(r0, r1, swept, e_uvw[:, 2] - s_uvw[:, 2])
+        centre[a] = arcs.from_plane(np.column_stack([c_uv, s_uvw[:, 2]]), idx)
+        radius[a] = r0
+        sweep_deg[a] = np.degrees(swept)
+
+    # -- orientation vectors (five-axis CL data) ---------------------------------------------------
+    ori = np.full((n, 3), np.nan)
+    if orient.any():
+        o = np.nan_to_num(W[orient][:, [L["I"], L["J"], L["K"]]])
+        norm = np.linalg.norm(o, axis=1)
+        if (norm <= 1e-12).any():
+            raise R.error(np.flatnonzero(orient)[norm <= 1e-12][0], "tool orientation vector of length 0", "IJK")
+        given = np.zeros((n, 3))
+        given[orient] = o / norm[:, None]
+        for j in range(3):
+            ori[:, j] = _ffill(given[:, j], orient, np.nan)
+
+    # -- feed ---------------------------------------------------------------------------------------
+    f_here = has[:, L["F"]]
+    inverse_time = modal["feed_mode"] == 930
+    f_mm = W[:, L["F"]] * unit
+    modal_feed = _ffill(f_mm, f_here & ~inverse_time, np.nan)
+    feed_move = is_motion & (motion_mode != 0)
+    lin_len = length
+    rot_len = np.linalg.norm(end[:, 3:] - start[:, 3:], axis=1)
+    time_len = np.where(lin_len > 1e-12, lin_len, rot_len)  # LinuxCNC: F applies to XYZ, else to ABC
+    feed = np.where(inverse_time, time_len * W[:, L["F"]], modal_feed)
+    feed = np.where(feed_move, feed, np.nan)
+    warnings: list[str] = []
+    missing_it = feed_move & inverse_time & ~f_here
+    if missing_it.any():
+        raise R.error(int(np.flatnonzero(missing_it)[0]), "G93 inverse time needs F on every feed move", "F")
+    no_feed = feed_move & ~inverse_time & ~(modal_feed > 0)
+    if no_feed.any():
+        r = int(np.flatnonzero(no_feed)[0])
+        if not lenient:
+            raise R.error(r, "feed move without a feed rate (F)", "F")
+        warnings.append(f"{no_feed.sum()} feed moves without a feed rate (first at line {R.rows[r] + 1})")
+
+    # -- path control, dwell, spindle, M codes, comments -----------------------------------------
+    path_here = groups["path"] >= 0
+    p_val = W[:, L["P"]] * unit
+    q_val = W[:, L["Q"]] * unit
+    g64 = groups["path"] == 640
+    tol_here = np.where(g64, p_val, 0.0)
+    merge_here = np.where(g64, np.where(has[:, L["Q"]], q_val, p_val), np.nan)
+    tol = _ffill(tol_here, path_here, np.nan)
+    merge = _ffill(merge_here, path_here, np.nan)
+    path_code = np.select([modal["path"] == 610, modal["path"] == 611], [0, 1], 2).astype(np.int8)
+    dwell = np.where(is_dwell, W[:, L["P"]], 0.0)
+    if (dwell < 0).any():
+        raise R.error(int(np.flatnonzero(dwell < 0)[0]), "negative dwell time", "P")
+    spindle = _ffill(W[:, L["S"]], has[:, L["S"]], 0.0)
+    mcodes = np.full(n, "", dtype=object)
+    if is_m.any():
+        ms = pd.Series([f"M{int(v)}" for v in m_int[is_m]]).groupby(row_of[is_m]).agg(" ".join)
+        mcodes[ms.index.to_numpy()] = ms.to_numpy()
+    comment = np.full(n, "", dtype=object)
+    if tok.comments:
+        lines = np.fromiter(tok.comments.keys(), dtype=np.int64)
+        comment[np.searchsorted(tok.rows, lines)] = list(tok.comments.values())
+
+    blocks = pd.DataFrame({
+        "file": pd.array(np.full(n, file, dtype=object), dtype="string"),
+        "line": (tok.rows + 1).astype(np.int32),
+        "block": np.arange(n, dtype=np.int32),
+        "kind": pd.Categorical.from_codes(kind_code, categories=list(KINDS)),
+        **{c: start[:, j] for j, c in enumerate(START_COLUMNS)},
+        **{c: end[:, j] for j, c in enumerate(END_COLUMNS)},
+        "plane": plane.astype(np.int8),
+        "cx_mm": centre[:, 0], "cy_mm": centre[:, 1], "cz_mm": centre[:, 2],
+        "turns": turns,
+        "feed_mm_min": feed,
+        "inverse_time": inverse_time,
+        "dwell_s": dwell,
+        "path_mode": pd.Categorical.from_codes(path_code, categories=list(PATH_MODES)),
+        "tol_mm": tol,
+        "merge_tol_mm": merge,
+        "ori_i": ori[:, 0], "ori_j": ori[:, 1], "ori_k": ori[:, 2],
+        "units": pd.Categorical.from_codes((modal["units"] == 200).astype(np.int8), categories=["mm", "in"]),
+        "spindle_rpm": spindle,
+        "mcodes": pd.array(mcodes, dtype="string"),
+        "comment": pd.array(comment, dtype="string"),
+        # added columns
+        "length_mm": np.where(is_motion, length, 0.0),
+        "radius_mm": radius,
+        "sweep_deg": sweep_deg,
+        "n_word": np.where(has[:, L["N"]], W[:, L["N"]], -1).astype(np.int64),
+    })
+    assert list(blocks.columns[:len(BLOCK_COLUMNS)]) == list(BLOCK_COLUMNS)
+    metadata = _metadata(tok, W, has, m_int[is_m], row_of[is_m], is_motion, R, file, warnings)
+    for u in R.unsupported:
+        warnings.append(f"line {u.line}: skipped {u.code} ({u.reason})")
+    return Program(blocks=blocks, path=path, warnings=warnings, unsupported=R.unsupported,
+                   metadata=metadata)
+
+
+def _metadata(tok: Tokens, W, has, m_codes, m_rows, is_motion, R: _Rows, file: str,
+              warnings: list[str]) -> dict:
+    meta: dict = {"file": file, "lines": tok.n_lines, "percent_lines": (tok.percent + 1).tolist()}
+    o_rows = np.flatnonzero(has[:, L["O"]])
+    if len(o_rows):
+        meta["program_number"] = int(W[o_rows[0], L["O"]])
+    if tok.comments:
+        meta["title"] = tok.comments[min(tok.comments)]
+    ends = m_rows[np.isin(m_codes, PROGRAM_END)]
+    if len(ends):
+        meta["end_line"] = int(R.rows[ends.min()]) + 1
+        after = is_motion[ends.min() + 1:].sum()
+        if after:
+            warnings.append(f"{after} motion blocks after the program end (M2/M30) at line "
+                            f"{meta['end_line']}; a controller would not run them")
+    if len(tok.block_delete):
+        meta["block_delete_lines"] = (tok.block_delete + 1).tolist()
+        warnings.append(f"{len(tok.block_delete)} lines start with '/' (block delete); kept as if the "
+                        "block-delete switch were off")
+    return meta
