@@ -1,0 +1,86 @@
+"""`feedlog import SOURCE [--preset NAME | --map ...] [--program P.ngc] [--profile M] -o REC.mcap`."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from feedlog.errors import IngestError
+from feedlog.ingest.mapping import preset_description, preset_names
+from feedlog.ingest.readers import SUFFIXES, ImportOptions, read_source
+from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT
+from feedlog.ingest.summary import format_summary, summarize
+from feedlog.ingest.writer import write_recording
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("source", nargs="?",
+                        help=f"file to convert ({', '.join(SUFFIXES)}); prefix can: for a python-can CSV log")
+    parser.add_argument("-o", "--out", help="recording to write (.mcap)")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    mapping = parser.add_mutually_exclusive_group()
+    mapping.add_argument("--preset", help="named column mapping (see --list-presets)")
+    mapping.add_argument("--map", dest="mapping", metavar="T=COL,...",
+                         help="column mapping, e.g. t=time,x=X1_ActualPosition,feed=PathVelocity "
+                              "(generic MCAP: x=/topic:field.path)")
+    parser.add_argument("--list-presets", action="store_true", help="list the column-mapping presets and exit")
+    units = parser.add_argument_group("declared units (override the preset)")
+    units.add_argument("--time-unit", choices=["s", "ms", "us", "ns", "datetime"])
+    units.add_argument("--length-unit", help="mm, in, um, m")
+    units.add_argument("--angle-unit", help="deg or rad")
+    units.add_argument("--feed-unit", help="e.g. mm/min, mm/s, in/min")
+    units.add_argument("--timezone", help="zone of wall-clock times without an offset (default UTC)")
+    units.add_argument("--time-format", help="strftime format of wall-clock times (default ISO 8601)")
+    parser.add_argument("--delimiter", default=",", help="CSV field delimiter (default ,)")
+    parser.add_argument("--dbc", help="DBC file for CAN logs (default: feedlog's own feedlog_axes.dbc)")
+    parser.add_argument("--lenient", action="store_true", help="skip and count bad rows instead of failing")
+    parser.add_argument("--recover", action="store_true", help="keep what a cut-off feedlog recording holds")
+    parser.add_argument("--program", help="part program to attach (program.ngc)")
+    parser.add_argument("--profile", help="machine profile to attach (name or TOML path)")
+    parser.add_argument("--machine", help="machine name for the session metadata")
+    parser.add_argument("--notes", help="free text for the session metadata")
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.list_presets:
+        for name in preset_names():
+            print(f"{name:<20} {preset_description(name)}")
+        return 0
+    if not args.source or not args.out:
+        raise IngestError("feedlog import needs SOURCE and -o REC.mcap")
+    options = ImportOptions(preset=args.preset, mapping=args.mapping, time_unit=args.time_unit,
+                            length_unit=args.length_unit, angle_unit=args.angle_unit, feed_unit=args.feed_unit,
+                            timezone=args.timezone, time_format=args.time_format, delimiter=args.delimiter,
+                            dbc=args.dbc, strict=not args.lenient, recover=args.recover)
+    recording = read_source(args.source, options)
+    attach_session(recording, program=args.program, profile=args.profile, machine=args.machine, notes=args.notes)
+    write_recording(args.out, recording, overwrite=args.overwrite)
+    recording.source = args.out
+    print(format_summary(summarize(recording)))
+    for key in ("bad_rows", "bad_records", "unknown_ids", "recovered"):
+        if key in recording.metadata:
+            print(f"warning: {key}: {recording.metadata[key]}")
+    return 0
+
+
+def attach_session(recording, *, program: str | None = None, profile: str | None = None,
+                   machine: str | None = None, notes: str | None = None) -> None:
+    """Attach the part program and machine profile and fill the session metadata keys."""
+    from feedlog.profile import load_profile
+
+    if program:
+        path = Path(program)
+        if not path.is_file():
+            raise IngestError("part program not found", file=program)
+        recording.attachments[PROGRAM_ATTACHMENT] = path.read_bytes()
+        recording.metadata.setdefault("program", path.name)
+    if profile:
+        loaded = load_profile(profile)
+        recording.attachments[PROFILE_ATTACHMENT] = loaded.to_toml().encode("utf-8")
+        recording.metadata.setdefault("machine", loaded.name)
+    if machine:
+        recording.metadata["machine"] = machine
+    if notes:
+        recording.metadata["notes"] = notes
+    for key in ("machine", "controller", "units", "nominal_rate_hz", "start_time", "notes"):
+        recording.metadata.setdefault(key, "")

@@ -1,0 +1,231 @@
+"""CSV readers (pyarrow.csv): low-rate monitoring exports and high-rate servo traces.
+
+A `ColumnMap` (a preset or `--map`) names the time column and the value columns with their units.
+Fast path: pyarrow parses only the mapped columns, typed, on all cores. If anything is wrong (a row
+with the wrong number of fields, a value that is not a number, an empty cell, time going backwards) the
+file is read again in a diagnostic pass that knows every row's line number: strict mode (the default)
+raises `IngestError` naming the file, the first bad line and the count; lenient mode drops and counts
+the bad rows and lists their lines in `metadata["bad_rows"]`.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.csv as pacsv
+
+from feedlog.errors import IngestError
+from feedlog.ingest.mapping import ColumnMap, build_streams, time_to_ns
+from feedlog.ingest.recording import Recording
+
+_OFFSET = re.compile(r"(Z|[+-]\d\d:?\d\d)$")
+SHOW_LINES = 10  # bad line numbers quoted in messages
+
+
+@dataclass
+class BadRows:
+    """Rows the reader could not use: count, line numbers and the first reason."""
+
+    lines: list[int] = field(default_factory=list)
+    reasons: dict[int, str] = field(default_factory=dict)
+
+    def add(self, lines, reason: str) -> None:
+        for line in np.asarray(lines, dtype=np.int64).tolist():
+            self.reasons.setdefault(line, reason)
+        self.lines = sorted(self.reasons)
+
+    def __len__(self) -> int:
+        return len(self.lines)
+
+    def describe(self) -> str:
+        shown = ", ".join(str(n) for n in self.lines[:SHOW_LINES])
+        more = f" (+{len(self.lines) - SHOW_LINES} more)" if len(self.lines) > SHOW_LINES else ""
+        return f"{len(self.lines)} bad rows at lines {shown}{more}; first: {self.reasons[self.lines[0]]}"
+
+
+def _header(path: Path, delimiter: str) -> tuple[int, list[str]]:
+    """(1-based line number of the header, column names); leading '#' comment and blank lines skipped."""
+    with open(path, newline="", encoding="utf-8", errors="replace") as f:
+        for number, text in enumerate(f, start=1):
+            if text.strip() and not text.lstrip().startswith("#"):
+                return number, [name.strip() for name in next(csv.reader([text], delimiter=delimiter))]
+    raise IngestError("empty CSV file (no header row)", file=str(path), line=1)
+
+
+def read_csv(path: str | os.PathLike, cmap: ColumnMap, *, strict: bool = True, delimiter: str = ",") -> Recording:
+    """Read one CSV file into a recording using `cmap` (columns and units)."""
+    path = Path(path)
+    if not path.is_file():
+        raise IngestError("no such file", file=str(path))
+    header_line, names = _header(path, delimiter)
+    absent = [f"{t}={cmap.mapping[t]}" for t in cmap.required if cmap.mapping[t] not in names]
+    if absent:
+        raise IngestError(f"{cmap.name}: columns not in the file: {', '.join(absent)}; the file has: "
+                          f"{', '.join(names[:30])}", file=str(path), line=header_line)
+    used = {target: source for target, source in cmap.mapping.items() if source in names}
+    if len(used) < 2:
+        raise IngestError(f"{cmap.name}: only the time column is in the file", file=str(path), line=header_line)
+    table = _fast_read(path, header_line, used, cmap, delimiter)
+    bad = BadRows()
+    if table is None:
+        t_ns, values, lines = _diagnostic_read(path, header_line, used, cmap, delimiter, bad)
+    else:
+        (t_ns, values), lines = _columns(table, used, cmap), None
+    back = _backwards(t_ns)
+    if len(back):
+        if lines is None:
+            lines = _data_lines(path, header_line)
+        bad.add(lines[back], "time goes backwards")
+    if len(bad) and strict:
+        raise IngestError(f"{bad.describe()} (lenient import skips them: --lenient)", file=str(path),
+                          line=bad.lines[0])
+    if len(back):
+        keep = np.ones(len(t_ns), dtype=bool)
+        keep[back] = False
+        t_ns, values = t_ns[keep], {k: v[keep] for k, v in values.items()}
+    metadata = {"source": path.name, **cmap.metadata(), "rows": str(len(t_ns))}
+    if cmap.controller:
+        metadata["controller"] = cmap.controller
+    if len(bad):
+        metadata["bad_rows"] = bad.describe()
+    if len(t_ns) > 1:
+        dt = np.diff(t_ns)
+        med = float(np.median(dt))
+        if med > 0:
+            metadata["nominal_rate_hz"] = f"{1e9 / med:.6g}"
+    if cmap.time_unit == "datetime" and len(t_ns):
+        metadata["start_time"] = pd.Timestamp(int(t_ns[0]), tz="UTC").isoformat()
+    return Recording(streams=build_streams(t_ns, values, cmap), metadata=metadata, source=str(path))
+
+
+def _time_type(cmap: ColumnMap) -> pa.DataType:
+    if cmap.time_unit == "datetime":
+        return pa.string()
+    return pa.int64() if cmap.time_unit == "ns" else pa.float64()
+
+
+def _fast_read(path: Path, header_line: int, used: dict[str, str], cmap: ColumnMap,
+               delimiter: str) -> pa.Table | None:
+    """Typed multi-threaded read; None when the file needs the diagnostic pass."""
+    invalid = 0
+
+    def on_invalid(row) -> str:
+        nonlocal invalid
+        invalid += 1
+        return "skip"
+
+    types = {source: pa.float64() for source in used.values()}
+    types[used["t"]] = _time_type(cmap)
+    try:
+        table = pacsv.read_csv(
+            path,
+            read_options=pacsv.ReadOptions(skip_rows=header_line - 1, block_size=8 << 20),
+            parse_options=pacsv.ParseOptions(delimiter=delimiter, invalid_row_handler=on_invalid),
+            convert_options=pacsv.ConvertOptions(column_types=types, include_columns=list(dict.fromkeys(used.values())),
+                                                 strings_can_be_null=False, quoted_strings_can_be_null=False))
+    except pa.ArrowInvalid:
+        return None
+    if invalid or any(table.column(source).null_count for source in set(used.values())):
+        return None
+    return table
+
+
+def _columns(table: pa.Table, used: dict[str, str], cmap: ColumnMap) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    t_raw = table.column(used["t"])
+    if cmap.time_unit == "datetime":
+        t_ns, ok = _parse_datetimes(t_raw.to_numpy(zero_copy_only=False), cmap)
+        if not ok.all():  # unreachable through read_csv: the diagnostic pass handles bad datetimes
+            raise IngestError("bad timestamps")
+    else:
+        t_ns = time_to_ns(t_raw.to_numpy(), cmap)
+    values = {target: table.column(source).to_numpy() for target, source in used.items() if target != "t"}
+    return t_ns, values
+
+
+def _parse_datetimes(text: np.ndarray, cmap: ColumnMap) -> tuple[np.ndarray, np.ndarray]:
+    """Wall-clock strings -> (int64 ns since the epoch, ok mask). Naive times are in `cmap.timezone`."""
+    series = pd.Series(text, dtype=object)
+    sample = next((s for s in series if isinstance(s, str) and s.strip()), "")
+    aware = bool(_OFFSET.search(sample.strip()))
+    parsed = pd.to_datetime(series, format=cmap.time_format or "ISO8601", errors="coerce", utc=aware)
+    if not aware:
+        parsed = parsed.dt.tz_localize(cmap.timezone, ambiguous="NaT", nonexistent="NaT")
+    ok = parsed.notna().to_numpy()
+    t_ns = np.zeros(len(series), dtype=np.int64)
+    t_ns[ok] = parsed[ok].dt.tz_convert("UTC").dt.tz_localize(None).to_numpy().astype("datetime64[ns]").astype(np.int64)
+    return t_ns, ok
+
+
+def _diagnostic_read(path: Path, header_line: int, used: dict[str, str], cmap: ColumnMap, delimiter: str,
+                     bad: BadRows) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
+    """Single-threaded read as text with line numbers; bad rows go to `bad` and are dropped."""
+    wrong_width: list[tuple[int, str]] = []
+
+    def on_invalid(row) -> str:
+        wrong_width.append((row.number, f"expected {row.expected_columns} fields, got {row.actual_columns}"))
+        return "skip"
+
+    sources = list(dict.fromkeys(used.values()))
+    table = pacsv.read_csv(
+        path,
+        read_options=pacsv.ReadOptions(skip_rows=header_line - 1, use_threads=False),
+        parse_options=pacsv.ParseOptions(delimiter=delimiter, invalid_row_handler=on_invalid),
+        convert_options=pacsv.ConvertOptions(column_types={s: pa.string() for s in sources}, include_columns=sources))
+    lines = _data_lines(path, header_line)
+    # pyarrow numbers a row as skip_rows + 1 (header) + its 1-based index among non-empty data rows
+    dropped = np.array([number - header_line - 1 for number, _ in wrong_width], dtype=np.int64)
+    for (_, reason), index in zip(wrong_width, dropped):
+        bad.add([lines[index]] if index < len(lines) else [], reason)
+    lines = np.delete(lines, dropped[dropped < len(lines)])[: table.num_rows]
+    keep = np.ones(table.num_rows, dtype=bool)
+    converted: dict[str, np.ndarray] = {}
+    for target, source in used.items():
+        text = table.column(source).to_numpy(zero_copy_only=False)
+        if target == "t" and cmap.time_unit == "datetime":
+            values, ok = _parse_datetimes(text, cmap)
+        else:
+            values = pd.to_numeric(pd.Series(text, dtype=object).str.strip(), errors="coerce").to_numpy(np.float64)
+            ok = np.isfinite(values) | (pd.Series(text).str.strip().str.lower().isin(["nan", "inf", "-inf"]).to_numpy())
+            if target == "t":
+                values = time_to_ns(np.where(ok, values, 0.0), cmap)
+        if not ok.all():
+            first = int(np.flatnonzero(~ok)[0])
+            bad.add(lines[~ok], f"column {source!r}: {text[first]!r} is not a "
+                                f"{'timestamp' if target == 't' and cmap.time_unit == 'datetime' else 'number'}")
+        keep &= ok
+        converted[target] = values
+    t_ns = converted.pop("t")[keep]
+    return t_ns, {k: v[keep] for k, v in converted.items()}, lines[keep]
+
+
+def _data_lines(path: Path, header_line: int) -> np.ndarray:
+    """1-based line numbers of the non-empty lines after the header (one per data row)."""
+    raw = np.frombuffer(path.read_bytes(), dtype=np.uint8)
+    ends = np.flatnonzero(raw == ord("\n"))
+    starts = np.concatenate(([0], ends + 1))
+    ends = np.concatenate((ends, [len(raw)]))
+    length = ends - starts
+    has_cr = (length > 0) & (raw[np.maximum(ends - 1, 0)] == ord("\r")) if len(raw) else np.zeros(0, bool)
+    numbers = np.arange(1, len(starts) + 1)
+    return numbers[(numbers > header_line) & ((length - has_cr) > 0)]
+
+
+def _backwards(t_ns: np.ndarray) -> np.ndarray:
+    """Indices of rows earlier than a row before them (dropping these leaves t_ns non-decreasing)."""
+    if len(t_ns) < 2:
+        return np.zeros(0, dtype=np.int64)
+    running = np.maximum.accumulate(t_ns)
+    return np.flatnonzero(t_ns[1:] < running[:-1]) + 1
+
+
+def read_csv_source(path: Path, options) -> Recording:
+    """Registry entry (`.csv`, `.tsv`, `csv:`): `options` is an `ImportOptions`."""
+    delimiter = "\t" if path.suffix.lower() == ".tsv" and options.delimiter == "," else options.delimiter
+    return read_csv(path, options.column_map(), strict=options.strict, delimiter=delimiter)

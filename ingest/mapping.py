@@ -1,0 +1,161 @@
+"""Column mappings: which source field feeds which recording column, in which unit.
+
+A mapping is `target -> source field`, given on the command line (`--map t=time,x=X1_ActualPosition`)
+or by a named preset (`ingest/presets/<name>.toml`). Targets are short names of standard columns
+(`t`, `x` .. `c`, `feed`, `requested_feed`, `line`, `jN`, `jN_fb`, `in_position`, `motion_type`,
+`spindle`) or an explicit `stream.column` kept as is. Units are declared, never guessed: lengths,
+angles, feeds and times are converted here to mm, deg, mm/min and int64 ns.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+
+import numpy as np
+import pandas as pd
+
+from feedlog.errors import IngestError, UnitError
+from feedlog.units import angle_factor, length_factor, time_factor, velocity_factor
+
+# target -> (stream, column, kind); kind picks the unit conversion and the dtype
+TARGETS: dict[str, tuple[str, str, str]] = {
+    "x": ("axes", "x_mm", "length"), "y": ("axes", "y_mm", "length"), "z": ("axes", "z_mm", "length"),
+    "a": ("axes", "a_deg", "angle"), "b": ("axes", "b_deg", "angle"), "c": ("axes", "c_deg", "angle"),
+    "feed": ("feed", "feed_mm_min", "velocity"),
+    "requested_feed": ("feed", "requested_feed_mm_min", "velocity"),
+    "line": ("line", "line", "int"),
+    "in_position": ("status", "in_position", "bool"),
+    "motion_type": ("status", "motion_type", "int8"),
+    "spindle": ("spindle", "spindle_rpm", "float"),
+}
+_JOINT = re.compile(r"^j(\d+)(_fb)?$")
+_EXPLICIT = re.compile(r"^([a-z][a-z0-9_]*)\.([a-z][a-z0-9_]*)$")
+TIME_UNITS = ("s", "ms", "us", "ns", "datetime")
+
+
+def resolve_target(target: str) -> tuple[str, str, str]:
+    """(stream, column, kind) for a mapping target; IngestError listing the known ones otherwise."""
+    if target in TARGETS:
+        return TARGETS[target]
+    m = _JOINT.match(target)
+    if m:
+        return ("joints", f"j{m.group(1)}_pos" + ("_fb" if m.group(2) else ""), "float")
+    m = _EXPLICIT.match(target)
+    if m:
+        return (m.group(1), m.group(2), "float")
+    raise IngestError(f"unknown mapping target {target!r}; known: t, {', '.join(TARGETS)}, jN, jN_fb, "
+                      "or stream.column (lower_snake_case)")
+
+
+@dataclass
+class ColumnMap:
+    """A mapping with its declared units. `required` targets must exist in the source."""
+
+    mapping: dict[str, str]
+    time_unit: str = "s"
+    length_unit: str = "mm"
+    angle_unit: str = "deg"
+    feed_unit: str = "mm/min"
+    timezone: str = "UTC"
+    time_format: str | None = None
+    required: list[str] = field(default_factory=list)
+    name: str = "--map"
+    controller: str = ""
+
+    def __post_init__(self) -> None:
+        if "t" not in self.mapping:
+            raise IngestError(f"mapping {self.name} has no time column: add t=<column>")
+        if len(self.mapping) < 2:
+            raise IngestError(f"mapping {self.name} maps only the time column; map at least one value")
+        if self.time_unit not in TIME_UNITS:
+            raise IngestError(f"time unit {self.time_unit!r} is not one of {', '.join(TIME_UNITS)}")
+        try:
+            length_factor(self.length_unit), angle_factor(self.angle_unit), velocity_factor(self.feed_unit)
+        except UnitError as exc:
+            raise IngestError(f"mapping {self.name}: {exc}") from None
+        for target in self.mapping:
+            if target != "t":
+                resolve_target(target)
+        missing = [r for r in self.required if r not in self.mapping]
+        if missing:
+            raise IngestError(f"mapping {self.name}: required targets {missing} are not mapped")
+        if not self.required:
+            self.required = list(self.mapping)
+
+    def with_units(self, **units: str | None) -> ColumnMap:
+        """A copy with the given units replaced (None keeps the current one)."""
+        changes = {k: v for k, v in units.items() if v is not None}
+        return ColumnMap(**{**self.__dict__, **changes})
+
+    def metadata(self) -> dict[str, str]:
+        return {"units": f"length {self.length_unit}->mm, angle {self.angle_unit}->deg, "
+                         f"feed {self.feed_unit}->mm/min, time {self.time_unit}", "mapping": self.name}
+
+
+def parse_map(text: str) -> dict[str, str]:
+    """`t=time,x=X1_ActualPosition` -> {"t": "time", "x": "X1_ActualPosition"}."""
+    mapping: dict[str, str] = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        target, sep, source = item.partition("=")
+        if not sep or not target.strip() or not source.strip():
+            raise IngestError(f"--map entry {item!r} is not TARGET=COLUMN")
+        mapping[target.strip()] = source.strip()
+    return mapping
+
+
+def preset_names() -> list[str]:
+    folder = resources.files("feedlog.ingest") / "presets"
+    return sorted(p.name.removesuffix(".toml") for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def load_preset(name: str) -> ColumnMap:
+    path = resources.files("feedlog.ingest") / "presets" / f"{name}.toml"
+    if not path.is_file():
+        raise IngestError(f"unknown preset {name!r}; presets: {', '.join(preset_names())}")
+    data = tomllib.loads(path.read_text(encoding="utf-8"))
+    mapping = data.pop("map")
+    data.pop("description", None)
+    return ColumnMap(mapping=mapping, name=f"preset {name}", **data)
+
+
+def preset_description(name: str) -> str:
+    path = resources.files("feedlog.ingest") / "presets" / f"{name}.toml"
+    return tomllib.loads(path.read_text(encoding="utf-8")).get("description", "")
+
+
+def convert(values: np.ndarray, kind: str, cmap: ColumnMap) -> np.ndarray:
+    """Source values (float64 or int64) -> the target column in feedlog units and dtype."""
+    if kind == "length":
+        return values.astype(np.float64) * length_factor(cmap.length_unit)
+    if kind == "angle":
+        return values.astype(np.float64) * angle_factor(cmap.angle_unit)
+    if kind == "velocity":
+        return values.astype(np.float64) * velocity_factor(cmap.feed_unit)
+    if kind == "int":
+        return np.rint(values).astype(np.int64)
+    if kind == "int8":
+        return np.rint(values).astype(np.int8)
+    if kind == "bool":
+        return values.astype(np.float64) != 0
+    return values.astype(np.float64)
+
+
+def time_to_ns(values: np.ndarray, cmap: ColumnMap) -> np.ndarray:
+    """Numeric time in the declared unit (or datetime64[ns]) -> int64 ns."""
+    if cmap.time_unit == "datetime":
+        return values.astype("datetime64[ns]").astype(np.int64)
+    if cmap.time_unit == "ns" and values.dtype.kind in "iu":
+        return values.astype(np.int64)
+    return np.rint(values.astype(np.float64) * (time_factor(cmap.time_unit) * 1e9)).astype(np.int64)
+
+
+def build_streams(t_ns: np.ndarray, values: dict[str, np.ndarray], cmap: ColumnMap) -> dict[str, pd.DataFrame]:
+    """Group converted target columns into their streams, each with the shared `t_ns`."""
+    grouped: dict[str, dict[str, np.ndarray]] = {}
+    for target, raw in values.items():
+        stream, column, kind = resolve_target(target)
+        grouped.setdefault(stream, {"t_ns": t_ns})[column] = convert(raw, kind, cmap)
+    return {stream: pd.DataFrame(cols) for stream, cols in grouped.items()}

@@ -1,0 +1,80 @@
+"""MCAP sources through the registry: feedlog recordings as is, generic JSON MCAP by mapping."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from mcap.writer import Writer
+
+from feedlog.errors import IngestError
+from feedlog.ingest import Recording, write_recording
+from feedlog.ingest.readers import ImportOptions, read_source
+
+
+def write_json_mcap(path, n=50, *, broken_at=None):
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        sid = w.register_schema("axes", "jsonschema", b'{"type":"object"}')
+        axes = w.register_channel("/machine/axes", "json", sid)
+        feed = w.register_channel("/machine/feed", "json", sid)
+        for i in range(n):
+            t = 1_000_000_000 + i * 10_000_000
+            body = {"pos": {"x": i * 0.1, "y": [i * 0.2, 0]}}
+            if i == broken_at:
+                body = {"pos": {"y": [0, 0]}}
+            w.add_message(axes, t, json.dumps(body).encode(), t)
+            if i % 5 == 0:
+                w.add_message(feed, t + 1, json.dumps({"value": 10.0 * i}).encode(), t + 1)
+        w.finish()
+
+
+def test_generic_json_mcap_by_mapping_with_units(tmp_path):
+    path = tmp_path / "other.mcap"
+    write_json_mcap(path)
+    opts = ImportOptions(mapping="x=/machine/axes:pos.x,y=/machine/axes:pos.y.0,feed=/machine/feed:value",
+                         length_unit="in", feed_unit="mm/s")
+    rec = read_source(path, opts)
+    axes = rec.streams["axes"]
+    assert axes["t_ns"].iloc[1] - axes["t_ns"].iloc[0] == 10_000_000 and len(axes) == 50
+    np.testing.assert_allclose(axes["x_mm"], np.arange(50) * 0.1 * 25.4)
+    np.testing.assert_allclose(axes["y_mm"], np.arange(50) * 0.2 * 25.4)
+    np.testing.assert_allclose(rec.streams["feed"]["feed_mm_min"], np.arange(0, 50, 5) * 10.0 * 60)
+
+
+def test_generic_mcap_missing_field_strict_and_lenient(tmp_path):
+    path = tmp_path / "other.mcap"
+    write_json_mcap(path, broken_at=7)
+    mapping = "x=/machine/axes:pos.x"
+    with pytest.raises(IngestError, match=r"other\.mcap \(/machine/axes message 8 \(log_time 1070000000\)\)"):
+        read_source(path, ImportOptions(mapping=mapping))
+    rec = read_source(path, ImportOptions(mapping=mapping, strict=False))
+    assert len(rec.streams["axes"]) == 49 and "1 messages" in rec.metadata["bad_records"]
+
+
+def test_generic_mcap_without_mapping_or_with_split_stream_is_refused(tmp_path):
+    path = tmp_path / "other.mcap"
+    write_json_mcap(path)
+    with pytest.raises(IngestError, match="needs --map"):
+        read_source(path, ImportOptions())
+    with pytest.raises(IngestError, match="two topics"):
+        read_source(path, ImportOptions(mapping="x=/machine/axes:pos.x,y=/machine/feed:value"))
+
+
+def test_feedlog_recording_through_the_registry_and_recover(tmp_path):
+    t = np.arange(100_000, dtype=np.int64) * 1000
+    rec = Recording(streams={"line": __import__("pandas").DataFrame({"t_ns": t, "line": t // 7})})
+    path = tmp_path / "rec.mcap"
+    write_recording(path, rec, compression="none")
+    assert read_source(path).streams["line"]["line"].equals(rec.streams["line"]["line"])
+    data = path.read_bytes()
+    path.write_bytes(data[:-200])
+    with pytest.raises(IngestError, match="truncated"):
+        read_source(path)
+    assert len(read_source(path, ImportOptions(recover=True)).streams["line"]) == 100_000
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not an mcap at all")
+    with pytest.raises(IngestError, match=r"junk\.mcap \(byte 0\): not an MCAP"):
+        read_source(junk)
