@@ -9,7 +9,8 @@ Two sources (Chien et al. 2024 train on per-CL-line "block cycle times"):
   `seen = False`.
 - **Geometry** (when there is no line stream): block k ends when the tool arrives at its end point (the
   constrained CL match of the block's last CL point) and starts when it leaves the previous block's end
-  point (departure; differs from arrival at a stop or dwell). The first block starts at motion start.
+  point (departure; differs from arrival at a stop or dwell). The first block starts at motion start,
+  the last ends at motion end.
 
 Motion span (cycle time = end - start): from the positions themselves. Motion starts in the first
 sampling interval in which any axis moves by more than `still_mm` and ends in the last. At high rates
@@ -135,6 +136,8 @@ def blocks_from_geometry(motion_blocks: pd.DataFrame, end_arrival_ns: np.ndarray
     dep = np.asarray(end_departure_ns, dtype=np.int64)
     start = np.concatenate([[span.t_start_ns], dep[:-1]])
     end = arr.copy()
+    if len(end):
+        end[-1] = span.t_end_ns  # arrival at the final point is the end of motion (sub-sample at low rates)
     # progress is monotone; guard against a departure estimate after the next arrival
     start = np.minimum(start, end)
     out = motion_blocks[["block", "line"]].reset_index(drop=True).copy()

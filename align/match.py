@@ -15,7 +15,9 @@ constrained to progress along the program:
    segments whose length coordinate lies within +-W_k of its prediction S_anchor + (s_k - s_anchor),
    where the anchor is the last well-matched point of the previous chunk and
    W_k = window_mm + drift x (s_k - s_anchor) allows for corner blending, chords and noise. A pass that
-   comes back to the same place is a whole pass length away in S and so never inside the window.
+   comes back to the same place is a whole pass length away in S and so never inside the window. Inside
+   the window the candidate with the least distance + progress_weight x |S - predicted S| wins, which
+   separates a line that is retraced right after a reversal (equally close, but far in progress).
 4. Progress is made monotone (a running maximum over the matched positions); a point pushed forward is
    re-measured at its new position.
 
@@ -37,9 +39,11 @@ class MatchConfig:
     tol_mm: float = 0.1            # largest allowed CL-point-to-measured-path distance
     window_mm: float | None = None  # base half-window in path length; None: max(2 mm, 3 x sample spacing)
     drift: float = 0.2             # extra window per mm of program since the anchor
+    progress_weight: float = 0.25  # mm of score per mm of distance from the predicted progress
     chunk_points: int = 256        # CL points per chunk
     chunk_mm: float = 50.0         # program length per chunk (at least one point)
     resolution_mm: float = 1e-3    # vertex spacing of the reduced measured path
+    still_mm: float = 1e-6         # path length below which the tool has not left a point (departure)
 
     def __post_init__(self) -> None:
         if not self.tol_mm > 0:
@@ -48,8 +52,12 @@ class MatchConfig:
             raise AlignmentError(f"window_mm must be > 0, got {self.window_mm}")
         if not 0 <= self.drift < 1:
             raise AlignmentError(f"drift must be in [0, 1), got {self.drift}")
+        if not 0 <= self.progress_weight < 1:
+            raise AlignmentError(f"progress_weight must be in [0, 1), got {self.progress_weight}")
         if self.chunk_points < 1 or not self.chunk_mm > 0:
             raise AlignmentError(f"chunk_points >= 1 and chunk_mm > 0 needed, got {self.chunk_points}, {self.chunk_mm}")
+        if not self.still_mm >= 0:
+            raise AlignmentError(f"still_mm must be >= 0, got {self.still_mm}")
         if not self.resolution_mm > 0:
             raise AlignmentError(f"resolution_mm must be > 0, got {self.resolution_mm}")
 
@@ -178,8 +186,13 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         idx = np.minimum(idx, nseg - 1)
         u, dk = _project(cl[ks][:, None, :], p0[idx], d[idx], dd[idx])
         dk = np.where(valid, dk, np.inf)
-        # earliest of the (near-)equally close candidates: arrival, not departure, at a standstill
-        near_best = dk <= dk.min(axis=1, keepdims=True) + TIE_MM
+        # score: distance + progress_weight x |progress error|; for a point on a straight stretch the
+        # distance grows with slope 1 away from the foot point, so a weight < 1 never moves the minimum,
+        # but between passes that are equally close (a retraced line) it picks the expected one
+        s_cand = sv[idx] + u * seg_len[idx]
+        score = dk + cfg.progress_weight * np.abs(s_cand - pred[:, None])
+        # earliest of the (near-)equally good candidates: arrival, not departure, at a standstill
+        near_best = score <= score.min(axis=1, keepdims=True) + TIE_MM
         best = np.argmax(near_best, axis=1)
         rows = np.arange(len(ks))
         seg_of[ks] = idx[rows, best]
@@ -224,8 +237,8 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         t_match[m] = t[sub] + np.rint(f * (t[np.minimum(sub + 1, len(t) - 1)] - t[sub])).astype(np.int64)
         s_meas[m] = s_at
         nearest[m] = np.where(f < 0.5, sub, np.minimum(sub + 1, len(t) - 1))
-        # departure: the last sample still within resolution_mm of path length of the match
-        last_here = np.searchsorted(s_full, s_at + cfg.resolution_mm, side="right") - 1
+        # departure: the last sample still within still_mm of path length of the match
+        last_here = np.searchsorted(s_full, s_at + cfg.still_mm, side="right") - 1
         depart[m] = np.maximum(t_match[m], t[np.clip(last_here, 0, len(t) - 1)])
     result = Match(index=index, t_ns=t_match, dist_mm=dist, s_meas_mm=s_meas, nearest=nearest,
                    t_depart_ns=depart)
