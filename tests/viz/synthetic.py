@@ -92,3 +92,26 @@ def cl_points(corners: np.ndarray = CORNERS) -> pd.DataFrame:
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(corners, axis=0), axis=1))])
     return pd.DataFrame({"block": np.concatenate([[0], np.arange(len(corners) - 1)]),
                          "x_mm": corners[:, 0], "y_mm": corners[:, 1], "z_mm": corners[:, 2], "s_mm": s})
+
+
+def program_text() -> str:
+    """G-code whose motion blocks sit on lines FIRST_LINE.. and trace CORNERS at FEED_MM_MIN (exact stop)."""
+    head = ["%", "(synthetic square for viz tests)"] + ["(pad)"] * (FIRST_LINE - 4) + ["G21 G90 G94 G17 G61"]
+    moves = [f"G1 X{x:g} Y{y:g} Z{z:g}" + (f" F{FEED_MM_MIN:g}" if k == 0 else "")
+             for k, (x, y, z) in enumerate(CORNERS[1:])]
+    return "\n".join(head + moves + ["M30", "%"]) + "\n"
+
+
+def recording_with_attachments(profile_toml: bytes, **kwargs) -> Recording:
+    """A synthetic recording carrying its program and machine profile, as a recorder writes it."""
+    rec = recording(**kwargs)
+    rec.attachments["program.ngc"] = program_text().encode()
+    rec.attachments["profile.toml"] = profile_toml
+    return rec
+
+
+def cycle_time_s(**kwargs) -> float:
+    """First block start to last block end of the synthetic motion."""
+    t, _, _, block = motion(rate_hz=1000.0, **kwargs)
+    moving = t[block >= 0]
+    return (moving[-1] - moving[0]) / 1e9

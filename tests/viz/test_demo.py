@@ -1,0 +1,107 @@
+"""`feedlog demo` end to end on a folder of synthetic recordings, and on the bundled recordings/."""
+
+from __future__ import annotations
+
+import json
+import time
+from importlib import resources
+from pathlib import Path
+
+import pytest
+import synthetic as syn
+from conftest import rrd_content
+
+from feedlog.cli import main
+from feedlog.ingest import write_recording
+from feedlog.viz.stages import availability
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def recordings_dir(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("recordings")
+    profile = resources.files("feedlog.profiles").joinpath("linuxcnc-xyz.toml").read_bytes()
+    write_recording(folder / "square_a.mcap", syn.recording_with_attachments(profile))
+    write_recording(folder / "square_b.mcap", syn.recording_with_attachments(profile, lead_s=0.5))
+    (folder / "broken.mcap").write_bytes(b"\x89MCAP0\r\n truncated")
+    (folder / "manifest.toml").write_text(
+        '[[recording]]\nfile = "square_a.mcap"\nprogram = "square.ngc"\nsplit = "train"\n\n'
+        '[[recording]]\nfile = "square_b.mcap"\nprogram = "square.ngc"\nsplit = "test"\n\n'
+        '[[recording]]\nfile = "broken.mcap"\nprogram = "broken.ngc"\nsplit = "test"\n')
+    return folder
+
+
+@pytest.fixture(scope="module")
+def demo_run(recordings_dir, tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo") / "out"
+    code = main(["demo", "--recordings", str(recordings_dir), "--out", str(out), "--no-train"])
+    return code, out
+
+
+def test_demo_table_has_one_row_per_recording_with_real_numbers(demo_run):
+    code, out = demo_run
+    assert code == 0
+    rows = json.loads((out / "cycle_times.json").read_text())
+    assert [r["recording"] for r in rows] == ["square_a", "square_b", "broken"]
+    assert [r["split"] for r in rows] == ["train", "test", "test"]
+    for row in rows[:2]:
+        assert row["program"] == "square"
+        assert row["measured_s"] == pytest.approx(syn.cycle_time_s(), abs=0.01)
+        if availability()["toolpath"] is None or availability()["sim"] is None:
+            # CAM: every block at F1200 -> 60 mm at 20 mm/s
+            assert row["cam_s"] == pytest.approx(3.0, abs=1e-6)
+        if availability()["sim"] is None:
+            # exact stop, 1000 mm/s^2 > the recording's 500: the simulation is a little faster
+            assert 3.0 < row["sim_s"] < row["measured_s"]
+            assert row["sim_err_pct"] == pytest.approx((row["sim_s"] / row["measured_s"] - 1) * 100, abs=1e-3)
+        else:
+            assert row["sim_s"] is None
+    broken = rows[2]
+    assert broken["measured_s"] is None and broken["cam_s"] is None and broken["sim_s"] is None
+
+
+def test_demo_report_names_missing_stages_and_errors(demo_run):
+    _, out = demo_run
+    report = (out / "report.md").read_text()
+    assert "| square | square_a | train |" in report
+    assert "cannot read" in report and "broken.mcap" in report
+    for stage, reason in availability().items():
+        if reason is not None:
+            assert f"- {stage}: **not available**" in report
+        else:
+            assert f"- {stage}: available" in report
+    assert "training skipped (--no-train)" in report
+    # every image the report links exists
+    for line in report.splitlines():
+        if line.startswith("!["):
+            assert (out / line.split("](")[1].rstrip(")")).is_file(), line
+
+
+def test_demo_writes_an_rrd_per_readable_recording(demo_run):
+    _, out = demo_run
+    assert sorted(p.name for p in (out / "rerun").iterdir()) == ["square_a.rrd", "square_b.rrd"]
+    content = rrd_content(out / "rerun" / "square_b.rrd")
+    assert content["/feed/measured"]["rows"] == len(syn.recording(lead_s=0.5).streams["axes"])
+
+
+def test_demo_json_prints_only_the_table_and_reruns_into_its_own_folder(demo_run, recordings_dir, capsys):
+    _, out = demo_run
+    capsys.readouterr()
+    assert main(["demo", "--recordings", str(recordings_dir), "--out", str(out), "--no-train", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert {"program", "measured_s", "cam_s", "sim_s"} <= set(rows[0])
+    assert len(rows) == 3
+
+
+def test_demo_refuses_a_folder_it_did_not_write(recordings_dir, tmp_path, capsys):
+    (tmp_path / "precious.txt").write_text("mine")
+    assert main(["demo", "--recordings", str(recordings_dir), "--out", str(tmp_path), "--no-train"]) == 1
+    assert "was not written by feedlog demo" in capsys.readouterr().err
+    assert (tmp_path / "precious.txt").read_text() == "mine"
+
+
+def test_demo_without_recordings_is_an_error(tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    assert main(["demo", "--recordings", str(tmp_path / "empty"), "--out", str(tmp_path / "o")]) == 1
+    assert "no recordings" in capsys.readouterr().err
