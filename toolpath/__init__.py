@@ -1,6 +1,14 @@
-"""feedlog.toolpath: part programs as typed block tables, their geometry features and CL points."""
+"""feedlog.toolpath: part programs as typed block tables, their geometry features and CL points.
 
+    program = parse_program("part.ngc")          # Program: .blocks, .motion, .warnings, ...
+    features = block_features(program, "linuxcnc-xyz")
+    points = cl_points(program, chord_tol_mm=0.001)
+    segments = linearize(program, 0.001)         # arcs as G1 chords
+"""
+
+from feedlog.toolpath.features import block_features
+from feedlog.toolpath.linearize import cl_points, linearize
 from feedlog.toolpath.parser import parse_program
 from feedlog.toolpath.program import Program, Unsupported
 
-__all__ = ["Program", "Unsupported", "parse_program"]
+__all__ = ["Program", "Unsupported", "block_features", "cl_points", "linearize", "parse_program"]
