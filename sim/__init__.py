@@ -1,1 +1,10 @@
-"""feedlog.sim"""
+"""feedlog.sim: a fast NC interpolator simulation built from registered physical mechanisms.
+
+Public API: `simulate(program, profile, *, mechanisms=None) -> SimResult`, `measure(result, ...)`
+(the measurement model: a SimResult as a sampled, noisy `Recording`), `REGISTRY` of mechanisms.
+"""
+
+from feedlog.sim.mechanism import REGISTRY, Mechanism, mechanism_class, resolve_mechanisms
+from feedlog.sim.simulate import SimResult, simulate
+
+__all__ = ["REGISTRY", "Mechanism", "SimResult", "mechanism_class", "resolve_mechanisms", "simulate"]

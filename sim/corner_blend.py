@@ -1,0 +1,240 @@
+"""Blend-arc corner law: continuous-mode (G64 P) corners cut by an arc inside the path tolerance.
+
+Source: the LinuxCNC 2.9 trajectory planner (src/emc/tp/tp.c `tpHandleBlendArc`, `tpSetupTangent`;
+blendmath.c `blendComputeParameters`, `blendCheckConsume`), re-derived here in vectorised form:
+
+- nearly collinear junctions are passed as "tangent" when the direction kink needs less than
+  `kink_ratio` of the axis acceleration in one servo cycle (the pieces' acceleration drops by the
+  kink share);
+- other line-line corners get a circular arc of half-angle theta = acos(-u1.u2) / 2 whose deviation
+  from the corner stays inside the tolerance T (G64 P; without P a quarter of the shorter block):
+  d_tol = cos(theta) T / (1 - sin(theta)), and which uses at most half of each block; its speed is
+  limited by the normal acceleration, v^2 <= a_n R with a_n = a_plane sqrt(1 - 0.5^2);
+- a line shorter than `gap_cycles` servo cycles at the arc speed is "consumed" by the arc;
+- junctions where a rotary axis moves get LinuxCNC's parabolic blend: both blocks run at half
+  acceleration and the next block starts while the current one decelerates from the blend speed
+  (this is why LinuxCNC's five-axis G64 is slower than G61);
+- corners sharper than `sharp_corner_deg` from a reversal stop.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from feedlog.profile import MachineProfile
+from feedlog.sim.context import Context
+from feedlog.sim.mechanism import Mechanism
+from feedlog.sim.path import KIND_ARC, Pieces
+
+ACC_RATIO_TANGENTIAL = 0.5
+
+
+def inscribed_limit(binormal: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """Largest vector magnitude inside the axis box `bounds` for every direction in the plane with
+    normal `binormal` (rows): min over axes of bound / |axis projected on the plane|."""
+    scale = np.sqrt(np.clip(1.0 - binormal ** 2, 1e-24, None))
+    return np.min(bounds / scale, axis=1)
+
+
+@dataclass
+class BlendArcCorner(Mechanism):
+    name = "blend_arc"
+    kind = "corner"
+
+    kink_ratio: float = 0.1
+    gap_cycles: float = 4.0
+    tolerance_ratio: float = 0.25   # default tolerance as a fraction of the block length (no G64 P)
+    sharp_corner_deg: float = 2.0
+    servo_period_s: float = 0.001
+    rotary_blend: str = "parabolic"  # or "stop"
+
+    def __post_init__(self) -> None:
+        self.check_positive(servo_period_s=self.servo_period_s, tolerance_ratio=self.tolerance_ratio)
+        self.check_non_negative(kink_ratio=self.kink_ratio, gap_cycles=self.gap_cycles,
+                                sharp_corner_deg=self.sharp_corner_deg)
+        if self.rotary_blend not in ("parabolic", "stop"):
+            raise ValueError(f"rotary_blend must be 'parabolic' or 'stop', got {self.rotary_blend!r}")
+
+    @classmethod
+    def default_enabled(cls, profile: MachineProfile) -> bool:
+        return profile.interpolator.fir_t1_s <= 0
+
+    @classmethod
+    def defaults(cls, profile: MachineProfile) -> dict:
+        return {"servo_period_s": profile.interpolator.servo_period_s}
+
+    def corner(self, ctx: Context) -> None:
+        pc = ctx.pieces
+        blocks = ctx.blocks
+        m = len(pc)
+        if m < 2:
+            return
+        lin = blocks.linear_index
+        axes = blocks.axes
+        acc_bound = np.array([ctx.profile.axes[axes[i]].acc_max for i in lin])
+        vel_bound = np.array([ctx.profile.axes[axes[i]].vel_max for i in lin])
+        cyc = self.servo_period_s
+        b = pc.block
+        j = np.arange(m - 1)          # junction j: end of piece j / start of piece j + 1
+        b1, b2 = b[j], b[j + 1]
+        u1 = pc.tangent_xyz(j, pc.length[j], lin)
+        u2 = pc.tangent_xyz(j + 1, np.zeros(m - 1), lin)
+        length = pc.length
+        # speeds as LinuxCNC's segments know them: programmed feed, axis caps, one servo cycle
+        v_seg = np.minimum(pc.v_max, np.where(length > 0, length / cyc, np.inf))
+        v_req = np.minimum(blocks.feed[b], v_seg)
+        stop = blocks.stop_after[b1] | (pc.hold_s[j] > 0) | (length[j] <= 0) | (length[j + 1] <= 0)
+        rotary = blocks.rotary[b1] | blocks.rotary[b2]
+        moves_xyz = (np.linalg.norm(u1, axis=1) > 0) & (np.linalg.norm(u2, axis=1) > 0)
+        dot = np.clip(np.einsum("ij,ij->i", u1, u2), -1.0, 1.0)
+        sharp = moves_xyz & (dot < -math.cos(math.radians(self.sharp_corner_deg)))
+        stop |= sharp
+
+        v_end = np.zeros(m)
+        a_max = pc.a_max.copy()
+        overlap = np.zeros(m, bool)
+
+        # rotary axes move: parabolic blend (or stop)
+        para = ~stop & rotary
+        if self.rotary_blend == "parabolic" and para.any():
+            jp = np.flatnonzero(para)
+            overlap[jp] = True
+            halved = np.zeros(m, bool)
+            halved[jp] = True
+            halved[jp + 1] = True
+            a_max[halved] *= 0.5
+            v_end[jp] = self._parabolic_speed(pc, blocks, jp, u1[jp], u2[jp], a_max, v_req, moves_xyz[jp])
+
+        # tangent (kink) check
+        cand = ~stop & ~rotary & moves_xyz
+        v_kink = np.minimum(v_req[j], v_req[j + 1])
+        a_inst = v_kink / cyc + pc.a_max[j + 1]
+        acc_scale = np.max(np.abs(a_inst[:, None] * (u2 - u1)) / acc_bound, axis=1)
+        tangent = cand & (acc_scale < self.kink_ratio)
+        kink_vel = np.where(acc_scale < self.kink_ratio, v_kink,
+                            v_kink * self.kink_ratio / np.maximum(acc_scale, 1e-300))
+        reduce = np.where(tangent, acc_scale, self.kink_ratio)
+
+        # blend arcs for the remaining line-line corners
+        arc_ok = cand & ~tangent & (pc.radius[j] <= 0) & (pc.radius[j + 1] <= 0)
+        arcs = self._arcs(pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, arc_ok)
+        use_arc = arc_ok & arcs["ok"] & (arcs["v_arc"] >= kink_vel)
+        use_kink = cand & ~use_arc          # tangent blends, incl. arcs worse than the kink speed
+        jk = np.flatnonzero(use_kink)
+        v_end[jk] = kink_vel[jk]
+        red = np.zeros(m)
+        np.maximum.at(red, jk, reduce[jk])
+        np.maximum.at(red, jk + 1, reduce[jk])
+        a_max *= 1.0 - red
+        ctx.pieces = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)
+
+    def _parabolic_speed(self, pc: Pieces, blocks, jp, u1, u2, a_half, v_req, moves_xyz) -> np.ndarray:
+        """LinuxCNC tpComputeBlendVelocity: blend speed from the half-segment rule and the tolerance."""
+        l1, l2 = pc.length[jp], pc.length[jp + 1]
+        a1, a2 = a_half[jp], a_half[jp + 1]
+        v1 = np.minimum(np.sqrt(a1 * l1), v_req[jp])       # triangle speed over half the block
+        v2 = np.minimum(np.sqrt(a2 * l2), v_req[jp + 1])
+        t_reach = np.minimum(l1 / v1, l2 / v2)
+        t_blend = np.minimum(t_reach, np.maximum(v1 / a1, v2 / a2))
+        v_b = np.minimum(v1, t_blend * a1)
+        tol = blocks.tol[pc.block[jp]]
+        theta = np.arccos(np.clip(-np.einsum("ij,ij->i", u1, u2), -1, 1)) / 2.0
+        cos_t = np.cos(theta)
+        has_tol = (tol > 0) & (cos_t > math.cos(math.pi / 2 - 1e-3)) & moves_xyz
+        v_tol = 2.0 * np.sqrt(a1 * np.where(has_tol, tol, 0.0) / np.where(has_tol, cos_t, 1.0))
+        return np.where(has_tol, np.minimum(v_b, v_tol), v_b)
+
+    def _arcs(self, pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, ok) -> dict[str, np.ndarray]:
+        nominal = blocks.length[pc.block]
+        n1, n2 = nominal[j], nominal[j + 1]
+        dot = np.clip(np.einsum("ij,ij->i", u1, u2), -1.0, 1.0)
+        theta = np.arccos(-dot) / 2.0
+        ok = ok & (math.pi / 2 - theta >= 1e-6) & (theta >= 1e-6)
+        th = np.where(ok, theta, 0.5)
+        binormal = np.cross(u1, u2)
+        bn = np.linalg.norm(binormal, axis=1)
+        binormal = binormal / np.where(bn > 0, bn, 1.0)[:, None]
+        a_plane = inscribed_limit(binormal, acc_bound)
+        v_plane = inscribed_limit(binormal, vel_bound)
+        a_n = a_plane * math.sqrt(1 - ACC_RATIO_TANGENTIAL ** 2)
+        tol1 = blocks.tol[pc.block[j]]
+        tol2 = blocks.tol[pc.block[j + 1]]
+        t1 = np.where(tol1 > 0, tol1, n1 * self.tolerance_ratio)
+        t2 = np.where(tol2 > 0, tol2, n2 * self.tolerance_ratio)
+        tol = np.minimum(np.minimum(t1, t2), np.minimum(n1, n2) * self.tolerance_ratio)
+        phi = math.pi - 2 * th
+        v_goal = np.maximum(v_req[j], v_req[j + 1])
+        cphi = np.cos(np.minimum(phi, math.pi * 0.49))
+        vm1 = np.minimum(pc.v_max[j], pc.v_max[j + 1] / cphi)
+        vm2 = np.minimum(pc.v_max[j + 1], pc.v_max[j] / cphi)
+        base = np.linalg.norm(u2 * vm2[:, None] - u1 * vm1[:, None], axis=1)
+        v_alt = vm1 * vm2 * np.sin(phi) / np.where(base > 0, base, np.inf)
+        v_goal = np.minimum(v_goal, np.maximum(v_alt, v_plane))
+        d_tol = np.cos(th) * tol / (1 - np.sin(th))
+        d_geom = np.minimum(np.minimum(0.5 * n1, 0.5 * n2), d_tol)
+        d_geom = np.minimum(d_geom, np.minimum(pc.length[j], pc.length[j + 1]))
+        r_geom = np.tan(th) * d_geom
+        v_plan = np.minimum(np.sqrt(a_n * r_geom), v_goal)
+        a_par = 0.5 * a_plane
+        t_blend = np.minimum(np.sqrt(2 * a_par * d_geom), v_plan) / a_par
+        r_blend = np.minimum(t_blend * v_plan / phi, r_geom)
+        r_plan = np.maximum(v_plan ** 2 / a_n, r_blend)
+        d_plan = r_plan / np.tan(th)
+        s_arc = r_plan * phi
+        ok = ok & (r_plan > 1e-12) & (s_arc > 1e-6)
+        v_arc = np.minimum(v_plan, s_arc / self.servo_period_s)
+        return {"ok": ok, "theta": th, "r": r_plan, "d": d_plan, "s": s_arc, "v": v_plan, "v_arc": v_arc,
+                "a": a_plane}
+
+    def _insert_arcs(self, pc: Pieces, ja, arcs, v_end, a_max, overlap, u1, u2) -> Pieces:
+        m = len(pc)
+        k = pc.p0.shape[1]
+        trim_end = np.zeros(m)
+        trim_start = np.zeros(m)
+        d = arcs["d"][ja]
+        trim_end[ja] = d
+        trim_start[ja + 1] = d
+        length = pc.length - trim_end - trim_start
+        p0 = pc.p0 + pc.dir * trim_start[:, None]
+        v_max = pc.v_max.copy()
+        clamp = pc.clamp_len.copy()
+        v_end = v_end.copy()
+        # consumed lines: a short remainder before the arc runs at the arc speed, as part of it
+        v_plan = arcs["v"][ja]
+        consumed = (length[ja] / v_plan < self.gap_cycles * self.servo_period_s) & ~overlap[np.maximum(ja - 1, 0)]
+        jc = ja[consumed]
+        v_max[jc] = np.minimum(v_max[jc], v_plan[consumed])
+        clamp[jc] = 0.0
+        v_end[ja] = v_plan
+        # arc pieces
+        na = len(ja)
+        theta = arcs["theta"][ja]
+        r = arcs["r"][ja]
+        corner = pc.p0[ja] + pc.dir[ja] * pc.length[ja, None]  # corner point (end of the untrimmed line)
+        start = corner - pc.dir[ja] * d[:, None]
+        lin_idx = [0, 1, 2]  # profiles list x, y, z first (feedlog.profile.MachineProfile.axis_names)
+        e2 = np.zeros((na, k))
+        e1 = np.zeros((na, k))
+        t1 = u1[ja]
+        t2 = u2[ja]
+        normal = t2 - t1
+        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        e1[:, lin_idx] = -normal            # from the centre towards the arc start
+        e2[:, lin_idx] = t1                 # tangent at the arc start
+        arc_len = arcs["s"][ja]
+        arc_len_full = arc_len + np.where(consumed, length[ja], 0.0)
+        phi = math.pi - 2 * theta
+        arcp = Pieces(block=pc.block[ja], length=arc_len, p0=start, dir=np.zeros((na, k)), e1=e1, e2=e2,
+                      radius=r, omega=phi / arc_len, v_max=v_plan, a_max=arcs["a"][ja], v_end=v_plan,
+                      hold_s=np.zeros(na), blend=np.ones(na, bool), overlap=np.zeros(na, bool),
+                      clamp_len=arc_len_full)
+        lines = Pieces(block=pc.block, length=length, p0=p0, dir=pc.dir, e1=pc.e1, e2=pc.e2, radius=pc.radius,
+                       omega=pc.omega, v_max=v_max, a_max=a_max, v_end=v_end, hold_s=pc.hold_s, blend=pc.blend,
+                       overlap=overlap, clamp_len=clamp)
+        key = np.concatenate([2 * np.arange(m), 2 * ja + 1])
+        order = np.argsort(key, kind="stable")
+        merged = {f: np.concatenate([getattr(lines, f), getattr(arcp, f)])[order] for f in Pieces.__dataclass_fields__}
+        return Pieces(**merged)

@@ -1,0 +1,30 @@
+"""Feed override: the operator's feed-rate dial scales every programmed feed (not rapids).
+
+Source: RS274/NGC and LinuxCNC feed override (`halui.feed-override`, MAX_FEED_OVERRIDE); ISO 6983
+controllers alike. Axis limits still cap the resulting feed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from feedlog.sim.mechanism import Mechanism
+from feedlog.sim.path import KIND_RAPID
+
+
+@dataclass
+class FeedOverride(Mechanism):
+    name = "feed_override"
+    kind = "limits"
+    order = 10
+
+    override: float = 1.0  # 1.0 = 100 %
+
+    def __post_init__(self) -> None:
+        self.check_positive(override=self.override)
+
+    def limit(self, ctx) -> None:
+        b = ctx.blocks
+        b.feed = np.where(b.kind != KIND_RAPID, b.feed * self.override, b.feed)

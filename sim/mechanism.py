@@ -1,0 +1,193 @@
+"""Mechanisms: the registered, parameterised building blocks of the NC interpolator simulation.
+
+A mechanism is a small dataclass whose fields are its parameters, each named with its unit
+(`min_block_time_s`, `t1_s`, `override`). A mechanism belongs to one `kind`, which says where in the
+chain it acts:
+
+- `limits`:       adjusts per-block limits before planning (feed override, kinematics, block time)
+- `corner`:       decides the speed through block junctions (blend arc, junction deviation)
+- `interpolator`: turns the prepared blocks into motion over time (look-ahead planner, FIR, CAM)
+- `series`:       changes the sampled motion afterwards (following lag)
+
+Mechanisms are looked up by name in `REGISTRY` (name -> "module:Class"; adding one is one file plus
+one line here). A machine profile switches them on or off and sets their parameters with
+`[sim.<name>]` tables (`enabled = true/false` plus parameters); `simulate(..., mechanisms=...)`
+overrides the profile, which is how a fitting step sets parameters from outside.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+from feedlog.errors import SimulationError
+from feedlog.profile import MachineProfile
+
+KINDS = ("limits", "corner", "interpolator", "series")
+
+# name -> "module:Class" (imported on first use). One line per mechanism.
+REGISTRY: dict[str, str] = {
+    "cam": "feedlog.sim.cam:CamEstimate",
+    "lookahead": "feedlog.sim.planner:LookAheadPlanner",
+    # "fir": "feedlog.sim.fir:FirInterpolator",
+    "blend_arc": "feedlog.sim.corner_blend:BlendArcCorner",
+    "junction_deviation": "feedlog.sim.corner_junction:JunctionDeviationCorner",
+    # "trunnion": "feedlog.sim.kinematics:TrunnionKinematics",
+    "feed_override": "feedlog.sim.feed_override:FeedOverride",
+    "rapid_override": "feedlog.sim.rapid_override:RapidOverride",
+    "block_time": "feedlog.sim.block_time:BlockTimeFloor",
+    "reversal_dwell": "feedlog.sim.reversal_dwell:ReversalDwell",
+    "following_lag": "feedlog.sim.following_lag:FollowingLag",
+}
+
+# Controller families whose measured behaviour needs mechanism settings beyond the profile's limits.
+# A profile's own [sim.<name>] tables win over these. Matched against `profile.controller`.
+CONTROLLER_PRESETS: dict[str, dict[str, dict[str, Any]]] = {
+    "linuxcnc": {
+        # task -> motion queue feeds ~600 blocks/s: the floor fitted to dense002q0.ngc (5.466 s)
+        "block_time": {"enabled": True, "min_block_time_s": 0.00167},
+        # canon (emccanon.cc getStraightAcceleration) projects the axis limits only; the TRAJ
+        # MAX_LINEAR_ACCELERATION does not cap a coordinated move. The exact-stop settle time is
+        # calibrated: test_g61.ngc runs 4.8 % slower than the ideal stop-to-stop plan (see docs/sim.md)
+        "lookahead": {"path_acc_max_mm_s2": float("inf"), "stop_settle_s": 0.0035},
+        # LinuxCNC plans in axis (program) coordinates; joint limits do not slow the feed
+        # "trunnion": {"limit_joints": False},
+    },
+}
+
+
+@dataclass
+class Mechanism:
+    """Base class. Subclasses are dataclasses whose fields are unit-named parameters."""
+
+    name: ClassVar[str] = ""
+    kind: ClassVar[str] = ""
+    order: ClassVar[int] = 50  # position among mechanisms of the same kind (low runs first)
+
+    @classmethod
+    def default_enabled(cls, profile: MachineProfile) -> bool:
+        """Whether the mechanism runs when the profile says nothing about it."""
+        return False
+
+    @classmethod
+    def defaults(cls, profile: MachineProfile) -> dict[str, Any]:
+        """Parameter defaults derived from the profile (override to read profile fields)."""
+        return {}
+
+    @classmethod
+    def from_params(cls, profile: MachineProfile, params: Mapping[str, Any]) -> Mechanism:
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(params) - names - {"enabled"})
+        if unknown:
+            raise SimulationError(f"mechanism {cls.name!r}: unknown parameter(s) {', '.join(unknown)}; "
+                                  f"known: {', '.join(sorted(names)) or 'none'}")
+        values = {**cls.defaults(profile), **{k: v for k, v in params.items() if k != "enabled"}}
+        try:
+            return cls(**values)
+        except (TypeError, ValueError) as exc:
+            raise SimulationError(f"mechanism {cls.name!r}: {exc}") from None
+
+    # hooks, called by feedlog.sim.simulate in chain order; the defaults do nothing
+    def limit(self, ctx) -> None:
+        """Adjust `ctx.blocks` (feed, limits, stops, holds) before the path is built."""
+
+    def corner(self, ctx) -> None:
+        """Set junction speeds / insert blend pieces in `ctx.pieces` (corner laws)."""
+
+    def run(self, ctx):
+        """Interpolate: return a `Trajectory` (interpolators only)."""
+        raise NotImplementedError(f"mechanism {self.name!r} is not an interpolator")
+
+    def after(self, ctx, trajectory):
+        """Change the sampled trajectory; return the new one."""
+        return trajectory
+
+    def params(self) -> dict[str, Any]:
+        """Current parameter values (unit-named), e.g. for writing a fitted profile back."""
+        return dataclasses.asdict(self)
+
+    def check_positive(self, **values: float) -> None:
+        for key, value in values.items():
+            if not value > 0:
+                raise SimulationError(f"mechanism {self.name!r}: {key} must be > 0, got {value}")
+
+    def check_non_negative(self, **values: float) -> None:
+        for key, value in values.items():
+            if not value >= 0:
+                raise SimulationError(f"mechanism {self.name!r}: {key} must be >= 0, got {value}")
+
+
+def mechanism_class(name: str) -> type[Mechanism]:
+    try:
+        target = REGISTRY[name]
+    except KeyError:
+        raise SimulationError(f"unknown sim mechanism {name!r}; known: {', '.join(sorted(REGISTRY))}") from None
+    module_name, class_name = target.split(":")
+    return getattr(importlib.import_module(module_name), class_name)
+
+
+def _preset(profile: MachineProfile) -> dict[str, dict[str, Any]]:
+    controller = profile.controller.lower()
+    merged: dict[str, dict[str, Any]] = {}
+    for family, tables in CONTROLLER_PRESETS.items():
+        if family in controller:
+            for name, table in tables.items():
+                merged.setdefault(name, {}).update(table)
+    return merged
+
+
+MechanismSpec = Mapping[str, Any] | Sequence[str] | None
+
+
+def resolve_mechanisms(profile: MachineProfile, mechanisms: MechanismSpec = None) -> list[Mechanism]:
+    """The mechanisms that run, in chain order, with their parameters.
+
+    Parameter layers (later wins): class defaults from the profile, the controller preset, the
+    profile's `[sim.<name>]` table, then `mechanisms`. `mechanisms` is either a sequence of names
+    (exactly those run; the default interpolator is added when none is named) or a mapping
+    `name -> {param: value}` / `name -> True/False` applied on top of the profile.
+    """
+    tables: dict[str, dict[str, Any]] = {}
+    for name, table in _preset(profile).items():
+        tables.setdefault(name, {}).update(table)
+    for name, table in profile.sim.items():
+        if not isinstance(table, Mapping):
+            raise SimulationError(f"profile {profile.name!r}: [sim.{name}] must be a table, got {table!r}")
+        tables.setdefault(name, {}).update(table)
+    for name in tables:
+        mechanism_class(name)  # unknown names fail early, naming the known ones
+
+    enabled = {name: bool(tables.get(name, {}).get("enabled", mechanism_class(name).default_enabled(profile)))
+               for name in REGISTRY}
+    if isinstance(mechanisms, Mapping):
+        for name, value in mechanisms.items():
+            mechanism_class(name)
+            if isinstance(value, bool):
+                enabled[name] = value
+            elif isinstance(value, Mapping):
+                tables.setdefault(name, {}).update(value)
+                enabled[name] = bool(value.get("enabled", True))
+            else:
+                raise SimulationError(f"mechanism {name!r}: expected True/False or a parameter mapping, got {value!r}")
+    elif mechanisms is not None:
+        names = [str(m) for m in mechanisms]
+        for name in names:
+            mechanism_class(name)
+        enabled = {name: name in names for name in REGISTRY}
+        if not any(mechanism_class(n).kind == "interpolator" for n in names):
+            enabled["fir" if profile.interpolator.fir_t1_s > 0 else "lookahead"] = True
+
+    chain = [mechanism_class(name).from_params(profile, tables.get(name, {}))
+             for name, on in enabled.items() if on]
+    interpolators = [m for m in chain if m.kind == "interpolator"]
+    if len(interpolators) != 1:
+        raise SimulationError("exactly one interpolator mechanism must be enabled, got "
+                              f"{', '.join(m.name for m in interpolators) or 'none'} (known: cam, lookahead, fir)")
+    corners = [m for m in chain if m.kind == "corner"]
+    if len(corners) > 1:
+        raise SimulationError(f"at most one corner law may be enabled, got {', '.join(m.name for m in corners)}")
+    chain.sort(key=lambda m: (KINDS.index(m.kind), m.order, m.name))
+    return chain

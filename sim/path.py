@@ -1,0 +1,269 @@
+"""Motion blocks and path pieces: the block table turned into arrays the planner can work on.
+
+`Blocks` holds one row per motion (or dwell) block with its geometry, programmed feed and the
+limits that the `limits` mechanisms adjust. `Pieces` is the executed path: one piece per block
+(lines and G2/G3 arcs), plus the blend arcs a corner law inserts. A piece is parameterised by its
+length `sigma` in [0, length]:
+
+    position(sigma) = p0 + dir * sigma + radius * ((cos(omega sigma) - 1) e1 + sin(omega sigma) e2)
+
+(lines: radius = 0). Path length is the TCP (x, y, z) length; a move of rotary axes alone is measured
+in degrees, as LinuxCNC and RS274 do.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import pandas as pd
+
+from feedlog.errors import SimulationError
+from feedlog.profile import LINEAR_AXES, MachineProfile
+from feedlog.toolpath import schema
+
+KIND_RAPID, KIND_LINEAR, KIND_ARC, KIND_DWELL = 0, 1, 2, 3
+_KIND_CODES = {schema.RAPID: KIND_RAPID, schema.LINEAR: KIND_LINEAR, schema.ARC_CW: KIND_ARC,
+               schema.ARC_CCW: KIND_ARC, schema.DWELL: KIND_DWELL}
+_PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}  # plane axis 1, plane axis 2, normal (x=0)
+EPS_LEN = 1e-9
+
+
+@dataclass
+class Blocks:
+    """Per-block arrays (n rows). Positions have one column per profile axis (`axes`)."""
+
+    axes: tuple[str, ...]
+    block: np.ndarray        # block index in the program's block table
+    line: np.ndarray         # source line
+    kind: np.ndarray         # KIND_* codes
+    p0: np.ndarray           # (n, k) start positions
+    p1: np.ndarray           # (n, k) end positions
+    length: np.ndarray       # path length (mm; deg for rotary-only moves)
+    feed: np.ndarray         # programmed feed in length units per second (rapids: rapid rate)
+    v_limit: np.ndarray      # speed limit from axis and path velocity limits (the feed may be lower)
+    a_max: np.ndarray        # along-path acceleration limit from axis limits
+    stop_after: np.ndarray   # exact stop at the end of the block (G61, G61.1, dwell, program end)
+    tol: np.ndarray          # G64 P tolerance (NaN: none given)
+    hold_s: np.ndarray       # standstill after the block (G4 dwell, reversal dwell)
+    min_time_s: np.ndarray   # lower bound of the block's duration (block processing time)
+    rotary: np.ndarray       # block moves a rotary axis
+    # arcs (NaN / 0 elsewhere)
+    center: np.ndarray       # (n, 3)
+    normal_axis: np.ndarray  # index of the plane normal among x, y, z
+    sweep: np.ndarray        # signed sweep angle (rad), CCW positive about the plane normal
+    radius: np.ndarray
+    extra: dict[str, np.ndarray] = field(default_factory=dict)  # mechanisms may add columns
+
+    def __len__(self) -> int:
+        return len(self.block)
+
+    @property
+    def v_max(self) -> np.ndarray:
+        """Cruise speed: programmed feed capped by the velocity limits."""
+        return np.minimum(self.feed, self.v_limit)
+
+    @property
+    def linear_index(self) -> list[int]:
+        return [i for i, a in enumerate(self.axes) if a in LINEAR_AXES]
+
+
+@dataclass
+class Pieces:
+    """The executed path, in order. Arrays of m pieces; `block` indexes `Blocks` rows."""
+
+    block: np.ndarray
+    length: np.ndarray
+    p0: np.ndarray
+    dir: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    radius: np.ndarray
+    omega: np.ndarray
+    v_max: np.ndarray
+    a_max: np.ndarray
+    v_end: np.ndarray        # speed limit at the junction after the piece (0 = stop)
+    hold_s: np.ndarray       # standstill after the piece
+    blend: np.ndarray        # piece was inserted by a corner law
+    overlap: np.ndarray      # parabolic blend with the next piece (LinuxCNC fallback)
+    clamp_len: np.ndarray    # length that must last >= one servo cycle (a consumed line adds to its arc)
+
+    def __len__(self) -> int:
+        return len(self.block)
+
+    def take(self, index: np.ndarray) -> Pieces:
+        return Pieces(**{k: getattr(self, k)[index] for k in self.__dataclass_fields__})
+
+    def position(self, index: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+        """Axis positions (len(index), k) at path parameter sigma within the given pieces."""
+        sigma = np.asarray(sigma, dtype=np.float64)
+        pos = self.p0[index] + self.dir[index] * sigma[:, None]
+        curved = self.radius[index] > 0
+        if curved.any():
+            idx = index[curved]
+            ang = self.omega[idx] * sigma[curved]
+            pos[curved] += self.radius[idx, None] * ((np.cos(ang) - 1.0)[:, None] * self.e1[idx]
+                                                     + np.sin(ang)[:, None] * self.e2[idx])
+        return pos
+
+    def tangent_xyz(self, index: np.ndarray, sigma: np.ndarray, lin: list[int]) -> np.ndarray:
+        """Unit TCP tangent (len(index), 3) at sigma (zeros where the TCP does not move)."""
+        ang = self.omega[index] * sigma
+        d = (self.dir[index] + self.radius[index, None] * self.omega[index, None]
+             * (-np.sin(ang)[:, None] * self.e1[index] + np.cos(ang)[:, None] * self.e2[index]))[:, lin]
+        norm = np.linalg.norm(d, axis=1)
+        return np.divide(d, norm[:, None], out=np.zeros_like(d), where=norm[:, None] > EPS_LEN)
+
+
+def block_table(program) -> pd.DataFrame:
+    """The block table of a `Program` (anything with `.blocks`) or a DataFrame."""
+    table = getattr(program, "blocks", program)
+    if not isinstance(table, pd.DataFrame):
+        raise SimulationError(f"expected a Program or a block table DataFrame, got {type(program).__name__}")
+    missing = [c for c in ("block", "line", "kind", "feed_mm_min", "path_mode") if c not in table.columns]
+    if missing:
+        raise SimulationError(f"block table lacks column(s) {', '.join(missing)} (see feedlog/toolpath/schema.py)")
+    return table
+
+
+def _column(table: pd.DataFrame, name: str, default: float) -> np.ndarray:
+    if name not in table.columns:
+        return np.full(len(table), default, dtype=np.float64)
+    return table[name].to_numpy(dtype=np.float64, na_value=np.nan)
+
+
+def prepare_blocks(program, profile: MachineProfile) -> Blocks:
+    """Motion and dwell rows of the block table as `Blocks`, with axis-projected limits."""
+    table = block_table(program)
+    kinds = table["kind"].astype(str).to_numpy()
+    code = np.array([_KIND_CODES.get(k, -1) for k in kinds], dtype=np.int8)
+    keep = code >= 0
+    t = table.loc[keep]
+    code = code[keep]
+    axes = profile.axis_names
+    units = schema.AXIS_UNITS
+    p1 = np.column_stack([_column(t, f"{a}_{units[a]}", np.nan) for a in axes])
+    p0 = np.column_stack([_column(t, f"{a}0_{units[a]}", np.nan) for a in axes])
+    # unknown start (first move of a program): no motion on that axis
+    p0 = np.where(np.isnan(p0), p1, p0)
+    bad = np.isnan(p1).any(axis=1) & (code != KIND_DWELL)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise SimulationError(f"line {int(t['line'].iloc[i])}: motion block without an end position "
+                              f"for axes {', '.join(axes)}")
+    p1 = np.where(np.isnan(p1), p0, p1)
+    n, k = p0.shape
+    lin = [i for i, a in enumerate(axes) if a in LINEAR_AXES]
+    rot = [i for i, a in enumerate(axes) if a not in LINEAR_AXES]
+    delta = p1 - p0
+    lin_len = np.linalg.norm(delta[:, lin], axis=1)
+    rot_len = np.linalg.norm(delta[:, rot], axis=1) if rot else np.zeros(n)
+
+    # arcs: centre, plane, signed sweep, helix
+    center = np.column_stack([_column(t, c, np.nan) for c in ("cx_mm", "cy_mm", "cz_mm")])
+    plane = _column(t, "plane", 17).astype(int)
+    turns = np.maximum(_column(t, "turns", 1), 1)
+    sweep = np.zeros(n)
+    radius = np.zeros(n)
+    normal_axis = np.full(n, 2, dtype=np.int8)
+    is_arc = code == KIND_ARC
+    ccw = np.array([k == schema.ARC_CCW for k in kinds[keep]])
+    length = np.where(lin_len > EPS_LEN, lin_len, rot_len)
+    for i in np.flatnonzero(is_arc):  # arcs are rare; the per-arc work is a few scalar ops
+        if plane[i] not in _PLANES or np.isnan(center[i]).any():
+            raise SimulationError(f"line {int(t['line'].iloc[i])}: arc without a centre or plane")
+        a1, a2, nrm = _PLANES[plane[i]]
+        xyz0, xyz1 = p0[i, lin], p1[i, lin]
+        r0 = np.array([xyz0[a1] - center[i, a1], xyz0[a2] - center[i, a2]])
+        r1 = np.array([xyz1[a1] - center[i, a1], xyz1[a2] - center[i, a2]])
+        th0, th1 = np.arctan2(r0[1], r0[0]), np.arctan2(r1[1], r1[0])
+        if ccw[i]:
+            d = (th1 - th0) % (2 * np.pi)
+        else:
+            d = -((th0 - th1) % (2 * np.pi))
+        if abs(d) < 1e-9:
+            d = 2 * np.pi if ccw[i] else -2 * np.pi
+        d += np.sign(d) * 2 * np.pi * (turns[i] - 1)
+        radius[i] = float(np.hypot(*r0))
+        sweep[i] = d
+        normal_axis[i] = nrm
+        length[i] = float(np.hypot(radius[i] * d, xyz1[nrm] - xyz0[nrm]))
+
+    feed = _column(t, "feed_mm_min", np.nan) / 60.0
+    rapid = code == KIND_RAPID
+    feed = np.where(rapid, profile.rapid_mm_min / 60.0, feed)
+    moving = (length > EPS_LEN) & (code != KIND_DWELL)
+    bad_feed = moving & ~(feed > 0)
+    if bad_feed.any():
+        i = int(np.flatnonzero(bad_feed)[0])
+        raise SimulationError(f"line {int(t['line'].iloc[i])}: feed move with no feed rate (F)")
+
+    # axis limits projected on the block direction (lines: exact; arcs: the plane axes)
+    vel = np.array([profile.axes[a].vel_max for a in axes])
+    acc = np.array([profile.axes[a].acc_max for a in axes])
+    ratio = np.abs(delta) / np.where(length > EPS_LEN, length, 1.0)[:, None]
+    with np.errstate(divide="ignore"):
+        v_axis = np.min(np.where(ratio > 1e-12, vel / ratio, np.inf), axis=1)
+        a_axis = np.min(np.where(ratio > 1e-12, acc / ratio, np.inf), axis=1)
+    for i in np.flatnonzero(is_arc):
+        a1, a2, nrm = _PLANES[plane[i]]
+        pl = [lin[a1], lin[a2]]
+        v_axis[i] = min(v_axis[i], vel[pl].min())
+        a_axis[i] = min(a_axis[i], acc[pl].min())
+    interp = profile.interpolator
+    is_lin = lin_len > EPS_LEN
+    v_path = np.where(is_lin, interp.path_vel_max_mm_s, np.inf)
+    v_limit = np.minimum(v_axis, v_path)
+    a_max = np.where(np.isfinite(a_axis), a_axis, acc.min())
+
+    mode = t["path_mode"].astype(str).to_numpy()
+    stop_after = (mode != schema.CONTINUOUS) | (code == KIND_DWELL)
+    if n:
+        stop_after[-1] = True
+    hold = np.where(code == KIND_DWELL, np.nan_to_num(_column(t, "dwell_s", 0.0)), 0.0)
+    length = np.where(moving, length, 0.0)
+    return Blocks(axes=axes, block=t["block"].to_numpy(np.int64), line=t["line"].to_numpy(np.int64),
+                  kind=code, p0=p0, p1=p1, length=length, feed=feed, v_limit=v_limit, a_max=a_max,
+                  stop_after=stop_after, tol=_column(t, "tol_mm", np.nan), hold_s=hold,
+                  min_time_s=np.zeros(n), rotary=rot_len > 1e-9, center=center, normal_axis=normal_axis,
+                  sweep=sweep, radius=radius)
+
+
+def build_pieces(blocks: Blocks) -> Pieces:
+    """One piece per block. Junction speeds start at 0 (stop); a corner law raises them."""
+    n, k = blocks.p0.shape
+    lin = blocks.linear_index
+    length = blocks.length
+    safe = np.where(length > 0, length, 1.0)
+    direction = (blocks.p1 - blocks.p0) / safe[:, None]
+    direction[length <= 0] = 0.0
+    e1 = np.zeros((n, k))
+    e2 = np.zeros((n, k))
+    omega = np.zeros(n)
+    radius = blocks.radius.copy()
+    for i in np.flatnonzero(blocks.kind == KIND_ARC):
+        nrm = int(blocks.normal_axis[i])
+        c = blocks.center[i].copy()
+        c[nrm] = blocks.p0[i, lin[nrm]]
+        r0 = blocks.p0[i, lin] - c
+        u1 = r0 / np.linalg.norm(r0)
+        nvec = np.zeros(3)
+        nvec[nrm] = 1.0
+        e1[i, lin] = u1
+        e2[i, lin] = np.cross(nvec, u1) * np.sign(blocks.sweep[i])
+        omega[i] = abs(blocks.sweep[i]) / safe[i]
+        # the straight part of an arc: helix along the normal and the rotary axes
+        direction[i, lin] = 0.0
+        direction[i, lin[nrm]] = (blocks.p1[i, lin[nrm]] - blocks.p0[i, lin[nrm]]) / safe[i]
+    v_max = blocks.v_max.copy()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v_max = np.where(blocks.min_time_s > 0, np.minimum(v_max, length / blocks.min_time_s), v_max)
+    zero = np.zeros(n)
+    return Pieces(block=np.arange(n), length=length.copy(), p0=blocks.p0.copy(), dir=direction, e1=e1, e2=e2,
+                  radius=radius, omega=omega, v_max=v_max, a_max=blocks.a_max.copy(), v_end=zero.copy(),
+                  hold_s=blocks.hold_s.copy(), blend=np.zeros(n, bool), overlap=np.zeros(n, bool),
+                  clamp_len=length.copy())
+
+
+def with_columns(pieces: Pieces, **changes) -> Pieces:
+    return replace(pieces, **changes)

@@ -1,0 +1,79 @@
+"""Look-ahead planner: acceleration-limited speed planning over a window of blocks.
+
+Source: the classic look-ahead scheme of CNC kernels (backward pass for the deceleration the next
+blocks need, forward pass for the achievable acceleration; e.g. LinuxCNC src/emc/tp/tp.c
+`tpRunOptimization`, grbl planner.c). Per-axis velocity and acceleration limits are projected on
+each block's direction (`feedlog.sim.path.prepare_blocks`); arcs (G2/G3 and blend arcs) split the
+acceleration into a tangential and a normal share, so their speed is limited by the centripetal
+acceleration v^2 / R <= a_n (LinuxCNC `BLEND_ACC_RATIO_TANGENTIAL` = 0.5, normal sqrt(1 - 0.5^2)).
+The look-ahead window guarantees that the tool can stop within the next `lookahead_blocks` pieces.
+Each piece lasts at least `min_piece_cycles` servo periods (LinuxCNC clamps a segment's speed to
+length / cycle time). Without a corner law every junction is an exact stop; `stop_settle_s` adds a
+standstill at each exact stop (an in-position wait; LinuxCNC's preset uses 3.5 ms, see
+docs/sim.md for how it was calibrated).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from feedlog.profile import MachineProfile
+from feedlog.sim.context import Context, Trajectory, trajectory_from_plan
+from feedlog.sim.mechanism import Mechanism
+from feedlog.sim.motion import plan_speeds
+from feedlog.sim.path import Pieces, with_columns
+
+
+@dataclass
+class LookAheadPlanner(Mechanism):
+    name = "lookahead"
+    kind = "interpolator"
+
+    lookahead_blocks: int = 50
+    arc_acc_ratio_tangential: float = 0.5
+    min_piece_cycles: float = 1.0
+    servo_period_s: float = 0.001
+    path_acc_max_mm_s2: float = math.inf  # cap on the TCP acceleration of every block (inf: axes only)
+    stop_settle_s: float = 0.0  # standstill added at every exact stop inside the program
+
+    def __post_init__(self) -> None:
+        self.check_positive(lookahead_blocks=self.lookahead_blocks, servo_period_s=self.servo_period_s)
+        self.check_non_negative(min_piece_cycles=self.min_piece_cycles, stop_settle_s=self.stop_settle_s)
+        if not 0 < self.arc_acc_ratio_tangential < 1:
+            raise ValueError(f"arc_acc_ratio_tangential must be in (0, 1), got {self.arc_acc_ratio_tangential}")
+
+    @classmethod
+    def default_enabled(cls, profile: MachineProfile) -> bool:
+        return profile.interpolator.fir_t1_s <= 0
+
+    @classmethod
+    def defaults(cls, profile: MachineProfile) -> dict:
+        return {"lookahead_blocks": profile.interpolator.lookahead_blocks,
+                "servo_period_s": profile.interpolator.servo_period_s,
+                "path_acc_max_mm_s2": profile.interpolator.path_acc_max_mm_s2}
+
+    def limit_pieces(self, pieces: Pieces) -> Pieces:
+        """Centripetal and sample-rate limits on the pieces' cruise speed and acceleration."""
+        curved = pieces.radius > 0
+        pieces = with_columns(pieces, a_max=np.minimum(pieces.a_max, self.path_acc_max_mm_s2))
+        ratio_n = math.sqrt(1.0 - self.arc_acc_ratio_tangential ** 2)
+        v_max = np.where(curved, np.minimum(pieces.v_max, np.sqrt(ratio_n * pieces.a_max * pieces.radius)),
+                         pieces.v_max)
+        a_max = np.where(curved, pieces.a_max * self.arc_acc_ratio_tangential, pieces.a_max)
+        if self.min_piece_cycles > 0:
+            v_sample = pieces.clamp_len / (self.min_piece_cycles * self.servo_period_s)
+            v_max = np.where(pieces.clamp_len > 0, np.minimum(v_max, v_sample), v_max)
+        hold = pieces.hold_s
+        if self.stop_settle_s > 0 and len(pieces) > 1:
+            stops = (pieces.v_end <= 0) & ~pieces.overlap & (pieces.length > 0)
+            stops[-1] = False
+            hold = hold + np.where(stops, self.stop_settle_s, 0.0)
+        return with_columns(pieces, v_max=v_max, a_max=a_max, hold_s=hold)
+
+    def run(self, ctx: Context) -> Trajectory:
+        pieces = self.limit_pieces(ctx.pieces)
+        plan = plan_speeds(pieces, lookahead=int(self.lookahead_blocks))
+        return trajectory_from_plan(plan, pieces, ctx.blocks, ctx.dt_s)

@@ -1,0 +1,31 @@
+"""Rapid override: the rapid-traverse dial scales G0 speed (typically 0-100 %).
+
+Source: LinuxCNC `halui.rapid-override` / Fanuc ROV; the rapid speed is the axis maximum (or the
+profile's `rapid_mm_min`) times the override.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from feedlog.sim.mechanism import Mechanism
+from feedlog.sim.path import KIND_RAPID
+
+
+@dataclass
+class RapidOverride(Mechanism):
+    name = "rapid_override"
+    kind = "limits"
+    order = 10
+
+    override: float = 1.0  # 1.0 = 100 %
+
+    def __post_init__(self) -> None:
+        self.check_positive(override=self.override)
+
+    def limit(self, ctx) -> None:
+        b = ctx.blocks
+        rapid = b.kind == KIND_RAPID
+        b.feed = np.where(rapid, np.minimum(b.feed, b.v_limit) * self.override, b.feed)

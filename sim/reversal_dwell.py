@@ -1,0 +1,48 @@
+"""Dwell at axis direction reversal: the motion pauses where an axis changes direction.
+
+Source: backlash and friction compensation in servo drives (quadrant glitches; e.g. Siemens
+"backlash compensation", Heidenhain "reversal spikes"): the controller stops at a reversal and the
+drive waits `dwell_s` while compensation is applied. Acts at every block junction where a linear
+axis (or, with `include_rotary`, a rotary one) moves in opposite directions on either side.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from feedlog.sim.mechanism import Mechanism
+
+
+@dataclass
+class ReversalDwell(Mechanism):
+    name = "reversal_dwell"
+    kind = "limits"
+    order = 50
+
+    dwell_s: float = 0.005
+    min_move_mm: float = 1e-4   # moves of an axis shorter than this do not count as a direction
+    include_rotary: bool = False
+
+    def __post_init__(self) -> None:
+        self.check_non_negative(dwell_s=self.dwell_s, min_move_mm=self.min_move_mm)
+
+    def limit(self, ctx) -> None:
+        b = ctx.blocks
+        cols = list(range(len(b.axes))) if self.include_rotary else b.linear_index
+        delta = (b.p1 - b.p0)[:, cols]
+        sign = np.where(np.abs(delta) > self.min_move_mm, np.sign(delta), 0.0)
+        moving = np.flatnonzero(b.length > 0)
+        if len(moving) < 2:
+            return
+        s = sign[moving]
+        # carry the last non-zero direction of each axis forward over blocks that do not move it
+        idx = np.where(s != 0, np.arange(len(s))[:, None], -1)
+        idx = np.maximum.accumulate(idx, axis=0)
+        last = np.where(idx >= 0, np.take_along_axis(s, np.maximum(idx, 0), axis=0), 0.0)
+        flip = ((last[:-1] * s[1:]) < 0).any(axis=1)
+        rows = moving[:-1][flip]
+        b.stop_after[rows] = True
+        b.hold_s[rows] += self.dwell_s
+        ctx.notes["reversals"] = int(len(rows))

@@ -1,0 +1,107 @@
+"""`simulate(program, profile)`: run the mechanism chain on a part program.
+
+Chain: `limits` mechanisms edit the per-block limits, the path is built (one piece per block), the
+corner law sets junction speeds (and may insert blend arcs), the interpolator produces motion over
+time, `series` mechanisms change the sampled motion. Deterministic: no randomness anywhere here
+(the measurement model adds noise with an explicit seed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from feedlog.profile import MachineProfile, load_profile
+from feedlog.sim.cam import cam_block_times
+from feedlog.sim.context import Context, Trajectory
+from feedlog.sim.mechanism import Mechanism, MechanismSpec, resolve_mechanisms
+from feedlog.sim.path import Blocks, build_pieces
+from feedlog.toolpath.schema import AXIS_UNITS
+from feedlog.units import seconds_to_ns
+
+
+@dataclass
+class SimResult:
+    """Simulated motion. `series`: t_ns, axis positions, feed_mm_min, block, line at the interpolation
+    period; `blocks`: block, line, t_start_ns, t_end_ns, duration_s per executed block."""
+
+    series: pd.DataFrame
+    blocks: pd.DataFrame
+    cycle_time_s: float
+    cam_time_s: float
+    profile: MachineProfile
+    mechanisms: list[Mechanism]
+    trajectory: Trajectory
+    joints: pd.DataFrame | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def mechanism_params(self) -> dict[str, dict[str, Any]]:
+        """Parameters of the mechanisms that ran (infinite values as None, so the dict is valid JSON)."""
+        def clean(v: Any) -> Any:
+            return None if isinstance(v, float) and not np.isfinite(v) else v
+        return {m.name: {k: clean(v) for k, v in m.params().items()} for m in self.mechanisms}
+
+    def summary(self) -> dict[str, Any]:
+        return {"profile": self.profile.name, "cycle_time_s": round(self.cycle_time_s, 6),
+                "cam_time_s": round(self.cam_time_s, 6), "blocks": int(len(self.blocks)),
+                "samples": int(len(self.series)), "mechanisms": self.mechanism_params}
+
+
+def _profile(profile: MachineProfile | str | Path) -> MachineProfile:
+    return profile if isinstance(profile, MachineProfile) else load_profile(profile)
+
+
+def simulate(program, profile: MachineProfile | str | Path, *, mechanisms: MechanismSpec = None,
+             dt_s: float | None = None) -> SimResult:
+    """Simulate `program` (a toolpath Program or block table) on `profile` (object, name or path).
+
+    `mechanisms` overrides the profile's `[sim]` tables: a list of names (exactly those run) or a
+    mapping name -> {param: value} / True / False. `dt_s` is the output period (default: the
+    profile's interpolation period).
+    """
+    profile = _profile(profile)
+    chain = resolve_mechanisms(profile, mechanisms)
+    from feedlog.sim.path import prepare_blocks  # noqa: PLC0415 (kept local: path imports toolpath)
+
+    blocks = prepare_blocks(program, profile)
+    cam_time = float(cam_block_times(blocks).sum())
+    ctx = Context(profile=profile, blocks=blocks, dt_s=dt_s or profile.interpolator.interpolation_period_s)
+    for mech in chain:
+        mech.limit(ctx)
+    pieces = build_pieces(ctx.blocks)
+    keep = (pieces.length > 0) | (pieces.hold_s > 0)
+    ctx.pieces = pieces.take(np.flatnonzero(keep))
+    interpolator = next(m for m in chain if m.kind == "interpolator")
+    if interpolator.name != "cam":
+        for mech in chain:
+            if mech.kind == "corner":
+                mech.corner(ctx)
+    trajectory = interpolator.run(ctx)
+    for mech in chain:
+        trajectory = mech.after(ctx, trajectory)
+    return _result(ctx, trajectory, chain, cam_time)
+
+
+def _result(ctx: Context, traj: Trajectory, chain: list[Mechanism], cam_time: float) -> SimResult:
+    blocks: Blocks = ctx.blocks
+    columns: dict[str, Any] = {"t_ns": seconds_to_ns(traj.t_s)}
+    for i, axis in enumerate(blocks.axes):
+        columns[f"{axis}_{AXIS_UNITS[axis]}"] = traj.pos[:, i]
+    columns["feed_mm_min"] = traj.speed * 60.0
+    columns["block"] = blocks.block[traj.row].astype(np.int64) if len(blocks) else np.zeros(len(traj.t_s), np.int64)
+    columns["line"] = blocks.line[traj.row].astype(np.int64) if len(blocks) else np.zeros(len(traj.t_s), np.int64)
+    series = pd.DataFrame(columns)
+    ran = ~np.isnan(traj.block_start_s)
+    start_ns = seconds_to_ns(traj.block_start_s[ran])
+    end_ns = seconds_to_ns(traj.block_end_s[ran])
+    table = pd.DataFrame({"block": blocks.block[ran].astype(np.int64), "line": blocks.line[ran].astype(np.int64),
+                          "t_start_ns": start_ns, "t_end_ns": end_ns, "duration_s": (end_ns - start_ns) / 1e9})
+    joints = ctx.notes.get("joints")
+    return SimResult(series=series, blocks=table, cycle_time_s=traj.cycle_time_s, cam_time_s=cam_time,
+                     profile=ctx.profile, mechanisms=chain, trajectory=traj,
+                     joints=joints if isinstance(joints, pd.DataFrame) else None)
