@@ -27,6 +27,7 @@ def cam_block_times(blocks: Blocks) -> np.ndarray:
 class CamEstimate(Mechanism):
     name = "cam"
     kind = "interpolator"
+    uses_corner_law = False
 
     def run(self, ctx: Context) -> Trajectory:
         pieces = ctx.pieces

@@ -32,10 +32,10 @@ KINDS = ("limits", "corner", "interpolator", "series")
 REGISTRY: dict[str, str] = {
     "cam": "feedlog.sim.cam:CamEstimate",
     "lookahead": "feedlog.sim.planner:LookAheadPlanner",
-    # "fir": "feedlog.sim.fir:FirInterpolator",
+    "fir": "feedlog.sim.fir:FirInterpolator",
     "blend_arc": "feedlog.sim.corner_blend:BlendArcCorner",
     "junction_deviation": "feedlog.sim.corner_junction:JunctionDeviationCorner",
-    # "trunnion": "feedlog.sim.kinematics:TrunnionKinematics",
+    "trunnion": "feedlog.sim.kinematics:TrunnionKinematics",
     "feed_override": "feedlog.sim.feed_override:FeedOverride",
     "rapid_override": "feedlog.sim.rapid_override:RapidOverride",
     "block_time": "feedlog.sim.block_time:BlockTimeFloor",
@@ -54,7 +54,7 @@ CONTROLLER_PRESETS: dict[str, dict[str, dict[str, Any]]] = {
         # calibrated: test_g61.ngc runs 4.8 % slower than the ideal stop-to-stop plan (see docs/sim.md)
         "lookahead": {"path_acc_max_mm_s2": float("inf"), "stop_settle_s": 0.0035},
         # LinuxCNC plans in axis (program) coordinates; joint limits do not slow the feed
-        # "trunnion": {"limit_joints": False},
+        "trunnion": {"limit_joints": False},
     },
 }
 
@@ -66,6 +66,7 @@ class Mechanism:
     name: ClassVar[str] = ""
     kind: ClassVar[str] = ""
     order: ClassVar[int] = 50  # position among mechanisms of the same kind (low runs first)
+    uses_corner_law: ClassVar[bool] = True  # interpolators: whether corner laws run before them
 
     @classmethod
     def default_enabled(cls, profile: MachineProfile) -> bool:

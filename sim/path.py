@@ -222,11 +222,16 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
         stop_after[-1] = True
     hold = np.where(code == KIND_DWELL, np.nan_to_num(_column(t, "dwell_s", 0.0)), 0.0)
     length = np.where(moving, length, 0.0)
+    extra = {}
+    if all(c in t.columns for c in ("ori_i", "ori_j", "ori_k")):
+        ori = np.column_stack([_column(t, c, np.nan) for c in ("ori_i", "ori_j", "ori_k")])
+        if not np.isnan(ori).all():
+            extra["ori"] = ori
     return Blocks(axes=axes, block=t["block"].to_numpy(np.int64), line=t["line"].to_numpy(np.int64),
                   kind=code, p0=p0, p1=p1, length=length, feed=feed, v_limit=v_limit, a_max=a_max,
                   stop_after=stop_after, tol=_column(t, "tol_mm", np.nan), hold_s=hold,
                   min_time_s=np.zeros(n), rotary=rot_len > 1e-9, center=center, normal_axis=normal_axis,
-                  sweep=sweep, radius=radius)
+                  sweep=sweep, radius=radius, extra=extra)
 
 
 def build_pieces(blocks: Blocks) -> Pieces:

@@ -77,7 +77,7 @@ def simulate(program, profile: MachineProfile | str | Path, *, mechanisms: Mecha
     keep = (pieces.length > 0) | (pieces.hold_s > 0)
     ctx.pieces = pieces.take(np.flatnonzero(keep))
     interpolator = next(m for m in chain if m.kind == "interpolator")
-    if interpolator.name != "cam":
+    if interpolator.uses_corner_law:
         for mech in chain:
             if mech.kind == "corner":
                 mech.corner(ctx)

@@ -1,0 +1,148 @@
+"""FIR-filter interpolation: blocks as velocity pulses smoothed by cascaded moving-average filters.
+
+Source: Tajima & Sencer, "Global tool-path smoothing for CNC machine tools with uninterrupted
+acceleration" (IJMTM 2017) as used by Chien et al. (2024) §2.1 and §3.1 (T1 = 70 ms, T2 = 10 ms).
+Each block k is a pulse of constant feed F_k along the block (raw motion); the axis positions are
+that raw motion through two causal moving averages of widths T1 and T2 (acceleration time and jerk
+time). Short blocks' pulses overlap in the filter window, so "global blending" of short segments
+emerges without explicit corner handling. Around a junction with cornering angle theta the pulses
+are lowered to F* over half the filter delay (Td / 2, Td = T1 + T2) each side so that the blend
+error stays within eps_TCP (Chien Eq. 3 with F1* = F2* = F*):
+
+    eps = F* sqrt(2 - 2 cos theta) (3 T1^2 + T2^2) / (24 T1)
+
+Exact stops (G61) insert a standstill of Td so the filter settles. The pulse height is capped by the
+axis velocity limits and by a_max * T1 (the acceleration one pulse edge produces through T1).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from feedlog.profile import MachineProfile
+from feedlog.sim.context import Context, Trajectory, block_times, time_grid
+from feedlog.sim.mechanism import Mechanism
+from feedlog.sim.path import Pieces
+
+
+def moving_average(x: np.ndarray, n: int) -> np.ndarray:
+    """Causal moving average over n samples along axis 0, the signal held at x[0] before the start."""
+    if n <= 1:
+        return x
+    pad = np.repeat(x[:1], n, axis=0)
+    c = np.cumsum(np.concatenate([pad, x], axis=0), axis=0)
+    return (c[n:] - c[:-n]) / n
+
+
+def corner_feed(theta: np.ndarray, tol_mm: np.ndarray, t1: float, t2: float) -> np.ndarray:
+    """F* (per second) that keeps the blend error of a corner of angle theta within tol (Eq. 3)."""
+    chord = np.sqrt(np.clip(2.0 - 2.0 * np.cos(theta), 0.0, None))
+    k = (3 * t1 ** 2 + t2 ** 2) / (24 * t1)
+    with np.errstate(divide="ignore"):
+        return np.where(chord > 1e-12, tol_mm / (chord * k), np.inf)
+
+
+@dataclass
+class FirInterpolator(Mechanism):
+    name = "fir"
+    kind = "interpolator"
+    uses_corner_law = False
+
+    t1_s: float = 0.070
+    t2_s: float = 0.010
+    tolerance_mm: float = 0.01  # eps_TCP when the block has no G64 P
+
+    def __post_init__(self) -> None:
+        self.check_positive(t1_s=self.t1_s, tolerance_mm=self.tolerance_mm)
+        self.check_non_negative(t2_s=self.t2_s)
+        if self.t2_s > self.t1_s:
+            raise ValueError(f"t2_s ({self.t2_s}) must not exceed t1_s ({self.t1_s})")
+
+    @classmethod
+    def default_enabled(cls, profile: MachineProfile) -> bool:
+        return profile.interpolator.fir_t1_s > 0
+
+    @classmethod
+    def defaults(cls, profile: MachineProfile) -> dict:
+        ip = profile.interpolator
+        out: dict = {}
+        if ip.fir_t1_s > 0:
+            out.update(t1_s=ip.fir_t1_s, t2_s=ip.fir_t2_s)
+        if ip.path_tolerance_mm > 0:
+            out["tolerance_mm"] = ip.path_tolerance_mm
+        return out
+
+    def pulses(self, ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Per piece: feed F, corner feeds at start/end, zone lengths at start/end."""
+        pc: Pieces = ctx.pieces
+        blocks = ctx.blocks
+        m = len(pc)
+        feed = np.minimum(pc.v_max, pc.a_max * self.t1_s)
+        f_start = np.full(m, np.inf)
+        f_end = np.full(m, np.inf)
+        if m > 1:
+            lin = blocks.linear_index
+            j = np.arange(m - 1)
+            u1 = pc.tangent_xyz(j, pc.length[j], lin)
+            u2 = pc.tangent_xyz(j + 1, np.zeros(m - 1), lin)
+            theta = np.arccos(np.clip(np.einsum("ij,ij->i", u1, u2), -1.0, 1.0))
+            tol = blocks.tol[pc.block[j]]
+            tol = np.where(tol > 0, tol, self.tolerance_mm)
+            fc = np.minimum(corner_feed(theta, tol, self.t1_s, self.t2_s), np.minimum(feed[j], feed[j + 1]))
+            f_end[j] = fc
+            f_start[j + 1] = fc
+        half = 0.5 * (self.t1_s + self.t2_s)
+        slow_s = f_start < feed
+        slow_e = f_end < feed
+        zone_s = np.where(slow_s, np.minimum(f_start * half, 0.5 * pc.length), 0.0)
+        zone_e = np.where(slow_e, np.minimum(f_end * half, 0.5 * pc.length), 0.0)
+        f_start = np.where(slow_s, f_start, feed)
+        f_end = np.where(slow_e, f_end, feed)
+        return feed, f_start, f_end, zone_s, zone_e
+
+    def run(self, ctx: Context) -> Trajectory:
+        pc = ctx.pieces
+        blocks = ctx.blocks
+        dt = ctx.dt_s
+        feed, f_s, f_e, z_s, z_e = self.pulses(ctx)
+        mid = np.maximum(pc.length - z_s - z_e, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d_s = np.where(z_s > 0, z_s / f_s, 0.0)
+            d_m = np.where(mid > 0, mid / feed, 0.0)
+            d_e = np.where(z_e > 0, z_e / f_e, 0.0)
+        td = self.t1_s + self.t2_s
+        stop = blocks.stop_after[pc.block].copy()
+        if len(stop):
+            stop[-1] = False
+        gap = pc.hold_s + np.where(stop, td, 0.0)
+        dur = d_s + d_m + d_e
+        t0 = np.concatenate(([0.0], np.cumsum(dur + gap)[:-1])) if len(pc) else dur
+        raw_end = float((t0 + dur + gap)[-1]) if len(pc) else 0.0
+        t = time_grid(raw_end + td, dt)
+        idx = np.clip(np.searchsorted(t0, t, side="right") - 1, 0, max(len(pc) - 1, 0))
+        tau = np.clip(t - t0[idx], 0.0, dur[idx])
+        s = (np.minimum(tau, d_s[idx]) * f_s[idx]
+             + np.clip(tau - d_s[idx], 0.0, d_m[idx]) * feed[idx]
+             + np.clip(tau - d_s[idx] - d_m[idx], 0.0, d_e[idx]) * f_e[idx])
+        s = np.minimum(s, pc.length[idx])
+        raw = pc.position(idx, s)
+        pos = moving_average(moving_average(raw, max(int(round(self.t1_s / dt)), 1)),
+                             max(int(round(self.t2_s / dt)), 1))
+        lin = blocks.linear_index
+        step = np.diff(pos, axis=0, prepend=pos[:1])
+        speed = np.linalg.norm(step[:, lin], axis=1) / dt
+        rot_only = speed < 1e-9
+        if rot_only.any() and len(lin) < pos.shape[1]:
+            rot = [i for i in range(pos.shape[1]) if i not in lin]
+            speed = np.where(rot_only, np.linalg.norm(step[:, rot], axis=1) / dt, speed)
+        delay = 0.5 * td
+        row_idx = np.clip(np.searchsorted(t0, t - delay, side="right") - 1, 0, max(len(pc) - 1, 0))
+        row = pc.block[row_idx] if len(pc) else np.zeros(len(t), np.int64)
+        b_start, b_end = block_times(pc.block, t0 + delay, t0 + dur + gap + delay, len(blocks))
+        moving = pc.length > 0
+        m_start = float(t0[moving].min()) if moving.any() else 0.0
+        m_end = float((t0 + dur)[moving].max() + td) if moving.any() else 0.0
+        return Trajectory(t_s=t, pos=pos, speed=speed, row=row, block_start_s=b_start, block_end_s=b_end,
+                          motion_start_s=m_start, motion_end_s=m_end)

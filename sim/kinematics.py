@@ -1,0 +1,137 @@
+"""Five-axis AC trunnion kinematics: machine joints from program axes, and the feed drop they cause.
+
+Source: Chien et al. (2024) §2.2-2.3. Tool orientation O = [Oi, Oj, Ok] to rotary axes (Eq. 7):
+A = acos(Ok), C = atan2(Oi, Oj); near the singularity sin(A) -> 0 the C axis must turn fast for a
+small orientation change (Eq. 9, dC/dt = (1 / sin A) d(theta_h)/dt), so its velocity and
+acceleration limits pull the feed down. Cartesian machine positions of a workpiece point P on the
+table (Eq. 10, the table rotating the workpiece):
+
+    [X_M, Y_M, Z_M] = Rot(X, A) . (Rot(Z, C) . (P + W) + R) - R
+
+with W the workpiece offset from the rotary centre ([Xo, Yo, Zo]) and R the offset between the A
+and C axes (LinuxCNC xyzac-trt-kins y/z-offset). A larger |W| makes the same rotation sweep the
+linear joints further, so the feed drops further (the trend of Chien Tables 4 and 9).
+
+With `limit_joints` the per-joint velocity and acceleration limits of the profile (x, y, z, a, c)
+cap every block's feed, using the joint motion per unit path length sampled at `samples_per_block`
+points along the block. LinuxCNC plans in program (axis) coordinates and does not do this (its
+preset sets `limit_joints = false`). Blocks that carry tool orientation vectors (ori_i/j/k, CL data)
+get their A/C from Eq. 7 when `orientation_from_vectors` is set.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from feedlog.profile import MachineProfile
+from feedlog.sim.context import Context, Trajectory
+from feedlog.sim.mechanism import Mechanism
+from feedlog.units import seconds_to_ns
+
+
+def rotary_from_orientation(ori: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Chien Eq. 7: A = acos(Ok), C = atan2(Oi, Oj) in degrees; C unwrapped, held through A = 0."""
+    o = ori / np.linalg.norm(ori, axis=1, keepdims=True)
+    a = np.degrees(np.arccos(np.clip(o[:, 2], -1.0, 1.0)))
+    c = np.arctan2(o[:, 0], o[:, 1])
+    singular = np.hypot(o[:, 0], o[:, 1]) < 1e-9
+    if singular.all():
+        return a, np.zeros(len(a))
+    c = pd.Series(np.where(singular, np.nan, c)).ffill().bfill().to_numpy()
+    return a, np.degrees(np.unwrap(c))
+
+
+def trunnion_joints(xyz: np.ndarray, a_deg: np.ndarray, c_deg: np.ndarray, *, workpiece_offset_mm,
+                    rotary_offset_mm) -> np.ndarray:
+    """Machine X, Y, Z (n, 3) of workpiece points xyz at table angles A, C (Chien Eq. 10)."""
+    a = np.radians(a_deg)
+    c = np.radians(c_deg)
+    p = xyz + np.asarray(workpiece_offset_mm, dtype=np.float64)
+    r = np.asarray(rotary_offset_mm, dtype=np.float64)
+    cc, sc = np.cos(c), np.sin(c)
+    q = np.column_stack([cc * p[:, 0] - sc * p[:, 1], sc * p[:, 0] + cc * p[:, 1], p[:, 2]]) + r
+    ca, sa = np.cos(a), np.sin(a)
+    out = np.column_stack([q[:, 0], ca * q[:, 1] - sa * q[:, 2], sa * q[:, 1] + ca * q[:, 2]])
+    return out - r
+
+
+@dataclass
+class TrunnionKinematics(Mechanism):
+    name = "trunnion"
+    kind = "limits"
+    order = 30
+
+    workpiece_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rotary_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    limit_joints: bool = True
+    samples_per_block: int = 4
+    orientation_from_vectors: bool = True
+
+    def __post_init__(self) -> None:
+        self.workpiece_offset_mm = tuple(float(v) for v in self.workpiece_offset_mm)
+        self.rotary_offset_mm = tuple(float(v) for v in self.rotary_offset_mm)
+        if len(self.workpiece_offset_mm) != 3 or len(self.rotary_offset_mm) != 3:
+            raise ValueError("workpiece_offset_mm and rotary_offset_mm need three values")
+        self.check_positive(samples_per_block=self.samples_per_block)
+
+    @classmethod
+    def default_enabled(cls, profile: MachineProfile) -> bool:
+        return profile.kinematics.type == "xyzac-trt"
+
+    @classmethod
+    def defaults(cls, profile: MachineProfile) -> dict:
+        k = profile.kinematics
+        return {"workpiece_offset_mm": k.workpiece_offset_mm, "rotary_offset_mm": k.rotary_offset_mm}
+
+    def _axes(self, ctx: Context) -> tuple[int, int]:
+        axes = ctx.blocks.axes
+        return axes.index("a"), axes.index("c")
+
+    def joints(self, pos: np.ndarray, ctx: Context) -> np.ndarray:
+        ia, ic = self._axes(ctx)
+        xyz = trunnion_joints(pos[:, :3], pos[:, ia], pos[:, ic], workpiece_offset_mm=self.workpiece_offset_mm,
+                              rotary_offset_mm=self.rotary_offset_mm)
+        return np.column_stack([xyz, pos[:, ia], pos[:, ic]])
+
+    def limit(self, ctx: Context) -> None:
+        b = ctx.blocks
+        ia, ic = self._axes(ctx)
+        ori = b.extra.get("ori")
+        if self.orientation_from_vectors and ori is not None:
+            have = ~np.isnan(ori).any(axis=1)
+            if have.all() and len(b):
+                a_end, c_end = rotary_from_orientation(ori)
+                b.p1[:, ia], b.p1[:, ic] = a_end, c_end
+                b.p0[1:, ia], b.p0[1:, ic] = a_end[:-1], c_end[:-1]
+                b.p0[0, ia], b.p0[0, ic] = a_end[0], c_end[0]
+                b.rotary = (np.abs(b.p1[:, [ia, ic]] - b.p0[:, [ia, ic]]) > 1e-9).any(axis=1)
+        if not self.limit_joints or not len(b):
+            return
+        n = len(b)
+        k = self.samples_per_block
+        f = np.linspace(0.0, 1.0, k + 1)
+        pts = b.p0[:, None, :] + f[None, :, None] * (b.p1 - b.p0)[:, None, :]   # (n, k+1, axes)
+        q = self.joints(pts.reshape(-1, pts.shape[2]), ctx).reshape(n, k + 1, 5)
+        ds = (b.length / k)[:, None, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rate = np.abs(np.diff(q, axis=1)) / ds       # joint travel per unit path length
+        rate = np.nan_to_num(rate, nan=0.0, posinf=0.0).max(axis=1)  # (n, 5)
+        names = ("x", "y", "z", "a", "c")
+        vel = np.array([ctx.profile.axes[a].vel_max for a in names])
+        acc = np.array([ctx.profile.axes[a].acc_max for a in names])
+        with np.errstate(divide="ignore"):
+            v_joint = np.min(np.where(rate > 1e-12, vel / rate, np.inf), axis=1)
+            a_joint = np.min(np.where(rate > 1e-12, acc / rate, np.inf), axis=1)
+        b.v_limit = np.minimum(b.v_limit, v_joint)
+        b.a_max = np.minimum(b.a_max, a_joint)
+        ctx.notes["joint_feed_limit"] = v_joint
+
+    def after(self, ctx: Context, trajectory: Trajectory) -> Trajectory:
+        q = self.joints(trajectory.pos, ctx)
+        table = {"t_ns": seconds_to_ns(trajectory.t_s)}
+        table.update({f"j{i}_pos": q[:, i] for i in range(5)})
+        ctx.notes["joints"] = pd.DataFrame(table)
+        return trajectory
