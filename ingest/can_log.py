@@ -1,0 +1,127 @@
+"""CAN log files (python-can LogReader: BLF, ASC, TRC, CSV, canutils .log; MF4 with asammdf) + a DBC.
+
+python-can yields one `Message` per frame; they are gathered block by block into `CanFrames` arrays
+and decoded in bulk (`can_dbc`). Error and remote frames are counted and skipped; frames longer than
+8 bytes (CAN FD) are counted and skipped too; ids the DBC does not know are counted per id and reported.
+A file that python-can cannot parse raises `IngestError` with the number of frames read before it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from feedlog.errors import IngestError
+from feedlog.ingest.can_dbc import CanFrames, DbcLayout
+from feedlog.ingest.can_streams import assemble_streams, decode_frames
+from feedlog.ingest.recording import Recording
+
+BLOCK = 65536
+
+
+def _block(ts: list[float], ids: list[int], payload: list[bytes], lengths: list[int]) -> CanFrames:
+    t_ns = np.rint(np.asarray(ts, dtype=np.float64) * 1e9).astype(np.int64)
+    data = np.frombuffer(b"".join(payload), dtype=np.uint8).reshape(-1, 8)
+    return CanFrames(t_ns, np.asarray(ids, dtype=np.uint32), data, np.asarray(lengths, dtype=np.uint8))
+
+
+def read_can_log(path: str | Path) -> tuple[CanFrames, dict[str, int]]:
+    """All data frames of a python-can log as arrays, and counts of what was skipped."""
+    import can
+
+    path = Path(path)
+    skipped = {"error_frames": 0, "remote_frames": 0, "fd_frames_over_8_bytes": 0}
+    blocks: list[CanFrames] = []
+    ts: list[float] = []
+    ids: list[int] = []
+    payload: list[bytes] = []
+    lengths: list[int] = []
+    count = 0
+    try:
+        reader = can.LogReader(str(path))
+    except ValueError as exc:
+        raise IngestError(f"python-can has no reader for this file: {exc}", file=str(path)) from None
+    except ImportError as exc:
+        raise IngestError(f"this log format needs an extra package ({exc}); for MF4: pip install "
+                          "'python-can[mf4]'", file=str(path)) from None
+    except Exception as exc:  # a header python-can cannot parse
+        raise IngestError(f"cannot open CAN log: {type(exc).__name__}: {exc}", file=str(path),
+                          position="byte 0") from None
+    _check_complete(path, reader)
+    try:
+        with reader:
+            for msg in reader:
+                count += 1
+                if msg.is_error_frame:
+                    skipped["error_frames"] += 1
+                    continue
+                if msg.is_remote_frame:
+                    skipped["remote_frames"] += 1
+                    continue
+                data = bytes(msg.data)
+                if len(data) > 8:
+                    skipped["fd_frames_over_8_bytes"] += 1
+                    continue
+                ts.append(msg.timestamp)
+                ids.append(msg.arbitration_id)
+                payload.append(data.ljust(8, b"\0"))
+                lengths.append(len(data))
+                if len(ts) >= BLOCK:
+                    blocks.append(_block(ts, ids, payload, lengths))
+                    ts, ids, payload, lengths = [], [], [], []
+    except IngestError:
+        raise
+    except Exception as exc:  # python-can raises format-specific errors (BLFParseError, struct.error, ...)
+        raise IngestError(f"cannot parse CAN log after {count} frames: {type(exc).__name__}: {exc}",
+                          file=str(path), position=f"frame {count + 1}") from None
+    if ts:
+        blocks.append(_block(ts, ids, payload, lengths))
+    return CanFrames.concat(blocks), skipped
+
+
+def _check_complete(path: Path, reader) -> None:
+    """Refuse a log that was cut short (python-can would read its prefix silently)."""
+    size = path.stat().st_size
+    expected = getattr(reader, "file_size", None)  # BLF: the writer stores the final size in the header
+    if expected is not None and 0 < size < expected:
+        reader.stop()
+        raise IngestError(f"BLF file is truncated: the header says {expected} bytes", file=str(path),
+                          position=f"byte {size}")
+    if path.suffix.lower() in (".asc", ".trc", ".csv", ".log") and size:
+        with open(path, "rb") as f:
+            f.seek(max(size - 200, 0))
+            tail = f.read()
+        if not tail.endswith(b"\n"):
+            reader.stop()
+            raise IngestError("log ends in the middle of a line (truncated)", file=str(path), position=f"byte {size}")
+        if path.suffix.lower() == ".asc" and not tail.rstrip().splitlines()[-1].startswith(b"End TriggerBlock"):
+            reader.stop()
+            raise IngestError("ASC log has no 'End TriggerBlock' line (truncated)", file=str(path),
+                              position=f"byte {size}")
+
+
+def frames_to_recording(frames: CanFrames, layout: DbcLayout, *, source: str = "") -> Recording:
+    """Decode frames with the DBC into standard streams; unknown ids and lost samples in the metadata."""
+    decoded = decode_frames(frames, layout)
+    streams, lost = assemble_streams(decoded, layout)
+    metadata = {"source": Path(source).name if source else "", "dbc": layout.path.name, "frames": str(len(frames))}
+    if decoded.unknown:
+        metadata["unknown_ids"] = decoded.unknown_report()
+    if lost:
+        metadata["lost_samples"] = str(lost)
+    return Recording(streams=streams, metadata=metadata, attachments={layout.path.name: layout.source_text()},
+                     dropped_frames=lost, source=source)
+
+
+def read_can_source(path: Path, options) -> Recording:
+    """Registry entry (`.blf`, `.asc`, `.trc`, `.mf4`, `.log`, `can:`): `options` is an `ImportOptions`."""
+    layout = DbcLayout(options.dbc)
+    frames, skipped = read_can_log(path)
+    if not len(frames):
+        raise IngestError("no CAN data frames in the log", file=str(path))
+    recording = frames_to_recording(frames, layout, source=str(path))
+    for key, value in skipped.items():
+        if value:
+            recording.metadata[key] = str(value)
+    return recording

@@ -1,0 +1,120 @@
+"""Decoded CAN frames -> recording streams.
+
+Each signal goes to the stream named by the DBC attribute `FeedlogStream` (on the signal, else on its
+message, else the message name in lower_snake_case); its column is the signal name with the unit
+appended unless already there. A stream fed by several messages (feedlog's `axes`: XY, ZA, BC frames)
+takes its times from the message with most frames and joins the others by their sample counter
+`seq` and nearest time (`pandas.merge_asof`). The `seq` signals also count lost samples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from feedlog.ingest.can_dbc import SEQ_SIGNAL, CanFrames, DbcLayout, MessageLayout
+
+_DTYPES = {"line": np.int64, "motion_type": np.int8}
+
+
+@dataclass
+class Decoded:
+    """Per frame id: frame times and decoded signal arrays; plus frames the DBC does not know."""
+
+    times: dict[int, np.ndarray] = field(default_factory=dict)
+    values: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
+    unknown: dict[int, int] = field(default_factory=dict)
+
+    @property
+    def unknown_frames(self) -> int:
+        return int(sum(self.unknown.values()))
+
+    def unknown_report(self) -> str:
+        top = sorted(self.unknown.items(), key=lambda kv: -kv[1])[:10]
+        return f"{self.unknown_frames} frames with ids not in the DBC: " + ", ".join(f"0x{k:X} ({v})" for k, v in top)
+
+
+def decode_frames(frames: CanFrames, layout: DbcLayout) -> Decoded:
+    """Decode every frame whose id the DBC knows (vectorised per id); count the others by id."""
+    out = Decoded()
+    if not len(frames):
+        return out
+    words = frames.data.view("<u8").ravel()
+    known = np.zeros(len(frames), dtype=bool)
+    for frame_id, message in layout.messages.items():
+        mask = frames.can_id == frame_id
+        index = np.flatnonzero(mask)
+        if not len(index):
+            continue
+        known |= mask
+        out.times[frame_id] = frames.t_ns[index]
+        out.values[frame_id] = (message.decode_words(words[index]) if message.bulk
+                                else message.decode(frames.data[index]))
+    if not known.all():
+        ids, counts = np.unique(frames.can_id[~known], return_counts=True)
+        out.unknown = {int(i): int(c) for i, c in zip(ids, counts)}
+    return out
+
+
+def lost_samples(seq: np.ndarray) -> int:
+    """Samples missing from an 8-bit wrapping counter (repeats count as none)."""
+    if len(seq) < 2:
+        return 0
+    step = np.diff(seq.astype(np.int64)) % 256
+    return int((step[step > 0] - 1).sum())
+
+
+def _column(values: np.ndarray, column: str, length: int) -> np.ndarray:
+    if column in _DTYPES:
+        return values.astype(_DTYPES[column])
+    if length == 1 and values.dtype.kind == "i":
+        return values != 0
+    return values
+
+
+def _message_table(message: MessageLayout, decoded: Decoded, stream: str) -> pd.DataFrame | None:
+    t = decoded.times.get(message.frame_id)
+    if t is None:
+        return None
+    values = decoded.values[message.frame_id]
+    cols = {"t_ns": t}
+    for s in message.signals:
+        if s.stream == stream and s.name != SEQ_SIGNAL:
+            cols[s.column] = _column(values[s.name], s.column, s.length)
+    if SEQ_SIGNAL in values:
+        cols["_seq"] = values[SEQ_SIGNAL]
+    table = pd.DataFrame(cols)
+    if len(t) > 1 and (np.diff(t) < 0).any():
+        table = table.sort_values("t_ns", kind="stable", ignore_index=True)
+    return table
+
+
+def assemble_streams(decoded: Decoded, layout: DbcLayout) -> tuple[dict[str, pd.DataFrame], int]:
+    """(streams, lost samples counted from the seq counters)."""
+    members: dict[str, list[MessageLayout]] = {}
+    for message in layout.messages.values():
+        for stream in dict.fromkeys(s.stream for s in message.signals if s.name != SEQ_SIGNAL):
+            members.setdefault(stream, []).append(message)
+    streams: dict[str, pd.DataFrame] = {}
+    for stream, messages in members.items():
+        tables = [t for m in messages if (t := _message_table(m, decoded, stream)) is not None]
+        if not tables:
+            continue
+        tables.sort(key=len, reverse=True)
+        merged = tables[0]
+        for other in tables[1:]:
+            merged = _join(merged, other)
+        streams[stream] = merged.drop(columns=["_seq"], errors="ignore")
+    lost = max((lost_samples(v[SEQ_SIGNAL]) for v in decoded.values.values() if SEQ_SIGNAL in v), default=0)
+    return streams, lost
+
+
+def _join(base: pd.DataFrame, other: pd.DataFrame) -> pd.DataFrame:
+    """Attach `other`'s columns to `base` rows: same seq (when both have one), nearest time."""
+    dt = np.diff(base["t_ns"].to_numpy())
+    tolerance = int(max(np.median(dt) // 2, 1_000)) if len(dt) else 1_000_000
+    by = "_seq" if "_seq" in base and "_seq" in other else None
+    right = other if by else other.drop(columns=["_seq"], errors="ignore")
+    return pd.merge_asof(base, right, on="t_ns", by=by, direction="nearest", tolerance=tolerance)
