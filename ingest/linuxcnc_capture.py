@@ -108,7 +108,7 @@ def capture_streams(joined: pd.DataFrame, layout: SamplerLayout, *, period_ns: i
         raise IngestError("sampler capture repeats a sample tag")
     scale = length_factor("inch" if linear_units.lower().startswith("in") else "mm")
     t_ns = servo_t_ns(joined["clock_s"].to_numpy(), period_ns)
-    axis_cols = [c.name for c in layout.groups[0] if c.pin.startswith("axis.")]
+    axis_cols = [c.name for group in layout.groups for c in group if c.pin.startswith("axis.")]
     axes = {"t_ns": t_ns}
     for name in axis_cols:
         values = joined[name].to_numpy(dtype=np.float64)

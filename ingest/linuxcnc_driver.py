@@ -53,9 +53,11 @@ class Driver:
             if not item:
                 return
             kind, text = item
+            self.stat.poll()  # the line numbers as of the error
             entry = {"kind": ERROR_KINDS.get(kind, str(kind)), "text": str(text).strip(),
                      "motion_line": int(getattr(self.stat, "motion_line", 0) or 0),
-                     "current_line": int(getattr(self.stat, "current_line", 0) or 0)}
+                     "current_line": int(getattr(self.stat, "current_line", 0) or 0),
+                     "read_line": int(getattr(self.stat, "read_line", 0) or 0)}
             if entry["kind"] == "error":
                 self.result["errors"].append(entry)
                 if fatal:

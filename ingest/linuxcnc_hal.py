@@ -92,9 +92,8 @@ def standard_layout(coordinates: str, joints: int, *, depth: int = 16384,
     for j in range(joints):
         joint_cols.append(Column(f"j{j}_pos", f"joint.{j}.pos-cmd", "float"))
         joint_cols.append(Column(f"j{j}_pos_fb", f"joint.{j}.pos-fb", "float"))
-    groups = [tuple(motion)]
-    for start in range(0, len(joint_cols), MAX_PINS_PER_SAMPLER - 1):
-        groups.append(tuple(joint_cols[start:start + MAX_PINS_PER_SAMPLER - 1]))
+    per = MAX_PINS_PER_SAMPLER - 1  # one pin of each sampler is the clock
+    groups = [tuple(cols[i:i + per]) for cols in (motion, joint_cols) for i in range(0, len(cols), per)]
     return SamplerLayout(groups=tuple(groups), depth=depth, first_channel=first_channel)
 
 

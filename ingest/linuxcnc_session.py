@@ -267,9 +267,37 @@ def program_error(report: dict, program: Path) -> ProgramError:
     first = errors[0]
     text = " ".join(str(first.get("text", "")).split())
     m = _LINE_IN_TEXT.search(text)
-    line = int(m.group(1)) if m else (first.get("motion_line") or first.get("current_line") or None)
+    # LinuxCNC names the line in some messages; otherwise the interpreter's read position tells it
+    line = int(m.group(1)) if m else (first.get("read_line") or first.get("motion_line")
+                                      or first.get("current_line") or None)
+    if line is None:
+        line = locate_error_line(program, text)
     more = f" (+{len(errors) - 1} more)" if len(errors) > 1 else ""
     return ProgramError(f"LinuxCNC: {text}{more}", file=str(program), line=line)
+
+
+def locate_error_line(program: Path, message: str) -> int | None:
+    """The program line an interpreter error belongs to, when LinuxCNC's message does not say.
+
+    LinuxCNC's stand-alone interpreter (`rs274 -g`) prints the message followed by the offending
+    block; that block is looked up in the program text.
+    """
+    if shutil.which("rs274") is None or not message:
+        return None
+    try:
+        out = subprocess.run(["rs274", "-g", str(program)], capture_output=True, text=True, timeout=30,
+                             stdin=subprocess.DEVNULL)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    printed = (out.stdout + "\n" + out.stderr).splitlines()
+    wanted = " ".join(message.split())
+    for i, text in enumerate(printed[:-1]):
+        if " ".join(text.split()) == wanted:
+            block = printed[i + 1].strip().lower()
+            for number, source in enumerate(program.read_text(errors="replace").splitlines(), start=1):
+                if block and source.strip().lower() == block:
+                    return number
+    return None
 
 
 __all__ = ["MachineIni", "SessionResult", "cleanup", "linuxcnc_available", "program_error", "run_session",

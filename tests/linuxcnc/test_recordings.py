@@ -1,0 +1,79 @@
+"""The shipped recordings/: manifest, programs and files agree, and stay small."""
+
+from __future__ import annotations
+
+import sys
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from feedlog.ingest import PROGRAM_ATTACHMENT, read_recording
+
+ROOT = Path(__file__).resolve().parents[2]
+RECORDINGS = ROOT / "recordings"
+SHARED = ROOT.parent / "shared" / "linuxcnc"
+sys.path.insert(0, str(ROOT / "scripts"))
+import linuxcnc_programs as progs  # noqa: E402
+import make_recordings  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def manifest() -> list[dict]:
+    return tomllib.loads((RECORDINGS / "manifest.toml").read_text())["recording"]
+
+
+def test_manifest_covers_the_catalogue_with_train_and_test_splits(manifest):
+    names = [r["name"] for r in manifest]
+    assert names == [e.name for e in make_recordings.catalogue()]
+    splits = {r["split"] for r in manifest}
+    assert splits == {"train", "test"}
+    # the papers keep training and test programs apart: no program text is in both splits
+    texts = {split: {(RECORDINGS / r["program"]).read_text().split("\n", 2)[2] for r in manifest
+                     if r["split"] == split} for split in splits}
+    assert not texts["train"] & texts["test"]
+    assert {r["profile"] for r in manifest} == {"linuxcnc-xyz", "linuxcnc-xyzac"}
+    assert {r["feed_mm_min"] for r in manifest} >= {1000.0, 3000.0}
+    assert {r["tolerance"] for r in manifest} >= {"G64 P0.01", "G64 P0.1", "G61"}
+
+
+def test_committed_programs_are_what_the_script_generates(manifest):
+    for entry in make_recordings.catalogue():
+        assert (RECORDINGS / "programs" / f"{entry.name}.ngc").read_text() == entry.text, entry.name
+
+
+def test_shared_programs_are_regenerated_byte_for_byte():
+    if not SHARED.is_dir():
+        pytest.skip(f"{SHARED} not present")
+    assert progs.shared_test("G64 P0.01") == (SHARED / "test_p001.ngc").read_text()
+    assert progs.shared_test("G61") == (SHARED / "test_g61.ngc").read_text()
+    assert progs.shared_dense() == (SHARED / "dense002q0.ngc").read_text()
+    assert progs.shared_5ax("G64 P0.01") == (SHARED / "5ax_p001.ngc").read_text()
+
+
+def test_cycle_times_match_linuxcnc_and_the_shared_measurements(manifest):
+    for r in manifest:
+        assert r["dropped_frames"] == 0, r["name"]
+        assert abs(r["cycle_time_s"] - r["linuxcnc_motion_time_s"]) <= 0.001, r["name"]
+        assert 1.0 < r["cycle_time_s"] < 30.0, r["name"]
+        if "reference_cycle_time_s" in r:
+            assert r["cycle_time_s"] == pytest.approx(r["reference_cycle_time_s"], abs=0.005), r["name"]
+
+
+def test_folder_stays_small():
+    size = sum(p.stat().st_size for p in RECORDINGS.rglob("*") if p.is_file())
+    assert size < 30e6
+
+
+@pytest.mark.parametrize("name", ["pocket_f3000_p001", "5ax_near_f1000_g61_offset"])
+def test_a_recording_reads_back_as_its_manifest_says(manifest, name):
+    row = next(r for r in manifest if r["name"] == name)
+    rec = read_recording(RECORDINGS / row["file"])
+    assert rec.metadata["machine"] == row["profile"]
+    assert float(rec.metadata["cycle_time_s"]) == pytest.approx(row["cycle_time_s"])
+    assert rec.attachments[PROGRAM_ATTACHMENT].decode() == (RECORDINGS / row["program"]).read_text()
+    t = rec.stream("axes")["t_ns"].to_numpy()
+    assert len(t) == row["samples"] and np.all(np.diff(t) == 1_000_000)
+    lines = set(rec.stream("line")["line"].tolist())
+    assert len(lines) > 5

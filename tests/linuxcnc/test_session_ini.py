@@ -1,0 +1,81 @@
+"""Preparing a LinuxCNC INI for a recording session, and turning LinuxCNC's errors into ours."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from feedlog.errors import IngestError, ProgramError
+from feedlog.ingest.linuxcnc import profile_for_ini
+from feedlog.ingest.linuxcnc_session import MachineIni, program_error, session_error
+
+CONFIGS = Path(__file__).resolve().parents[2] / "recordings" / "configs"
+
+
+def test_reference_ini_is_read():
+    ini = MachineIni.read(CONFIGS / "xyzac.ini")
+    assert ini.coordinates == "XYZAC" and ini.joints == 5
+    assert ini.servo_period_ns == 1_000_000 and ini.linear_units == "mm"
+    assert profile_for_ini(ini) == "linuxcnc-xyzac"
+    assert profile_for_ini(MachineIni.read(CONFIGS / "xyz.ini")) == "linuxcnc-xyz"
+
+
+def test_rewritten_ini_runs_our_driver_and_recorder(tmp_path):
+    ini = MachineIni.read(CONFIGS / "xyzac.ini")
+    text = ini.rewritten(display="/w/driver.py /w/job.json", recorder=tmp_path / "record.tcl")
+    lines = [line.strip() for line in text.splitlines()]
+    assert "DISPLAY = /w/driver.py /w/job.json" in lines
+    halfiles = [line.split("=", 1)[1].strip() for line in lines if line.startswith("HALFILE")]
+    assert halfiles[0].startswith("LIB:basic_sim.tcl")
+    assert str(tmp_path / "record.tcl") in halfiles
+    assert "/tmp/lcnc/record.tcl" not in text
+    # relative HAL files keep pointing at the INI's folder
+    assert str(CONFIGS.resolve() / "trt.hal") in halfiles
+    assert "TOOL_TABLE = feedlog.tbl" in lines
+
+
+def test_recorder_is_appended_when_the_ini_has_no_recording_halfile(tmp_path):
+    src = (CONFIGS / "xyz.ini").read_text().replace("HALFILE = /tmp/lcnc/record.tcl\n", "")
+    path = tmp_path / "plain.ini"
+    path.write_text(src)
+    text = MachineIni.read(path).rewritten(display="d", recorder=Path("/r/record.tcl"))
+    halfiles = [line for line in text.splitlines() if line.startswith("HALFILE")]
+    assert halfiles[-1] == "HALFILE = /r/record.tcl" and len(halfiles) == 2
+
+
+def test_ini_without_servo_period_is_refused(tmp_path):
+    path = tmp_path / "broken.ini"
+    path.write_text((CONFIGS / "xyz.ini").read_text().replace("SERVO_PERIOD = 1000000", ""))
+    with pytest.raises(IngestError, match=r"broken\.ini: LinuxCNC INI lacks \[EMCMOT\] SERVO_PERIOD"):
+        MachineIni.read(path)
+    with pytest.raises(IngestError, match="cannot read LinuxCNC INI"):
+        MachineIni.read(tmp_path / "missing.ini")
+
+
+def test_unknown_kinematics_needs_a_profile(tmp_path):
+    path = tmp_path / "delta.ini"
+    path.write_text((CONFIGS / "xyz.ini").read_text().replace("trivkins coordinates=XYZ", "lineardeltakins"))
+    with pytest.raises(IngestError, match="no shipped machine profile for kinematics 'lineardeltakins'"):
+        profile_for_ini(MachineIni.read(path))
+
+
+def test_gcode_error_becomes_program_error_with_file_and_line(tmp_path):
+    program = tmp_path / "p.ngc"
+    program.write_text("G21\nF1000\nG1 X10\nG1 X2000\nM2\n")
+    report = {"ok": False, "errors": [{"kind": "error", "text": "Linear move on line 4 would exceed "
+                                       "X's positive limit", "motion_line": 0}], "abort": "x"}
+    err = session_error(report, program)
+    assert isinstance(err, ProgramError)
+    assert err.line == 4 and err.file == str(program)
+    assert "would exceed X's positive limit" in str(err)
+    assert session_error({"ok": True, "errors": []}, program) is None
+    aborted = session_error({"ok": False, "errors": [], "phase": "run", "abort": "timed out"}, program)
+    assert isinstance(aborted, IngestError) and "timed out" in str(aborted)
+
+
+def test_error_line_falls_back_to_the_interpreter_position(tmp_path):
+    program = tmp_path / "p.ngc"
+    program.write_text("G21\nG1 X1 F100\n")
+    err = program_error({"errors": [{"text": "Bad number format", "read_line": 2}]}, program)
+    assert err.line == 2
