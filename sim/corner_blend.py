@@ -222,7 +222,9 @@ class BlendArcCorner(Mechanism):
         t2 = u2[ja]
         normal = t2 - t1
         normal /= np.linalg.norm(normal, axis=1)[:, None]
-        e1[:, lin_idx] = -normal            # from the centre towards the arc start
+        # centre relative to the arc start (LinuxCNC blendFindPoints3): P + n R / sin(theta) - (P - u1 d)
+        to_centre = normal * (r / np.sin(theta))[:, None] + t1 * d[:, None]
+        e1[:, lin_idx] = -to_centre / np.linalg.norm(to_centre, axis=1)[:, None]  # centre -> arc start
         e2[:, lin_idx] = t1                 # tangent at the arc start
         arc_len = arcs["s"][ja]
         arc_len_full = arc_len + np.where(consumed, length[ja], 0.0)

@@ -193,6 +193,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     rapid = code == KIND_RAPID
     feed = np.where(rapid, profile.rapid_mm_min / 60.0, feed)
     moving = (length > EPS_LEN) & (code != KIND_DWELL)
+    feed = np.where(moving, feed, np.nan_to_num(feed, nan=0.0))
     bad_feed = moving & ~(feed > 0)
     if bad_feed.any():
         i = int(np.flatnonzero(bad_feed)[0])

@@ -1,0 +1,174 @@
+"""Look-ahead planner: closed-form cases, the vectorised passes, invariants."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from feedlog.sim import simulate
+from feedlog.sim.motion import plan_speeds
+from feedlog.sim.path import Pieces
+
+F3000 = 50.0  # mm/s
+
+
+def test_one_long_block_is_a_trapezoid(plain, gcode):
+    res = simulate(gcode("G21 G90 G61\nG1 X100 F3000\n"), plain, mechanisms=["lookahead"])
+    # accelerate to F, cruise, decelerate: L / v + v / a
+    assert res.cycle_time_s == pytest.approx(100 / F3000 + F3000 / 1000, abs=1e-6)
+    assert res.series["feed_mm_min"].max() == pytest.approx(3000, rel=1e-6)
+    assert res.cam_time_s == pytest.approx(2.0)
+
+
+def test_short_block_never_reaches_feed(plain, gcode):
+    res = simulate(gcode("G21 G90 G61\nG1 X1 F3000\n"), plain, mechanisms=["lookahead"])
+    assert res.cycle_time_s == pytest.approx(2 * math.sqrt(1 / 1000), abs=1e-6)
+    peak = res.series["feed_mm_min"].max() / 60
+    assert peak == pytest.approx(math.sqrt(1000 * 1.0), rel=0.02)  # v_peak = sqrt(a L), sampled at 1 ms
+    assert peak < F3000
+
+
+def test_diagonal_block_uses_projected_axis_limits(plain, gcode):
+    res = simulate(gcode("G21 G90 G61\nG1 X30 Y30 F99999\n"), plain, mechanisms=["lookahead"])
+    length = 30 * math.sqrt(2)
+    v, a = 50 * math.sqrt(2), 1000 * math.sqrt(2)  # each axis at its own limit
+    assert res.cycle_time_s == pytest.approx(length / v + v / a, abs=1e-6)
+
+
+@pytest.mark.parametrize("law", ["blend_arc", "junction_deviation"])
+def test_right_angle_corner_exact_stop_vs_continuous(plain, law, gcode):
+    g61 = simulate(gcode("G21 G90 G61\nG1 X20 F3000\nG1 Y20\n"), plain, mechanisms=["lookahead", law])
+    g64 = simulate(gcode("G21 G90 G64 P0.05\nG1 X20 F3000\nG1 Y20\n"), plain, mechanisms=["lookahead", law])
+    one = 20 / F3000 + F3000 / 1000
+    assert g61.cycle_time_s == pytest.approx(2 * one, abs=1e-6)  # two full stops
+    assert g64.cycle_time_s < g61.cycle_time_s - 0.002
+    corner = g64.series.loc[(g64.series["x_mm"] > 19.0) & (g64.series["y_mm"] < 1.0), "feed_mm_min"]
+    assert corner.min() > 0  # never stops in the corner
+    assert g61.series["feed_mm_min"].iloc[int(one / 0.001)] == pytest.approx(0.0, abs=1.0)
+
+
+def test_junction_deviation_corner_speed_is_closed_form(plain, gcode):
+    res = simulate(gcode("G21 G90 G64 P0.05\nG1 X40 F6000\nG1 Y40\n"), plain,
+                   mechanisms=["lookahead", "junction_deviation"])
+    s = res.series
+    at_corner = s.iloc[int(np.argmin(np.hypot(s["x_mm"] - 40, s["y_mm"])))]
+    sin_half = math.sin(math.pi / 4)
+    v = math.sqrt(1000 * 0.05 * sin_half / (1 - sin_half))  # grbl, 90 degree corner
+    assert at_corner["feed_mm_min"] / 60 == pytest.approx(v, rel=0.05)
+
+
+def test_arc_speed_limited_by_centripetal_acceleration(make_machine, gcode):
+    prof = make_machine(vel=500.0)
+    res = simulate(gcode("G21 G90 G17 G61\nG0 X5 Y0\nG3 X5 Y0 I-5 J0 F30000\n"), prof, mechanisms=["lookahead"])
+    s = res.series[res.series["block"] == 2]
+    v_normal = math.sqrt(1000 * math.sqrt(0.75) * 5)
+    assert s["feed_mm_min"].max() / 60 == pytest.approx(v_normal, rel=0.01)
+    r = np.hypot(s["x_mm"], s["y_mm"])
+    assert np.allclose(r, 5.0, atol=1e-9)  # stays on the circle
+
+
+def _naive_plan(length, vmax, acc, v_end, lookahead):
+    """Straightforward loop version of the backward/forward passes, for comparison."""
+    m = len(length)
+    cap = np.minimum(np.minimum(v_end, vmax), np.append(vmax[1:], 0.0)) ** 2
+    cap[-1] = 0.0
+    d = 2 * acc * length
+    for j in range(m):
+        cap[j] = min(cap[j], d[j + 1:j + 1 + lookahead].sum())
+    w = cap.copy()
+    for j in range(m - 2, -1, -1):
+        w[j] = min(w[j], w[j + 1] + d[j + 1])
+    u = np.zeros(m)
+    prev = 0.0
+    for j in range(m):
+        u[j] = min(w[j], prev + d[j])
+        prev = u[j]
+    return np.sqrt(u)
+
+
+def test_vectorised_passes_match_a_naive_loop():
+    rng = np.random.default_rng(3)
+    m = 400
+    length = rng.uniform(0.01, 5.0, m)
+    vmax = rng.uniform(5, 80, m)
+    acc = rng.uniform(200, 2000, m)
+    v_end = np.where(rng.random(m) < 0.1, 0.0, rng.uniform(0, 80, m))
+    zero = np.zeros(m)
+    k = 3
+    pieces = Pieces(block=np.arange(m), length=length, p0=np.zeros((m, k)), dir=np.zeros((m, k)),
+                    e1=np.zeros((m, k)), e2=np.zeros((m, k)), radius=zero, omega=zero, v_max=vmax, a_max=acc,
+                    v_end=v_end, hold_s=zero, blend=zero.astype(bool), overlap=zero.astype(bool), clamp_len=length)
+    plan = plan_speeds(pieces, lookahead=7)
+    assert np.allclose(plan.v1, _naive_plan(length, vmax, acc, v_end, 7), rtol=1e-9, atol=1e-9)
+    # every piece's profile is feasible: it covers its length within its limits
+    assert np.all(plan.vp <= vmax + 1e-9)
+    covered = (plan.v0 + plan.vp) / 2 * plan.t_acc + plan.vp * plan.t_cru + (plan.vp + plan.v1) / 2 * plan.t_dec
+    assert np.allclose(covered, length, rtol=1e-7)
+
+
+def _zigzag(n=40, seed=0) -> str:
+    rng = np.random.default_rng(seed)
+    pts = np.cumsum(rng.uniform(-3, 3, (n, 3)) * [1, 1, 0.3], axis=0)
+    lines = [f"G1 X{x:.4f} Y{y:.4f} Z{z:.4f}" for x, y, z in pts]
+    return "G21 G90 G64 P{tol}\nF{feed}\n" + "\n".join(lines) + "\n"
+
+
+def test_axes_never_exceed_their_limits(plain, gcode):
+    text = _zigzag().format(tol=0.05, feed=3000)
+    res = simulate(gcode(text), plain, mechanisms=["lookahead", "blend_arc"])
+    s = res.series
+    dt = 0.001
+    pos = s[["x_mm", "y_mm", "z_mm"]].to_numpy()
+    vel = np.diff(pos, axis=0) / dt
+    acc = np.diff(vel, axis=0) / dt
+    assert np.abs(vel).max() <= 50 * 1.001
+    # the acceleration of sampled data carries discretisation spikes of O(v^2 dt / R): allow 5 %
+    assert np.abs(acc).max() <= 1000 * 1.05
+
+
+def test_path_ends_at_the_programs_end_point(plain, gcode):
+    text = _zigzag(seed=4).format(tol=0.1, feed=2400)
+    prog = gcode(text)
+    for mechs in (["lookahead", "blend_arc"], ["lookahead", "junction_deviation"], ["fir"], ["cam"]):
+        res = simulate(prog, plain, mechanisms=mechs)
+        end = prog.blocks.iloc[-1][["x_mm", "y_mm", "z_mm"]].to_numpy(float)
+        assert np.allclose(res.series[["x_mm", "y_mm", "z_mm"]].iloc[-1].to_numpy(), end, atol=1e-6), mechs
+
+
+@pytest.mark.parametrize("law", ["blend_arc", "junction_deviation"])
+def test_cycle_time_never_increases_with_tolerance_or_feed(plain, law, gcode):
+    times_tol = [simulate(gcode(_zigzag(seed=2).format(tol=tol, feed=3000)), plain,
+                          mechanisms=["lookahead", law]).cycle_time_s for tol in (0.001, 0.01, 0.05, 0.2)]
+    assert all(b <= a + 1e-9 for a, b in zip(times_tol, times_tol[1:])), times_tol
+    times_f = [simulate(gcode(_zigzag(seed=2).format(tol=0.05, feed=f)), plain,
+                        mechanisms=["lookahead", law]).cycle_time_s for f in (600, 1200, 2400, 4800)]
+    assert all(b <= a + 1e-9 for a, b in zip(times_f, times_f[1:])), times_f
+
+
+def test_shorter_lookahead_is_never_faster(plain, gcode):
+    prog = gcode("G21 G90 G64 P0.1\nF3000\n" + "\n".join(f"G1 X{0.2 * i:.1f}" for i in range(1, 200)) + "\n")
+    long = simulate(prog, plain, mechanisms={"lookahead": {"lookahead_blocks": 100}})
+    short = simulate(prog, plain, mechanisms={"lookahead": {"lookahead_blocks": 2}})
+    assert short.cycle_time_s > long.cycle_time_s + 0.01
+    # collinear 0.2 mm blocks with a long window: one trapezoid over 39.8 mm
+    assert long.cycle_time_s == pytest.approx(39.8 / 50 + 50 / 1000, rel=0.01)
+
+
+def test_block_table_columns_and_times(plain, gcode):
+    res = simulate(gcode("G21 G90 G61\nG1 X10 F3000\nG4 P0.5\nG1 Y10\n"), plain, mechanisms=["lookahead"])
+    b = res.blocks
+    assert list(b.columns) == ["block", "line", "t_start_ns", "t_end_ns", "duration_s"]
+    assert (b["t_end_ns"] >= b["t_start_ns"]).all()
+    assert b["duration_s"].iloc[1] == pytest.approx(0.5)  # the dwell
+    assert res.cycle_time_s == pytest.approx(2 * (10 / 50 + 50 / 1000) + 0.5, abs=1e-6)
+
+
+def test_blend_arc_stays_inside_the_tolerance(plain, gcode):
+    res = simulate(gcode("G21 G90 G64 P0.05\nG1 X20 F3000\nG1 Y20\n"), plain, mechanisms=["lookahead", "blend_arc"])
+    s = res.series
+    # distance from the programmed corner path (the two legs)
+    dev = np.minimum(np.abs(s["y_mm"]).where(s["x_mm"] <= 20, np.inf), np.abs(s["x_mm"] - 20))
+    assert dev.max() <= 0.05 + 1e-9
+    assert dev.max() > 0.01  # the corner is really cut
