@@ -12,8 +12,11 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import shutil
+from importlib import resources
 from pathlib import Path
 from typing import Any
+
+import pandas as pd
 
 from feedlog.errors import FeedlogError, IngestError
 from feedlog.ingest.linuxcnc_capture import load_capture, motion_span
@@ -40,13 +43,13 @@ def profile_for_ini(ini: MachineIni) -> str:
     return name
 
 
-def _profile_toml(profile: str | None, ini: MachineIni) -> tuple[str, bytes]:
+def profile_toml_for(profile: str | None, ini: MachineIni) -> tuple[str, bytes]:
+    """The profile's name and TOML text: `profile` (name or path) or the one matching the INI."""
     spec = profile or profile_for_ini(ini)
     loaded = load_profile(spec)
     path = Path(spec)
     if path.suffix == ".toml" and path.is_file():
         return loaded.name, path.read_bytes()
-    from importlib import resources
     return loaded.name, resources.files("feedlog.profiles").joinpath(f"{spec}.toml").read_bytes()
 
 
@@ -65,20 +68,35 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
         raise IngestError("program not found", file=str(program))
     if out.exists() and not overwrite:
         raise IngestError("output exists; pass --overwrite to replace it", file=str(out))
-    profile_name, profile_toml = _profile_toml(profile, ini_cfg)
-    period_ns = ini_cfg.servo_period_ns
+    profile_name, profile_toml = profile_toml_for(profile, ini_cfg)
     session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s)
     try:
-        report = session.report
-        error = session_error(report, program)
-        streams, missing = load_capture(session.sample_files, session.layout, period_ns=period_ns,
+        error = session_error(session.report, program)
+        streams, missing = load_capture(session.sample_files, session.layout, period_ns=ini_cfg.servo_period_ns,
                                         linear_units=ini_cfg.linear_units, source=str(program))
     finally:
         cleanup(session)
+    return write_session(streams, missing, session.report, ini=ini_cfg, program=program.name,
+                         program_bytes=program.read_bytes(), profile_name=profile_name, profile_toml=profile_toml,
+                         out=out, overwrite=overwrite, compression=compression, notes=notes, error=error,
+                         wall_s=session.wall_s)
+
+
+def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, *, ini: MachineIni,
+                  program: str, program_bytes: bytes | None, profile_name: str, profile_toml: bytes,
+                  out: Path, overwrite: bool, compression: str = "zstd", notes: str = "",
+                  error: FeedlogError | None = None, wall_s: float = 0.0) -> dict[str, Any]:
+    """Write one recorded LinuxCNC session (also a cut-short one) and return its summary.
+
+    Raises `error` afterwards when the session did not end normally; with nothing moved, nothing is
+    written.
+    """
+    period_ns = ini.servo_period_ns
     span = motion_span(streams["axes"], period_ns)
     if error is not None and span is None:
         raise error  # nothing moved: no recording to keep
     motion_time_s = float(report.get("motion_time_end_s", float("nan"))) - float(report.get("motion_time_start_s", 0.0))
+    axes_t = streams["axes"]["t_ns"]
     metadata = {
         "machine": profile_name,
         "controller": f"{CONTROLLER} {report.get('linuxcnc_version', '')}".strip(),
@@ -88,21 +106,19 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
                                                 tz=dt.timezone.utc).isoformat(timespec="milliseconds"),
         "notes": notes,
         "source": "linuxcnc",
-        "program": program.name,
-        "ini": Path(ini).name,
+        "program": program,
+        "ini": ini.path.name,
         "servo_period_ns": str(period_ns),
         "cycle_time_s": f"{span.cycle_time_s:.6f}" if span else "",
-        "motion_start_ns": str(int(streams["axes"]["t_ns"].iloc[span.first])) if span else "",
-        "motion_end_ns": str(int(streams["axes"]["t_ns"].iloc[span.last])) if span else "",
+        "motion_start_ns": str(int(axes_t.iloc[span.first])) if span else "",
+        "motion_end_ns": str(int(axes_t.iloc[span.last])) if span else "",
         "linuxcnc_motion_time_s": f"{motion_time_s:.6f}",
         "sampler_overruns": str(int(report.get("overruns", 0))),
         "status": "complete" if error is None else f"aborted: {error}",
     }
-    attachments = {
-        PROGRAM_ATTACHMENT: program.read_bytes(),
-        INI_ATTACHMENT: ini_cfg.text.encode(),
-        PROFILE_ATTACHMENT: profile_toml,
-    }
+    attachments = {INI_ATTACHMENT: ini.text.encode(), PROFILE_ATTACHMENT: profile_toml}
+    if program_bytes is not None:
+        attachments[PROGRAM_ATTACHMENT] = program_bytes
     recording = Recording(streams=streams, metadata=metadata, attachments=attachments,
                           dropped_frames=missing + int(report.get("overruns", 0)), source=str(out))
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -113,14 +129,14 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
         raise error
     return {
         "out": str(out),
-        "program": str(program),
+        "program": program,
         "machine": profile_name,
         "samples": int(len(streams["axes"])),
         "dropped_frames": recording.dropped_frames,
         "cycle_time_s": span.cycle_time_s if span else 0.0,
         "linuxcnc_motion_time_s": motion_time_s,
         "duration_s": recording.duration_s,
-        "wall_s": round(session.wall_s, 3),
+        "wall_s": round(wall_s, 3),
     }
 
 

@@ -63,6 +63,8 @@ def join_captures(tables: list[pd.DataFrame], *, source: str = "") -> pd.DataFra
     joined = tables[0]
     for k, table in enumerate(tables[1:], start=1):
         joined = joined.merge(table, on="sample", how="inner", suffixes=("", f"_{k}"))
+        if "clock_s" not in joined:
+            continue
         clash = np.flatnonzero(np.abs(joined["clock_s"] - joined[f"clock_s_{k}"]) > 1e-6)
         if len(clash):
             raise IngestError(f"sampler {k} is out of step with sampler 0 at sample "
@@ -107,7 +109,10 @@ def capture_streams(joined: pd.DataFrame, layout: SamplerLayout, *, period_ns: i
     if len(joined) and joined["sample"].duplicated().any():
         raise IngestError("sampler capture repeats a sample tag")
     scale = length_factor("inch" if linear_units.lower().startswith("in") else "mm")
-    t_ns = servo_t_ns(joined["clock_s"].to_numpy(), period_ns)
+    if layout.clock:
+        t_ns = servo_t_ns(joined["clock_s"].to_numpy(), period_ns)
+    else:  # no clock column: the sample tag counts servo periods
+        t_ns = joined["sample"].to_numpy().astype(np.int64) * np.int64(period_ns)
     axis_cols = [c.name for group in layout.groups for c in group if c.pin.startswith("axis.")]
     axes = {"t_ns": t_ns}
     for name in axis_cols:

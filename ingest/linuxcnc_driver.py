@@ -7,7 +7,9 @@ modules), started by LinuxCNC as `[DISPLAY] DISPLAY = driver.py JOB.json` (Linux
 nothing from feedlog: the job file says what to do, the result file says what happened.
 
 Job (JSON): program, channels, sample_files, result, enable_signal, motion_time_pin,
-timeout_s, attach (bool: don't home or run, record until the program ends or SIGINT/SIGTERM).
+timeout_s, attach (bool: don't home or run, record until the program ends or SIGINT/SIGTERM),
+until_program_end (attach: stop when the program ends; else only on a signal), start_delay_s
+(wait before AUTO_RUN; with no channels the driver is a plain headless operator, used in tests).
 Result (JSON): ok, errors [{kind, text}], motion_time_s, overruns, ... written on every exit path.
 """
 
@@ -156,10 +158,13 @@ class Driver:
         self.wait("program open", lambda s: s.file != "", 10)
         self.poll_errors()
         self.result["phase"] = "run"
-        self.start_samplers()
-        time.sleep(0.3)  # halsampler attached before the gate opens
-        self.halcmd("sets", self.job["enable_signal"], "1")
-        time.sleep(0.05)
+        if self.job["channels"]:
+            self.start_samplers()
+            time.sleep(0.3)  # halsampler attached before the gate opens
+            self.halcmd("sets", self.job["enable_signal"], "1")
+            time.sleep(0.05)
+        time.sleep(float(self.job.get("start_delay_s", 0.0)))
+        self.result["program_file"] = self.stat.file
         self.result["motion_time_start_s"] = self.motion_time()
         self.result["run_wall_start"] = time.time()
         self.cmd.auto(linuxcnc.AUTO_RUN, 0)
@@ -186,6 +191,8 @@ class Driver:
         seen_running = False
         while not self.stop_requested and time.monotonic() < self.deadline:
             self.stat.poll()
+            if self.stat.file:
+                self.result["program_file"] = self.stat.file
             self.poll_errors(fatal=False)
             running = self.stat.interp_state != linuxcnc.INTERP_IDLE or self.stat.queue > 0
             seen_running = seen_running or running

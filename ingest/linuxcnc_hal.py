@@ -11,7 +11,7 @@ running (`haltcl record.tcl` loads it into the live HAL); see docs/linuxcnc.md.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 ENABLE_SIGNAL = "feedlog-enable"
 CLOCK_COMPONENT = "feedlog-clock"
@@ -38,17 +38,22 @@ class Column:
 
 @dataclass(frozen=True)
 class SamplerLayout:
-    """Columns grouped per sampler; column 0 of every sampler is the shared clock `clock_s`."""
+    """Columns grouped per sampler; column 0 of every sampler is the shared clock `clock_s`.
+
+    `clock=False` (attaching to a HAL that already uses `integ`) leaves the clock out: time then
+    comes from halsampler's sample tag, which every gated sampler advances in step.
+    """
 
     groups: tuple[tuple[Column, ...], ...]
     depth: int = 16384
     first_channel: int = 0
+    clock: bool = True
 
     def __post_init__(self) -> None:
         if not self.groups:
             raise ValueError("sampler layout needs at least one group of columns")
         for k, group in enumerate(self.groups):
-            if len(group) + 1 > MAX_PINS_PER_SAMPLER:
+            if len(group) + int(self.clock) > MAX_PINS_PER_SAMPLER:
                 raise ValueError(f"sampler {k} has {len(group) + 1} pins; at most {MAX_PINS_PER_SAMPLER}")
         if self.depth < 1024:
             raise ValueError(f"sampler depth {self.depth} too small (>= 1024 samples)")
@@ -59,15 +64,16 @@ class SamplerLayout:
 
     def column_names(self, k: int) -> list[str]:
         """Names of the fields halsampler -t prints for sampler group k (tag, clock, columns)."""
-        return ["sample", "clock_s"] + [c.name for c in self.groups[k]]
+        return ["sample"] + (["clock_s"] if self.clock else []) + [c.name for c in self.groups[k]]
 
     @property
     def cfgs(self) -> list[str]:
-        return ["f" + "".join(_CFG_LETTER[c.hal_type] for c in group) for group in self.groups]
+        lead = "f" if self.clock else ""
+        return [lead + "".join(_CFG_LETTER[c.hal_type] for c in group) for group in self.groups]
 
 
-def standard_layout(coordinates: str, joints: int, *, depth: int = 16384,
-                    first_channel: int = 0) -> SamplerLayout:
+def standard_layout(coordinates: str, joints: int, *, depth: int = 16384, first_channel: int = 0,
+                    clock: bool = True) -> SamplerLayout:
     """Planner axes, motion status and feeds in one sampler, joint command/feedback in the next.
 
     `coordinates` is the INI's [TRAJ] COORDINATES (e.g. "XYZ", "XYZAC"); `joints` its [KINS] JOINTS.
@@ -94,11 +100,12 @@ def standard_layout(coordinates: str, joints: int, *, depth: int = 16384,
         joint_cols.append(Column(f"j{j}_pos_fb", f"joint.{j}.pos-fb", "float"))
     per = MAX_PINS_PER_SAMPLER - 1  # one pin of each sampler is the clock
     groups = [tuple(cols[i:i + per]) for cols in (motion, joint_cols) for i in range(0, len(cols), per)]
-    return SamplerLayout(groups=tuple(groups), depth=depth, first_channel=first_channel)
+    return SamplerLayout(groups=tuple(groups), depth=depth, first_channel=first_channel, clock=clock)
 
 
 def recorder_tcl(layout: SamplerLayout, *, thread: str = "servo-thread") -> str:
-    """The haltcl text that loads samplers, the clock and the motion-time integrator.
+    """The haltcl text that loads the samplers (and, with `layout.clock`, the clock and the
+    motion-time integrator).
 
     A pin that basic_sim (or the machine's own HAL) already nets keeps its signal: the sampler input
     joins that signal instead of a new one.
@@ -117,26 +124,42 @@ def recorder_tcl(layout: SamplerLayout, *, thread: str = "servo-thread") -> str:
         "  net $sig $target",
         "}",
         f"loadrt sampler depth={depths} cfg={','.join(layout.cfgs)}",
-        f"loadrt integ names={CLOCK_COMPONENT},{MOTION_TIME_COMPONENT}",
-        "loadrt not names=feedlog-moving",
-        "loadrt conv_bit_float names=feedlog-moving-f",
-        f"setp {CLOCK_COMPONENT}.in 1.0",
-        f"addf {CLOCK_COMPONENT} {thread}",
-        "addf feedlog-moving {thread}".format(thread=thread),
-        f"addf feedlog-moving-f {thread}",
-        f"addf {MOTION_TIME_COMPONENT} {thread}",
-        # LinuxCNC's own motion time: servo periods with in-position false, integrated in HAL
-        "feedlog_link motion.in-position feedlog-moving.in",
-        "net feedlog:moving feedlog-moving.out feedlog-moving-f.in",
-        f"net feedlog:moving-f feedlog-moving-f.out {MOTION_TIME_COMPONENT}.in",
     ]
+    if layout.clock:
+        lines += [
+            f"loadrt integ names={CLOCK_COMPONENT},{MOTION_TIME_COMPONENT}",
+            "loadrt not names=feedlog-moving",
+            "loadrt conv_bit_float names=feedlog-moving-f",
+            f"setp {CLOCK_COMPONENT}.in 1.0",
+            f"addf {CLOCK_COMPONENT} {thread}",
+            f"addf feedlog-moving {thread}",
+            f"addf feedlog-moving-f {thread}",
+            f"addf {MOTION_TIME_COMPONENT} {thread}",
+            # LinuxCNC's own motion time: servo periods with in-position false, integrated in HAL
+            "feedlog_link motion.in-position feedlog-moving.in",
+            "net feedlog:moving feedlog-moving.out feedlog-moving-f.in",
+            f"net feedlog:moving-f feedlog-moving-f.out {MOTION_TIME_COMPONENT}.in",
+        ]
+    first = int(layout.clock)
     for k, (channel, group) in enumerate(zip(layout.channels, layout.groups)):
         lines.append(f"addf sampler.{channel} {thread}")
         lines.append(f"net {ENABLE_SIGNAL} sampler.{channel}.enable")
-        lines.append(f"net feedlog:clock sampler.{channel}.pin.0" if k else
-                     f"net feedlog:clock {CLOCK_COMPONENT}.out sampler.{channel}.pin.0")
-        for i, column in enumerate(group, start=1):
+        if layout.clock:
+            lines.append(f"net feedlog:clock sampler.{channel}.pin.0" if k else
+                         f"net feedlog:clock {CLOCK_COMPONENT}.out sampler.{channel}.pin.0")
+        for i, column in enumerate(group, start=first):
             lines.append(f"feedlog_link {column.pin} sampler.{channel}.pin.{i}")
     # a new signal without a writer takes its first reader's value (sampler.N.enable defaults to 1)
     lines.append(f"sets {ENABLE_SIGNAL} 0")
+    return "\n".join(lines) + "\n"
+
+
+def unload_tcl(layout: SamplerLayout, *, thread: str = "servo-thread") -> str:
+    """haltcl that takes the recorder out of a running HAL again (after an attached recording)."""
+    lines = [f"delf sampler.{c} {thread}" for c in layout.channels]
+    if layout.clock:
+        lines += [f"delf {name} {thread}" for name in
+                  (CLOCK_COMPONENT, "feedlog-moving", "feedlog-moving-f", MOTION_TIME_COMPONENT)]
+        lines += ["unload integ", "unload not", "unload conv_bit_float"]
+    lines.append("unload sampler")
     return "\n".join(lines) + "\n"

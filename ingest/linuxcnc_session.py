@@ -90,8 +90,10 @@ class MachineIni:
     def layout(self) -> SamplerLayout:
         return standard_layout(self.coordinates, self.joints)
 
-    def rewritten(self, *, display: str, recorder: Path) -> str:
-        """INI text with our DISPLAY and recorder HALFILE; relative file paths made absolute."""
+    def rewritten(self, *, display: str, recorder: Path | None) -> str:
+        """INI text with our DISPLAY and recorder HALFILE; relative file paths made absolute.
+
+        `recorder=None` drops the INI's recording HALFILE (a machine to attach to later)."""
         out: list[str] = []
         section = ""
         placed = False
@@ -111,9 +113,10 @@ class MachineIni:
             if section == "HAL" and key == "HALFILE":
                 first = value.split()[0] if value.split() else ""
                 if re.match(r"record.*\.tcl$", Path(first).name):
-                    out.append(f"HALFILE = {recorder}")
                     placed = True
-                    last_halfile = len(out) - 1
+                    if recorder is not None:
+                        out.append(f"HALFILE = {recorder}")
+                        last_halfile = len(out) - 1
                     continue
                 if first and not first.startswith("LIB:") and not Path(first).is_absolute():
                     value = value.replace(first, str(self.path.parent / first), 1)
@@ -125,7 +128,7 @@ class MachineIni:
                 out.append(f"TOOL_TABLE = {src if src.exists() else 'feedlog.tbl'}")
                 continue
             out.append(raw)
-        if not placed:
+        if not placed and recorder is not None:
             if last_halfile < 0:
                 raise IngestError("LinuxCNC INI has no [HAL] HALFILE to attach the recorder after",
                                   file=str(self.path))
@@ -163,12 +166,31 @@ def _workdir(isolate: bool) -> Path:
     return path
 
 
+UNSHARE = ["unshare", "--ipc", "--pid", "--mount", "--net", "--uts", "--fork", "--mount-proc"]
+# inside the namespaces: a private /tmp (lock file, NML files) and a loopback that is up
+NAMESPACE_SETUP = "mount -t tmpfs tmpfs /tmp && { command -v ip >/dev/null && ip link set lo up || true; }"
+
+
+def isolation_available() -> str | None:
+    """None when isolated sessions can run here (root, unshare allowed), else the reason."""
+    if os.geteuid() != 0:
+        return "isolated LinuxCNC sessions need root (unshare of mount/net/pid namespaces)"
+    if shutil.which("unshare") is None:
+        return "unshare (util-linux) is not installed"
+    try:
+        probe = subprocess.run([*UNSHARE, "sh", "-c", NAMESPACE_SETUP], capture_output=True, text=True,
+                               timeout=20)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return f"unshare failed: {exc}"
+    if probe.returncode != 0:
+        return f"unshare is not permitted here: {probe.stderr.strip()[:200]}"
+    return None
+
+
 def _launch_command(ini_path: Path, *, isolate: bool) -> list[str]:
     if not isolate:
         return ["linuxcnc", "-r", str(ini_path)]
-    inner = f"mount -t tmpfs tmpfs /tmp && ip link set lo up && exec linuxcnc -r '{ini_path}'"
-    return ["unshare", "--ipc", "--pid", "--mount", "--net", "--uts", "--fork", "--mount-proc",
-            "sh", "-c", inner]
+    return [*UNSHARE, "sh", "-c", f"{NAMESPACE_SETUP} && exec linuxcnc -r '{ini_path}'"]
 
 
 def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeout_s: float = 600.0,
@@ -182,7 +204,7 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
     if reason:
         raise IngestError(reason)
     if isolate and os.geteuid() != 0:
-        raise IngestError("isolate=True needs root (unshare of mount/net/pid namespaces)")
+        raise IngestError(isolation_available() or "isolation needs root")
     layout = ini.layout()
     workdir = _workdir(isolate)
     try:
@@ -300,5 +322,5 @@ def locate_error_line(program: Path, message: str) -> int | None:
     return None
 
 
-__all__ = ["MachineIni", "SessionResult", "cleanup", "linuxcnc_available", "program_error", "run_session",
+__all__ = ["MachineIni", "SessionResult", "cleanup", "isolation_available", "linuxcnc_available", "program_error", "run_session",
            "session_error"]

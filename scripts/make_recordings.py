@@ -15,7 +15,6 @@ tolerance, split (train/test) and the measured cycle time (first motion to end o
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import sys
 import time
@@ -192,9 +191,11 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     chosen = [e for e in entries if (not args.names or e.name in args.names)
               and (args.force or not (RECORDINGS / f"{e.name}.mcap").exists())]
-    isolate = os.geteuid() == 0
+    from feedlog.ingest.linuxcnc_session import isolation_available
+    reason = isolation_available()
+    isolate = reason is None
     if not isolate and args.jobs > 1:
-        print("not root: running one LinuxCNC session at a time without namespaces", file=sys.stderr)
+        print(f"{reason}: running one LinuxCNC session at a time", file=sys.stderr)
         args.jobs = 1
     rows = load_manifest()
     failures = 0
