@@ -28,27 +28,51 @@ ENTITY_RESIDUAL_PATH = "path/residual"
 ENTITY_TOOL = "path/tool"
 ENTITY_ORIENTATION = "path/orientation"
 FEED, AXES, RESIDUAL, BLOCKS = "feed", "axes", "residual", "blocks"
-ENTITY_PROGRAM_TEXT = "blocks/program"
+MAX_CLOUD_POINTS = 250_000  # static coloured path clouds are decimated above this
 
 
-def _indexes(t_rel_ns, block=None, s_mm=None) -> list[rr.TimeColumn]:
-    cols = [rr.TimeColumn(TIMELINE_TIME, duration=np.asarray(t_rel_ns, dtype=np.int64).astype("timedelta64[ns]"))]
-    if block is not None:
-        cols.append(rr.TimeColumn(TIMELINE_BLOCK, sequence=np.asarray(block, dtype=np.int64)))
-    if s_mm is not None:
-        cols.append(rr.TimeColumn(TIMELINE_PATH, sequence=np.rint(np.asarray(s_mm) * 1000.0).astype(np.int64)))
-    return cols
+class _Indexes:
+    """Time columns of one source (measured, sim, ...), built once and subset per series."""
+
+    def __init__(self, t_rel_ns, block=None, s_mm=None) -> None:
+        self.t_rel_ns = np.asarray(t_rel_ns, dtype=np.int64)
+        self.block = None if block is None else np.asarray(block, dtype=np.int64)
+        self.path_um = None
+        if s_mm is not None and np.isfinite(s_mm).all():
+            self.path_um = np.rint(np.asarray(s_mm) * 1000.0).astype(np.int64)
+        self._full: dict[tuple[bool, bool], list[rr.TimeColumn]] = {}
+
+    def __call__(self, keep: np.ndarray | None, *, block: bool = True, path: bool = False) -> list[rr.TimeColumn]:
+        """Time columns for the kept samples: always `time`, `block` and `path_um` when asked and known."""
+        if keep is not None and keep.all():
+            keep = None
+        key = (block, path)
+        if keep is None and key in self._full:
+            return self._full[key]
+
+        def sub(a):
+            return a if keep is None else a[keep]
+
+        cols = [rr.TimeColumn(TIMELINE_TIME, duration=sub(self.t_rel_ns).astype("timedelta64[ns]"))]
+        if block and self.block is not None:
+            cols.append(rr.TimeColumn(TIMELINE_BLOCK, sequence=sub(self.block)))
+        if path and self.path_um is not None:
+            cols.append(rr.TimeColumn(TIMELINE_PATH, sequence=sub(self.path_um)))
+        if keep is None:
+            self._full[key] = cols
+        return cols
 
 
-def _series(stream: rr.RecordingStream, entity: str, values: np.ndarray, indexes_of, *, label: str,
-            color: tuple[int, int, int], counts: dict[str, int], finite_only: bool = True) -> None:
+def _series(stream: rr.RecordingStream, entity: str, values: np.ndarray, indexes: _Indexes, *, label: str,
+            color: tuple[int, int, int], counts: dict[str, int], block: bool = True, path: bool = False) -> None:
     """One scalar series in one `send_columns` call (non-finite samples left out: Rerun draws a gap)."""
     values = np.asarray(values, dtype=np.float64)
-    keep = np.isfinite(values) if finite_only else np.ones(len(values), dtype=bool)
+    keep = np.isfinite(values)
     if not keep.any():
         return
     stream.log(entity, rr.SeriesLines(colors=[color], names=[label]), static=True)
-    stream.send_columns(entity, indexes=indexes_of(keep), columns=rr.Scalars.columns(scalars=values[keep]))
+    stream.send_columns(entity, indexes=indexes(keep, block=block, path=path),
+                        columns=rr.Scalars.columns(scalars=values if keep.all() else values[keep]))
     counts[entity] = int(keep.sum())
 
 
@@ -56,25 +80,22 @@ def log_view(data: ViewData, stream: rr.RecordingStream) -> dict[str, int]:
     """Log every overlay of `data` to `stream`; returns entity path -> samples sent over time."""
     counts: dict[str, int] = {}
     m = data.measured
-    m_t, m_block, m_s = m["t_rel_ns"].to_numpy(), m["block"].to_numpy(), m["s_mm"].to_numpy()
-
-    def measured_idx(keep):
-        return _indexes(m_t[keep], m_block[keep], m_s[keep])
-
+    measured = _Indexes(m["t_rel_ns"].to_numpy(), m["block"].to_numpy(), m["s_mm"].to_numpy())
     xyz = m[["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=np.float32)
+
     # 3D: programmed path, measured path coloured by feed (and residual), moving tool, orientation
     if data.programmed_path is not None and len(data.programmed_path):
         pts = data.programmed_path[["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=np.float32)
         stream.log(ENTITY_PROGRAMMED, rr.LineStrips3D([pts], colors=[source_color("programmed")], radii=[0.05]),
                    static=True)
-    stream.log(ENTITY_MEASURED_PATH, rr.Points3D(xyz, colors=feed_colors(m["feed_mm_min"].to_numpy()),
+    step = max(1, -(-len(m) // MAX_CLOUD_POINTS))  # the static clouds are views, not data: cap their size
+    stream.log(ENTITY_MEASURED_PATH, rr.Points3D(xyz[::step], colors=feed_colors(m["feed_mm_min"].to_numpy()[::step]),
                                                  radii=[0.15]), static=True)
     if data.model_series or data.sim is not None:
         first = next(iter(data.model_series), "sim")
-        stream.log(ENTITY_RESIDUAL_PATH, rr.Points3D(xyz, colors=residual_colors(data.residuals[first]),
+        stream.log(ENTITY_RESIDUAL_PATH, rr.Points3D(xyz[::step], colors=residual_colors(data.residuals[first][::step]),
                                                      radii=[0.15]), static=True)
-    all_rows = np.ones(len(m), dtype=bool)
-    stream.send_columns(ENTITY_TOOL, indexes=measured_idx(all_rows), columns=rr.Points3D.columns(positions=xyz))
+    stream.send_columns(ENTITY_TOOL, indexes=measured(None), columns=rr.Points3D.columns(positions=xyz))
     counts[ENTITY_TOOL] = len(m)
     if data.orientation is not None and len(data.orientation):
         o = data.orientation
@@ -83,38 +104,32 @@ def log_view(data: ViewData, stream: rr.RecordingStream) -> dict[str, int]:
                                                    vectors=o[["i", "j", "k"]].to_numpy(np.float32) * scale,
                                                    colors=[(200, 60, 60)]), static=True)
 
-    # path feed: measured, commanded, simulated, learned
-    _series(stream, f"{FEED}/measured", m["feed_mm_min"].to_numpy(), measured_idx, label="measured",
-            color=source_color("measured"), counts=counts)
+    # path feed: measured, commanded, simulated, learned (over time, block and path length)
+    _series(stream, f"{FEED}/measured", m["feed_mm_min"].to_numpy(), measured, label="measured",
+            color=source_color("measured"), counts=counts, path=True)
     if "commanded_feed_mm_min" in m.columns:
-        _series(stream, f"{FEED}/commanded", m["commanded_feed_mm_min"].to_numpy(), measured_idx,
-                label="commanded F", color=source_color("commanded"), counts=counts)
+        _series(stream, f"{FEED}/commanded", m["commanded_feed_mm_min"].to_numpy(), measured,
+                label="commanded F", color=source_color("commanded"), counts=counts, path=True)
     if data.sim is not None:
         s = data.sim
-        s_t, s_block, s_s = s["t_rel_ns"].to_numpy(), s["block"].to_numpy(), s["s_mm"].to_numpy()
-
-        def sim_idx(keep):
-            path = s_s[keep] if np.isfinite(s_s).all() else None
-            return _indexes(s_t[keep], s_block[keep], path)
-
-        _series(stream, f"{FEED}/sim", s["feed_mm_min"].to_numpy(), sim_idx, label="simulated",
-                color=source_color("sim"), counts=counts)
+        sim = _Indexes(s["t_rel_ns"].to_numpy(), s["block"].to_numpy(), s["s_mm"].to_numpy())
+        _series(stream, f"{FEED}/sim", s["feed_mm_min"].to_numpy(), sim, label="simulated",
+                color=source_color("sim"), counts=counts, path=True)
         for a in data.axes:
             if f"v{a}" in s.columns:
-                _series(stream, f"{AXES}/{a}/sim", s[f"v{a}"].to_numpy(), sim_idx, label=f"{a} simulated",
-                        color=source_color("sim"), counts=counts)
+                _series(stream, f"{AXES}/{a}/sim", s[f"v{a}"].to_numpy(), sim, label=f"{a} simulated",
+                        color=source_color("sim"), counts=counts, block=False)
     for i, (name, series) in enumerate(data.model_series.items()):
-        mt = series["t_rel_ns"].to_numpy()
-        _series(stream, f"{FEED}/{name}", series["feed_mm_min"].to_numpy(), lambda keep, mt=mt: _indexes(mt[keep]),
+        _series(stream, f"{FEED}/{name}", series["feed_mm_min"].to_numpy(), _Indexes(series["t_rel_ns"].to_numpy()),
                 label=name, color=source_color(name, i), counts=counts)
 
-    # per-axis feeds and residuals
+    # per-axis feeds (over time) and residuals (over time and block)
     for a in data.axes:
         unit = "deg/min" if AXIS_COLUMNS[a].endswith("deg") else "mm/min"
-        _series(stream, f"{AXES}/{a}/measured", m[f"v{a}"].to_numpy(), measured_idx,
-                label=f"{a} measured ({unit})", color=source_color("measured"), counts=counts)
+        _series(stream, f"{AXES}/{a}/measured", m[f"v{a}"].to_numpy(), measured,
+                label=f"{a} measured ({unit})", color=source_color("measured"), counts=counts, block=False)
     for i, (name, residual) in enumerate(data.residuals.items()):
-        _series(stream, f"{RESIDUAL}/{name}", residual, measured_idx, label=f"measured - {name}",
+        _series(stream, f"{RESIDUAL}/{name}", residual, measured, label=f"measured - {name}",
                 color=source_color(name, i - 1), counts=counts)
 
     # per block: measured vs predicted block times, on the block timeline and at the block's start time
@@ -126,21 +141,15 @@ def _log_blocks(data: ViewData, stream: rr.RecordingStream, counts: dict[str, in
     blocks = data.blocks
     if not len(blocks):
         return
-    starts = (data.measured[data.measured["block"] >= 0].groupby("block")["t_rel_ns"].min())
+    starts = data.measured[data.measured["block"] >= 0].groupby("block")["t_rel_ns"].min()
     t_start = blocks["block"].map(starts).to_numpy(dtype=np.float64)
     has_time = np.isfinite(t_start)
-    block_ids = blocks["block"].to_numpy(dtype=np.int64)
-
-    def block_idx(keep):
-        keep = keep & has_time
-        return _indexes(t_start[keep].astype(np.int64), block_ids[keep])
-
-    columns = [c for c in blocks.columns if c.endswith("_s")]
-    for i, col in enumerate(columns):
-        name = col[:-2]
-        values = blocks[col].to_numpy(dtype=np.float64)
-        _series(stream, f"{BLOCKS}/{name}", np.where(has_time, values, np.nan), block_idx,
-                label=f"{name} block time (s)", color=source_color(name, i - 2), counts=counts)
+    if not has_time.any():
+        return
+    index = _Indexes(t_start[has_time].astype(np.int64), blocks["block"].to_numpy(dtype=np.int64)[has_time])
+    for i, col in enumerate(c for c in blocks.columns if c.endswith("_s")):
+        _series(stream, f"{BLOCKS}/{col[:-2]}", blocks[col].to_numpy(dtype=np.float64)[has_time], index,
+                label=f"{col[:-2]} block time (s)", color=source_color(col[:-2], i - 2), counts=counts)
 
 
 def view_blueprint(data: ViewData) -> rrb.Blueprint:

@@ -51,6 +51,8 @@ def test_rrd_holds_every_overlay_with_its_sample_count_and_timelines(tmp_path, f
     # timelines: measured samples carry time, block and path length; model series only time
     assert content["/feed/measured"]["timelines"] == {TIMELINE_TIME, TIMELINE_BLOCK, TIMELINE_PATH}
     assert content["/feed/mlp"]["timelines"] == {TIMELINE_TIME}
+    assert content["/axes/x/measured"]["timelines"] == {TIMELINE_TIME}
+    assert content["/residual/sim"]["timelines"] == {TIMELINE_TIME, TIMELINE_BLOCK}
     assert content["/blocks/measured"]["timelines"] == {TIMELINE_TIME, TIMELINE_BLOCK}
     # no entity logged sample by sample: each temporal series arrives in a single chunk
     assert len([c for c in content["/feed/measured"]["chunks"] if not c.is_static]) == 1
