@@ -135,15 +135,20 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     letter, value, row_of = tok.letter, tok.value, R.row_of
     code_of = lambda k: _word(int(letter[k]), float(value[k]))  # noqa: E731
 
-    keep = R.reject(~np.isin(letter, [L[c] for c in ACCEPTED_LETTERS]), "unsupported word", code_of)
     is_g, is_m = letter == L["G"], letter == L["M"]
     g10 = np.rint(value * 10).astype(np.int64)
     known_g = (g10 >= 0) & (g10 < 1000) & np.isclose(value * 10, g10)
     known_g[known_g] = _GROUP_LUT[g10[known_g]] >= 0
-    keep &= R.reject(is_g & ~known_g & keep, "unsupported G code", code_of, taints_line=True)
     m_int = np.rint(value).astype(np.int64)
-    keep &= R.reject(is_m & ~(np.isin(m_int, list(M_CODES)) & (m_int == value)) & keep,
-                     "unsupported M code", code_of)
+    checks = [(is_g & ~known_g, "unsupported G code", True),
+              (~np.isin(letter, [L[c] for c in ACCEPTED_LETTERS]), "unsupported word", False),
+              (is_m & ~(np.isin(m_int, list(M_CODES)) & (m_int == value)), "unsupported M code", False)]
+    if not lenient:  # report the earliest line first
+        firsts = [(int(row_of[mask].min()), i) for i, (mask, _, _) in enumerate(checks) if mask.any()]
+        checks = [checks[i] for _, i in sorted(firsts)]
+    keep = np.ones(len(letter), dtype=bool)
+    for mask, message, taints in checks:
+        keep &= R.reject(mask & keep, message, code_of, taints_line=taints)
     if R.dirty_rows.any():  # a line with a skipped code: drop its geometry words too
         geo = np.isin(letter, [L[c] for c in "XYZABCIJKRPQ"])
         keep &= ~(geo & R.dirty_rows[row_of])
@@ -223,7 +228,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         absolute = set_here & ~incremental
         offset = _ffill(np.where(absolute, v - cs, 0.0), absolute, 0.0)
         end[:, j] = cs + offset
-    start = np.vstack([np.zeros((1, 6)), end[:-1]])
+    start = np.vstack([np.zeros((1, 6)), end[:-1]])[:n]
 
     # -- arcs --------------------------------------------------------------------------------------
     centre = np.full((n, 3), np.nan)
