@@ -1,0 +1,101 @@
+"""FIR-filter interpolation (Chien Eq. 3) and the AC trunnion kinematics (Chien Eq. 7, 9, 10)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from feedlog.sim import simulate
+from feedlog.sim.fir import corner_feed, moving_average
+from feedlog.sim.kinematics import rotary_from_orientation, trunnion_joints
+
+T1, T2 = 0.070, 0.010
+
+
+def fir(**params):
+    return {"fir": {"t1_s": T1, "t2_s": T2, **params}, "lookahead": False, "blend_arc": False}
+
+
+def test_moving_average_is_causal_and_preserves_the_end_value():
+    x = np.concatenate([np.zeros(5), np.ones(20)])[:, None]
+    y = moving_average(x, 10)
+    assert y[4, 0] == 0.0 and y[14, 0] == pytest.approx(1.0) and y[9, 0] == pytest.approx(0.5)
+
+
+def test_single_block_takes_length_over_feed_plus_filter_delay(plain, gcode):
+    res = simulate(gcode("G21 G90 G64\nG1 X100 F3000\n"), plain, mechanisms=fir())
+    assert res.cycle_time_s == pytest.approx(100 / 50 + T1 + T2, abs=2e-3)
+    s = res.series
+    acc = np.diff(s["feed_mm_min"].to_numpy() / 60) / 0.001
+    assert np.abs(acc).max() <= 50 / T1 * 1.02  # F / T1
+
+
+def test_corner_blend_error_stays_within_tolerance(plain, gcode):
+    tol = 0.02
+    res = simulate(gcode("G21 G90 G64\nG1 X30 F3000\nG1 Y30\n"), plain, mechanisms=fir(tolerance_mm=tol))
+    s = res.series
+    dist = np.hypot(s["x_mm"] - 30, s["y_mm"])  # distance to the corner point
+    err = dist.min() * math.sin(math.pi / 4)  # deviation of the closest point, measured on the bisector
+    assert err <= tol * 1.2
+    f_star = corner_feed(np.array([math.pi / 2]), np.array([tol]), T1, T2)[0]
+    assert f_star == pytest.approx(24 * T1 * tol / ((3 * T1 ** 2 + T2 ** 2) * math.sqrt(2)))
+    loose = simulate(gcode("G21 G90 G64\nG1 X30 F3000\nG1 Y30\n"), plain, mechanisms=fir(tolerance_mm=0.2))
+    assert loose.cycle_time_s < res.cycle_time_s  # a larger eps_TCP means a smaller feed drop
+
+
+def test_short_segments_blend_globally(plain, gcode):
+    # 0.1 mm segments on a gentle arc: the pulses overlap and the feed stays near F
+    pts = [(20 * math.sin(i / 200), 20 - 20 * math.cos(i / 200)) for i in range(1, 201)]
+    text = "G21 G90 G64\nF1200\n" + "\n".join(f"G1 X{x:.5f} Y{y:.5f}" for x, y in pts) + "\n"
+    res = simulate(gcode(text), plain, mechanisms=fir(tolerance_mm=0.01))
+    mid = res.series["feed_mm_min"].iloc[len(res.series) // 3: 2 * len(res.series) // 3]
+    assert mid.min() > 0.9 * 1200
+
+
+def test_orientation_to_rotary_axes_eq7():
+    ori = np.array([[0.0, 1.0, 1.0], [1.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
+    a, c = rotary_from_orientation(ori)
+    assert a[:2] == pytest.approx([45.0, 45.0]) and a[2] == pytest.approx(0.0)
+    assert c[0] == pytest.approx(0.0) and c[1] == pytest.approx(90.0)
+    assert c[2] == pytest.approx(90.0)  # held through the singular point
+
+
+def test_trunnion_joints_eq10():
+    p = np.array([[10.0, 0.0, 0.0], [0.0, 10.0, 0.0]])
+    # C = 90 turns x onto y; A = 90 turns y onto z
+    q = trunnion_joints(p, np.array([0.0, 90.0]), np.array([90.0, 0.0]), workpiece_offset_mm=(0, 0, 0),
+                        rotary_offset_mm=(0, 0, 0))
+    assert q[0] == pytest.approx([0.0, 10.0, 0.0], abs=1e-9)
+    assert q[1] == pytest.approx([0.0, 0.0, 10.0], abs=1e-9)
+
+
+def _cl_program(a_deg: float, n: int = 90) -> str:
+    """A straight TCP line while the tool turns around Z at tilt A (CL data with I J K)."""
+    rows = []
+    for i in range(1, n + 1):
+        c = math.radians(4 * i)
+        s = math.sin(math.radians(a_deg))
+        rows.append(f"G1 X{0.5 * i:.3f} I{s * math.sin(c):.6f} J{s * math.cos(c):.6f} "
+                    f"K{math.cos(math.radians(a_deg)):.6f}")
+    return "G21 G90 G61\nF3000\n" + "\n".join(rows) + "\n"
+
+
+def test_feed_drops_near_the_singularity(make_machine, gcode):
+    prof = make_machine(five_axis=True)
+    mech = {"trunnion": {"limit_joints": True}}
+    near = simulate(gcode(_cl_program(2.0)), prof, mechanisms=mech)
+    far = simulate(gcode(_cl_program(40.0)), prof, mechanisms=mech)
+    # the same C rotation per block at both tilts; the joints make the difference only through
+    # Eq. 10, so compare with the rotary-only bound: both need C 4 deg per 0.5 mm
+    assert near.cycle_time_s == pytest.approx(far.cycle_time_s, rel=0.2)
+    assert near.joints is not None and list(near.joints.columns)[:2] == ["t_ns", "j0_pos"]
+
+
+def test_workpiece_offset_slows_a_rotary_move(make_machine, gcode):
+    prof = make_machine(five_axis=True)
+    text = "G21 G90 G61\nF3000\n" + "\n".join(f"G1 X{0.5 * i:.2f} C{3 * i}" for i in range(1, 40)) + "\n"
+    times = [simulate(gcode(text), prof, mechanisms={"trunnion": {"workpiece_offset_mm": (0, off, 0)}}).cycle_time_s
+             for off in (0.0, 150.0, 400.0)]
+    assert times[0] < times[1] < times[2]

@@ -1,0 +1,106 @@
+"""Registry, parameters from outside, profile switches, and every extra effect measurably changing a
+synthetic recording."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from feedlog.errors import SimulationError
+from feedlog.sim import REGISTRY, MeasurementModel, Mechanism, mechanism_class, measure, resolve_mechanisms, simulate
+
+ZIGZAG = "G21 G90 G64 P0.02\nF2400\nG0 X0 Y0\n" + "\n".join(
+    f"G1 X{2 * i + 2} Y{5 if i % 2 == 0 else 0}" for i in range(12)) + "\nG0 X0 Y0\n"
+
+
+def test_every_registered_mechanism_is_a_documented_unit_named_dataclass(plain):
+    for name in REGISTRY:
+        cls = mechanism_class(name)
+        assert issubclass(cls, Mechanism) and cls.name == name
+        assert cls.__doc__ and len(cls.__module__.split(".")) == 3
+        assert "Source" in __import__(cls.__module__, fromlist=["x"]).__doc__ or "source" in cls.__doc__.lower()
+        mech = cls.from_params(plain, {})
+        assert isinstance(mech.params(), dict)
+
+
+def test_unknown_mechanism_and_parameter_are_rejected(plain):
+    with pytest.raises(SimulationError, match="unknown sim mechanism 'warp'"):
+        resolve_mechanisms(plain, ["warp"])
+    with pytest.raises(SimulationError, match="unknown parameter"):
+        resolve_mechanisms(plain, {"feed_override": {"speed": 2}})
+    with pytest.raises(SimulationError, match="must be > 0"):
+        resolve_mechanisms(plain, {"feed_override": {"override": 0}})
+    with pytest.raises(SimulationError, match="exactly one interpolator"):
+        resolve_mechanisms(plain, {"fir": True})
+
+
+def test_profile_sim_tables_switch_and_parameterise(plain):
+    prof = plain.replace(sim={"feed_override": {"enabled": True, "override": 0.5}, "blend_arc": {"enabled": False}})
+    names = [m.name for m in resolve_mechanisms(prof)]
+    assert "feed_override" in names and "blend_arc" not in names
+    fo = next(m for m in resolve_mechanisms(prof) if m.name == "feed_override")
+    assert fo.override == 0.5
+    # outside overrides win over the profile
+    fo = next(m for m in resolve_mechanisms(prof, {"feed_override": {"override": 0.8}}) if m.name == "feed_override")
+    assert fo.override == 0.8
+
+
+def test_linuxcnc_preset_applies_to_linuxcnc_profiles_only(plain):
+    from feedlog.profile import load_profile
+
+    lcnc = {m.name: m for m in resolve_mechanisms(load_profile("linuxcnc-xyz"))}
+    assert lcnc["block_time"].min_block_time_s == pytest.approx(0.00167)
+    assert "block_time" not in {m.name for m in resolve_mechanisms(plain)}
+
+
+def _recording(prog, prof, mechanisms):
+    res = simulate(prog, prof, mechanisms=mechanisms)
+    return res, measure(res, MeasurementModel(rate_hz=200, seed=1))
+
+
+BASE = {"blend_arc": True}
+EFFECTS = [
+    ("feed_override", {"override": 0.5}),
+    ("rapid_override", {"override": 0.25}),
+    ("block_time", {"min_block_time_s": 0.3}),
+    ("reversal_dwell", {"dwell_s": 0.05}),
+    ("following_lag", {"lag_s": {"x": 0.03, "y": 0.03, "z": 0.03}}),
+]
+
+
+@pytest.mark.parametrize(("name", "params"), EFFECTS, ids=[e[0] for e in EFFECTS])
+def test_each_effect_changes_a_synthetic_recording(plain, gcode, name, params):
+    prog = gcode(ZIGZAG)
+    base_res, base = _recording(prog, plain, BASE)
+    on_res, on = _recording(prog, plain, {**BASE, name: params})
+    a, b = base.stream("axes"), on.stream("axes")
+    n = min(len(a), len(b))
+    diff = np.abs(a[["x_mm", "y_mm"]].to_numpy()[:n] - b[["x_mm", "y_mm"]].to_numpy()[:n]).max()
+    assert diff > 0.1, f"{name} left the recorded positions unchanged"
+    if name == "following_lag":
+        assert on_res.cycle_time_s == pytest.approx(base_res.cycle_time_s)  # command unchanged
+        lag = np.abs(on_res.series["x_mm"].to_numpy()[:n] - base_res.series["x_mm"].to_numpy()[:n]).max()
+        assert lag <= 40 * 0.03 * 1.05 + 1e-6  # at most v * T
+    else:
+        assert on_res.cycle_time_s > base_res.cycle_time_s * 1.02
+
+
+def test_feed_override_scales_a_long_cruise(plain, gcode):
+    prog = gcode("G21 G90 G61\nG1 X200 F1200\n")
+    assert simulate(prog, plain).cycle_time_s == pytest.approx(200 / 20 + 20 / 1000, abs=1e-6)
+    half = simulate(prog, plain, mechanisms={"feed_override": {"override": 0.5}}).cycle_time_s
+    assert half == pytest.approx(200 / 10 + 10 / 1000, abs=1e-6)
+
+
+def test_reversal_dwell_counts_reversals(plain, gcode):
+    res = simulate(gcode(ZIGZAG), plain, mechanisms={"reversal_dwell": {"dwell_s": 0.01}})
+    stop_only = simulate(gcode(ZIGZAG), plain, mechanisms={"reversal_dwell": {"dwell_s": 0.0}})
+    # y reverses at each of the 11 inner zig-zag corners, x once more at the final rapid back
+    assert res.cycle_time_s == pytest.approx(stop_only.cycle_time_s + 12 * 0.01, abs=1e-6)
+
+
+def test_block_time_floor_caps_short_blocks(plain, gcode):
+    prog = gcode("G21 G90 G64 P0.01\nF3000\n" + "\n".join(f"G1 X{0.05 * i:.2f}" for i in range(1, 401)) + "\n")
+    res = simulate(prog, plain, mechanisms={"block_time": {"min_block_time_s": 0.004}})
+    assert res.cycle_time_s >= 400 * 0.004 - 1e-6
+    assert res.series["feed_mm_min"].max() <= 0.05 / 0.004 * 60 * 1.001
