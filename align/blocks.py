@@ -128,14 +128,62 @@ def blocks_from_lines(t_ns: np.ndarray, line: np.ndarray, motion_blocks: pd.Data
     return out
 
 
+NO_TIME = np.iinfo(np.int64).min
+
+
+def leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndarray, seg_end: np.ndarray,
+                end_index: np.ndarray, *, on_path_mm: float = 1e-4) -> np.ndarray:
+    """Per straight block k (segment seg_start[k] -> seg_end[k], NaN rows skipped): the time of the
+    first sample off the segment (farther than `on_path_mm`) after the last sample on it, among the
+    samples up to the block's end match `end_index[k]` (fractional sample index, non-decreasing).
+    NO_TIME where the block has no sample on its segment. This is where a corner blend begins."""
+    t = np.asarray(t_ns, dtype=np.int64)
+    p = np.asarray(positions, dtype=np.float64)[:, :3]
+    a = np.asarray(seg_start, dtype=np.float64)
+    d = np.asarray(seg_end, dtype=np.float64) - a
+    n, k = len(t), len(a)
+    out = np.full(k, NO_TIME, dtype=np.int64)
+    ok = np.isfinite(end_index) & np.isfinite(a).all(axis=1) & np.isfinite(d).all(axis=1)
+    if not ok.any() or n < 2:
+        return out
+    hi = np.where(ok, np.ceil(np.nan_to_num(end_index, nan=-1.0)), -1).astype(np.int64)
+    hi = np.maximum.accumulate(hi)
+    first = 0
+    idx = np.arange(first, min(int(hi.max()) + 1, n))
+    owner = np.searchsorted(hi, idx, side="left")  # the first block whose end match is at or after i
+    inside = owner < k
+    idx, owner = idx[inside], owner[inside]
+    valid = ok[owner]
+    idx, owner = idx[valid], owner[valid]
+    w = p[idx] - a[owner]
+    dd = (d[owner] ** 2).sum(axis=1)
+    u = np.clip(np.where(dd > 0, (w * d[owner]).sum(axis=1) / np.where(dd > 0, dd, 1.0), 0.0), 0.0, 1.0)
+    dist = np.sqrt(((w - u[:, None] * d[owner]) ** 2).sum(axis=1))
+    on = dist <= on_path_mm
+    if not on.any():
+        return out
+    last_on = pd.Series(idx[on]).groupby(owner[on]).max()
+    blocks = last_on.index.to_numpy()
+    off = np.minimum(last_on.to_numpy() + 1, n - 1)
+    out[blocks] = t[off]
+    return out
+
+
 def blocks_from_geometry(motion_blocks: pd.DataFrame, end_arrival_ns: np.ndarray, end_departure_ns: np.ndarray,
-                         *, span: MotionSpan) -> pd.DataFrame:
-    """Per motion block: ends at the arrival at its end point, starts at the departure from the previous
-    block's end point (the first at motion start). Arrays are per motion block, in program order."""
+                         *, span: MotionSpan, end_leave_ns: np.ndarray | None = None) -> pd.DataFrame:
+    """Per motion block: ends at the arrival at its end point (or, with `end_leave_ns`, where the tool
+    leaves the block's path into a corner blend, when that is earlier); the next block starts there, or
+    at the departure when the tool stopped at the point (a stop or a dwell is not motion of the next
+    block). The first block starts at motion start. Arrays are per motion block, in program order."""
     arr = np.asarray(end_arrival_ns, dtype=np.int64)
     dep = np.asarray(end_departure_ns, dtype=np.int64)
-    start = np.concatenate([[span.t_start_ns], dep[:-1]])
     end = arr.copy()
+    if end_leave_ns is not None:
+        leave = np.asarray(end_leave_ns, dtype=np.int64)
+        use = (leave != NO_TIME) & (leave < arr)
+        end = np.where(use, leave, arr)
+    stopped = dep > arr
+    start = np.concatenate([[span.t_start_ns], np.where(stopped, dep, end)[:-1]])
     if len(end):
         end[-1] = span.t_end_ns  # arrival at the final point is the end of motion (sub-sample at low rates)
     # progress is monotone; guard against a departure estimate after the next arrival
@@ -148,21 +196,70 @@ def blocks_from_geometry(motion_blocks: pd.DataFrame, end_arrival_ns: np.ndarray
     return out
 
 
+def line_groups(seen: np.ndarray) -> np.ndarray:
+    """Group id per block: a controller that merges short collinear segments (LinuxCNC G64 P..Q) runs
+    them as one and shows the last line only, so every unseen block belongs with the next seen one
+    (trailing unseen blocks with the last seen one). The id is the index of that seen block."""
+    seen = np.asarray(seen, dtype=bool)
+    n = len(seen)
+    idx = np.where(seen, np.arange(n), n)
+    nxt = np.minimum.accumulate(idx[::-1])[::-1]
+    last = np.flatnonzero(seen)[-1] if seen.any() else 0
+    return np.where(nxt < n, nxt, last)
+
+
+def split_merged(line_blocks: pd.DataFrame, geometry_blocks: pd.DataFrame) -> pd.DataFrame:
+    """Line-stream block times where the controller merged several blocks into one: the group's
+    measured interval (from the line stream) is split over its blocks in proportion to their geometric
+    durations (equal shares when those are all zero). Singleton groups keep their line times exactly.
+    `source` becomes "line+geometry" for split blocks."""
+    lb = line_blocks.reset_index(drop=True).copy()
+    geo = geometry_blocks.set_index("block")["duration_s"].reindex(lb["block"]).to_numpy(dtype=np.float64)
+    group = line_groups(lb["seen"].to_numpy())
+    sizes = np.bincount(group, minlength=len(lb))[group]
+    multi = sizes > 1
+    if not multi.any():
+        return lb
+    g = pd.DataFrame({"group": group, "w": np.nan_to_num(np.maximum(geo, 0.0))})
+    total = g.groupby("group")["w"].transform("sum").to_numpy()
+    w = np.where(total > 0, g["w"].to_numpy() / np.where(total > 0, total, 1.0), 1.0 / sizes)
+    before = pd.Series(w).groupby(group).cumsum().to_numpy() - w
+    s0 = lb["t_start_ns"].to_numpy()[group].astype(np.float64)
+    e0 = lb["t_end_ns"].to_numpy()[group].astype(np.float64)
+    # the group starts where its first block starts on the line stream's clock: the seen block's start
+    first_start = pd.Series(np.where(lb["seen"].to_numpy(), s0, np.nan)).groupby(group).transform("first")
+    s0 = first_start.to_numpy()
+    start = np.rint(s0 + (e0 - s0) * before).astype(np.int64)
+    end = np.rint(s0 + (e0 - s0) * (before + w)).astype(np.int64)
+    lb.loc[multi, "t_start_ns"] = start[multi]
+    lb.loc[multi, "t_end_ns"] = end[multi]
+    lb["duration_s"] = (lb["t_end_ns"] - lb["t_start_ns"]) / 1e9
+    if "source" in lb:
+        lb["source"] = np.where(multi, "line+geometry", lb["source"].to_numpy())
+    return lb
+
+
 def compare_blocks(truth: pd.DataFrame, other: pd.DataFrame, *, servo_period_s: float | None = None) -> dict:
-    """Errors of `other` block times against `truth` (same blocks): median/p95/max of |duration|,
-    |start| and |end| differences in seconds (only blocks seen in the truth)."""
-    m = truth.merge(other, on="block", suffixes=("_true", "_est"))
-    m = m[m["seen_true"]] if "seen_true" in m else m
-    if len(m) == 0:
+    """Errors of `other` block times against `truth` from a line stream: median/p95/max of |duration|,
+    |start| and |end| differences in seconds. Blocks the controller merged (unseen in `truth`) are
+    compared as their group (`line_groups`): the line stream cannot say more."""
+    m = truth.reset_index(drop=True).merge(other, on="block", suffixes=("_true", "_est"), how="left")
+    seen = m["seen_true"].to_numpy() if "seen_true" in m else np.ones(len(m), dtype=bool)
+    if len(m) == 0 or not seen.any():
         return {"blocks": 0}
-    dd = (m["duration_s_est"] - m["duration_s_true"]).abs()
-    ds = (m["t_start_ns_est"] - m["t_start_ns_true"]).abs() / 1e9
-    de = (m["t_end_ns_est"] - m["t_end_ns_true"]).abs() / 1e9
-    out = {"blocks": int(len(m)),
+    group = line_groups(seen)
+    agg = m.assign(group=group).groupby("group").agg(
+        ts_true=("t_start_ns_true", "min"), te_true=("t_end_ns_true", "max"),
+        ts_est=("t_start_ns_est", "min"), te_est=("t_end_ns_est", "max"),
+        d_true=("duration_s_true", "sum"), d_est=("duration_s_est", "sum"))
+    dd = (agg["d_est"] - agg["d_true"]).abs()
+    ds = (agg["ts_est"] - agg["ts_true"]).abs() / 1e9
+    de = (agg["te_est"] - agg["te_true"]).abs() / 1e9
+    out = {"blocks": int(len(m)), "groups": int(len(agg)), "merged_blocks": int((~seen).sum()),
            "duration_err_median_s": float(dd.median()), "duration_err_p95_s": float(dd.quantile(0.95)),
            "duration_err_max_s": float(dd.max()), "start_err_median_s": float(ds.median()),
            "end_err_median_s": float(de.median()),
-           "end_bias_s": float(((m["t_end_ns_est"] - m["t_end_ns_true"]) / 1e9).median())}
+           "end_bias_s": float(((agg["te_est"] - agg["te_true"]) / 1e9).median())}
     if servo_period_s:
         out["duration_err_median_periods"] = out["duration_err_median_s"] / servo_period_s
     return out

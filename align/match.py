@@ -107,12 +107,14 @@ def _project(c: np.ndarray, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
 
 def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray, *,
                     s_mm: np.ndarray | None = None, config: MatchConfig | None = None,
-                    check: np.ndarray | None = None, labels: list[str] | None = None) -> Match:
+                    tolerance: np.ndarray | None = None, check: np.ndarray | None = None,
+                    labels: list[str] | None = None) -> Match:
     """Match ordered CL points (k, 3) to the measured path (`t_ns` (n,), `positions` (n, 3)).
 
     `s_mm`: the program's cumulative length at each CL point (default: chord length of `cl_xyz`).
-    `check`: which points the tolerance applies to (default all finite ones); `labels` name points in
-    the error message (e.g. "block 12 (line 40)").
+    `tolerance`: per-point tolerance in mm (default `config.tol_mm` everywhere), e.g. widened by a
+    block's G64 P blending tolerance. `check`: which points the tolerance applies to (default all finite
+    ones); `labels` name points in the error message (e.g. "block 12 (line 40)").
     """
     cfg = config or MatchConfig()
     cl = np.asarray(cl_xyz, dtype=np.float64)
@@ -129,6 +131,10 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         seg[~(finite_cl[1:] & finite_cl[:-1])] = 0.0
         s_mm = np.concatenate([[0.0], np.cumsum(seg)])
     s_prog = np.asarray(s_mm, dtype=np.float64)
+    tol = np.full(k_all, cfg.tol_mm) if tolerance is None else np.broadcast_to(
+        np.asarray(tolerance, dtype=np.float64), (k_all,)).copy()
+    if not (tol > 0).all():
+        raise AlignmentError(f"tolerances must be > 0 mm, got min {np.nanmin(tol)}")
 
     keep, s_full = reduce_path(pos, cfg.resolution_mm)
     v = pos[keep]
@@ -137,7 +143,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     dd = (d * d).sum(axis=1)
     nseg = len(p0)
     spacing = float(np.median(np.diff(sv))) if nseg else 0.0
-    w0 = cfg.window_mm if cfg.window_mm is not None else max(2.0, 3.0 * spacing, 4.0 * cfg.tol_mm)
+    w0 = cfg.window_mm if cfg.window_mm is not None else max(2.0, 3.0 * spacing, 4.0 * float(tol.max()))
 
     seg_of = np.full(k_all, -1, dtype=np.int64)
     u_of = np.full(k_all, np.nan)
@@ -148,19 +154,20 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     start = None
     for k in order[: min(len(order), 64)]:
         u, dk = _project(cl[k][None, :], p0, d, dd)
-        near = np.flatnonzero(dk <= cfg.tol_mm)
+        near = np.flatnonzero(dk <= tol[k])
         if len(near):
             j = int(near[0])
             # walk to the local minimum of this passage
             run_end = j
-            while run_end + 1 < nseg and dk[run_end + 1] <= cfg.tol_mm:
+            while run_end + 1 < nseg and dk[run_end + 1] <= tol[k]:
                 run_end += 1
             j = j + int(np.argmin(dk[j:run_end + 1]))
             seg_of[k], u_of[k], dist[k] = j, u[j], dk[j]
             start = k
             break
     if start is None:
-        raise AlignmentError(f"the measured path never comes within {cfg.tol_mm} mm of the program's first "
+        raise AlignmentError(f"the measured path never comes within {tol[order[0]] if len(order) else cfg.tol_mm:g} mm "
+                             "of the program's first "
                              f"points (e.g. {np.round(cl[order[0]], 3).tolist() if len(order) else '-'}); wrong "
                              "program, units or work offset?")
     anchor_s, anchor_S = s_prog[start], sv[seg_of[start]] + u_of[start] * np.sqrt(dd[seg_of[start]])
@@ -198,7 +205,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         seg_of[ks] = idx[rows, best]
         u_of[ks] = u[rows, best]
         dist[ks] = dk[rows, best]
-        good = ks[dist[ks] <= cfg.tol_mm]
+        good = ks[dist[ks] <= tol[ks]]
         if len(good):
             a = good[-1]
             anchor_s, anchor_S = s_prog[a], sv[seg_of[a]] + u_of[a] * seg_len[seg_of[a]]
@@ -244,13 +251,13 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
                    t_depart_ns=depart)
 
     checked = finite_cl if check is None else (np.asarray(check, dtype=bool) & finite_cl)
-    bad = checked & ~(dist <= cfg.tol_mm)
+    bad = checked & ~(dist <= tol)
     if bad.any():
-        raise AlignmentError(violation_message(np.flatnonzero(bad), dist, cl, cfg.tol_mm, labels))
+        raise AlignmentError(violation_message(np.flatnonzero(bad), dist, cl, tol, labels))
     return result
 
 
-def violation_message(bad: np.ndarray, dist: np.ndarray, cl: np.ndarray, tol_mm: float,
+def violation_message(bad: np.ndarray, dist: np.ndarray, cl: np.ndarray, tol: np.ndarray,
                       labels: list[str] | None, worst: int = 5) -> str:
     d = np.where(np.isfinite(dist[bad]), dist[bad], np.inf)
     order = bad[np.argsort(-d)][:worst]
@@ -258,6 +265,6 @@ def violation_message(bad: np.ndarray, dist: np.ndarray, cl: np.ndarray, tol_mm:
     for k in order:
         name = labels[k] if labels is not None else f"CL point {k}"
         dk = "unmatched" if not np.isfinite(dist[k]) else f"{dist[k]:.4f} mm"
-        parts.append(f"{name} at ({cl[k, 0]:.3f}, {cl[k, 1]:.3f}, {cl[k, 2]:.3f}): {dk}")
-    return (f"{len(bad)} of the program's CL points are farther than tol_mm={tol_mm} from the measured path; "
+        parts.append(f"{name} at ({cl[k, 0]:.3f}, {cl[k, 1]:.3f}, {cl[k, 2]:.3f}): {dk} (tol {tol[k]:g} mm)")
+    return (f"{len(bad)} of the program's CL points are farther than their tolerance from the measured path; "
             f"worst: " + "; ".join(parts))

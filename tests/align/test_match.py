@@ -78,7 +78,7 @@ def test_tolerance_violation_lists_worst_cases(motion):
     cl[5] += (0.0, 0.0, 0.4)
     cl[9] += (0.3, 0.0, 0.0)  # off the path (x beyond the pass end)
     labels = [f"block {k} (line {10 + k})" for k in range(len(cl))]
-    with pytest.raises(AlignmentError, match=r"2 of the program's CL points.*block 5 \(line 15\).*0\.4000 mm"
+    with pytest.raises(AlignmentError, match=r"2 of the program.s CL points.*block 5 \(line 15\).*0\.4000 mm"
                        r".*block 9 \(line 19\)"):
         match_cl_points(cl, ax["t_ns"].to_numpy(), ax[["x_mm", "y_mm", "z_mm"]].to_numpy(),
                         config=MatchConfig(tol_mm=0.05), labels=labels)

@@ -1,0 +1,65 @@
+"""`feedlog align RECORDING... [--program P] -o OUTDIR [--json]`: align recordings with their part program.
+
+Writes OUTDIR/<recording stem>/points.parquet, blocks.parquet and report.json for every recording
+(docs/align.md). `--json` prints, for one recording, {"recording", "outdir", "cycle_time_s",
+"blocks": [{block, line, t_start_ns, t_end_ns, duration_s}, ...]}; for several, a list of those.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from feedlog.align.batch import align_many
+from feedlog.align.feed import FeedSmoothing
+from feedlog.align.pipeline import BOUNDARIES, FEED_SOURCES, AlignConfig
+from feedlog.align.tables import to_json
+from feedlog.errors import FeedlogError
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("recordings", nargs="+", metavar="RECORDING", help="feedlog recordings (.mcap)")
+    parser.add_argument("--program", "-p", help="part program (default: the recording's program.ngc attachment)")
+    parser.add_argument("--profile", help="machine profile name or TOML (default: the attached profile.toml)")
+    parser.add_argument("-o", "--outdir", required=True, help="output folder; one subfolder per recording")
+    parser.add_argument("--json", action="store_true", help="print cycle time and block times as JSON")
+    parser.add_argument("--tol-mm", type=float, default=AlignConfig.tol_mm,
+                        help="allowed CL point distance on top of the block's G64 P (default %(default)s; "
+                             "sparse data such as 5 Hz needs several mm)")
+    parser.add_argument("--check-rapids", action="store_true", help="apply the tolerance to rapid moves too")
+    parser.add_argument("--boundary", choices=BOUNDARIES, default="auto",
+                        help="geometric block end: closest approach to the end point (pass), start of the "
+                             "corner blend (leave), or auto (leave at <= 5 ms sampling)")
+    parser.add_argument("--feed-source", choices=FEED_SOURCES, default="auto",
+                        help="path feed from the recording's feed stream or from positions (auto: stream if any)")
+    parser.add_argument("--feed-window-s", type=float, default=None,
+                        help="feed differentiation window (default: max(sample period, 4 ms))")
+    parser.add_argument("--sync-lines", action="store_true",
+                        help="estimate and remove the line stream's clock offset against the positions")
+    parser.add_argument("--jobs", "-j", type=int, default=None, help="worker processes (default: all cores)")
+    parser.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    config = AlignConfig(tol_mm=args.tol_mm, check_rapids=args.check_rapids, boundary=args.boundary,
+                         feed_source=args.feed_source, sync_lines=args.sync_lines,
+                         smoothing=FeedSmoothing(window_s=args.feed_window_s))
+    if args.jobs is not None and args.jobs < 1:
+        raise FeedlogError(f"--jobs must be >= 1, got {args.jobs}")
+    items = align_many(args.recordings, args.outdir, program=args.program, profile=args.profile, config=config,
+                       jobs=args.jobs, overwrite=args.overwrite, progress=not args.quiet, with_blocks=args.json)
+    failed = [i for i in items if not i.ok]
+    if len(items) == 1 and failed:
+        raise FeedlogError(failed[0].error or "alignment failed")
+    for item in failed:
+        print(f"feedlog align: error: {item.recording}: {item.error}", file=sys.stderr)
+    if args.json:
+        docs = [{"recording": i.recording, "outdir": i.outdir, "cycle_time_s": i.cycle_time_s, "blocks": i.blocks,
+                 **({"error": i.error} if not i.ok else {})} for i in items]
+        print(to_json(docs[0] if len(docs) == 1 else docs, indent=1))
+    else:
+        for i in items:
+            if i.ok:
+                print(f"{i.recording}: cycle time {i.cycle_time_s:.3f} s -> {i.outdir}")
+    return 1 if failed else 0

@@ -1,0 +1,297 @@
+"""align_recording: one recording + its part program -> measured data in the program's terms.
+
+Steps (each one a module of its own):
+1. timing of every stream used (gaps, jitter: `timing`), reported;
+2. motion span -> measured cycle time, first motion to end of motion (`blocks.motion_span`);
+3. CL points of the program (`toolpath.cl_points`) matched to the measured path under progress and
+   distance constraints (`match`); the tolerance per point is `tol_mm` plus the block's own G64 P
+   blending tolerance, since the controller may legitimately cut a corner by that much;
+4. feed at every CL point: the recording's own path feed (`feed` stream) when it has one, else the
+   feed from positions (`feed`), interpolated at the matched time; per-axis feeds from positions;
+5. block boundaries from the line stream (ground truth) when there is one, and from geometry always;
+   both are compared in the report (`blocks`); the line stream's clock offset against geometry is
+   estimated from the block changes (`clock.event_offset`) and removed when `sync_lines` is set;
+6. toolpath's paper features joined per block and per point (`toolpath.block_features`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from feedlog.align.blocks import (NO_TIME, MotionSpan, blocks_from_geometry, blocks_from_lines, compare_blocks,
+                                  leave_times, motion_span, split_merged)
+from feedlog.align.clock import event_offset, shift_stream
+from feedlog.align.feed import LINEAR, ROTARY, FeedSmoothing, feed_from_positions
+from feedlog.align.match import MatchConfig, match_cl_points
+from feedlog.align.timing import stream_timing
+from feedlog.errors import AlignmentError, FeedlogError
+from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
+from feedlog.profile import MachineProfile, load_profile
+from feedlog.toolpath import Program, block_features, cl_points, parse_program
+from feedlog.toolpath.schema import MOTION_KINDS, RAPID
+
+BOUNDARIES = ("auto", "pass", "leave")
+FEED_SOURCES = ("auto", "stream", "positions")
+STRAIGHT = ("linear", RAPID)
+
+
+@dataclass(frozen=True)
+class AlignConfig:
+    """How to align. Distances in mm, times in s."""
+
+    tol_mm: float = 0.05             # allowed CL-point distance on top of the block's G64 P tolerance
+    check_rapids: bool = False       # rapids may dog-leg on some machines: only reported by default
+    chord_tol_mm: float = 0.001      # arcs -> CL points (toolpath.cl_points)
+    positions: str = "axes"          # stream with x_mm, y_mm, z_mm (+ a_deg, ...)
+    line_stream: str = "line"        # stream with `line`; absent -> geometry only
+    feed_stream: str = "feed"        # stream with `feed_mm_min`
+    feed_source: str = "auto"        # auto: the feed stream when present, else positions
+    boundary: str = "auto"           # geometric block end: pass (closest approach to the end point),
+                                     # leave (where the tool leaves a straight block into a blend),
+                                     # auto: leave when positions are sampled every <= 5 ms, else pass
+    on_path_mm: float = 1e-6         # "on the block's segment" for `leave` (raise for noisy positions)
+    still_mm: float = 1e-6           # per-sample motion below this is standstill
+    sync_lines: bool = False         # remove the line stream's clock offset (estimated from geometry)
+    window_mm: float | None = None   # match search window (see MatchConfig)
+    smoothing: FeedSmoothing = field(default_factory=FeedSmoothing)
+
+    def __post_init__(self) -> None:
+        if not self.tol_mm > 0:
+            raise AlignmentError(f"tol_mm must be > 0, got {self.tol_mm}")
+        if self.boundary not in BOUNDARIES:
+            raise AlignmentError(f"boundary must be one of {', '.join(BOUNDARIES)}, got {self.boundary!r}")
+        if self.feed_source not in FEED_SOURCES:
+            raise AlignmentError(f"feed_source must be one of {', '.join(FEED_SOURCES)}, got {self.feed_source!r}")
+        if not (self.on_path_mm > 0 and self.still_mm >= 0 and self.chord_tol_mm > 0):
+            raise AlignmentError(f"need on_path_mm > 0, still_mm >= 0, chord_tol_mm > 0; got {self.on_path_mm}, "
+                                 f"{self.still_mm}, {self.chord_tol_mm}")
+
+
+@dataclass
+class Alignment:
+    """The result: per-CL-point and per-block tables in the program's terms, and what happened."""
+
+    points: pd.DataFrame
+    blocks: pd.DataFrame
+    cycle_time_s: float
+    report: dict[str, Any]
+    geometry_blocks: pd.DataFrame | None = None
+    line_blocks: pd.DataFrame | None = None
+
+
+def _profile(recording: Recording, profile: MachineProfile | str | Path | None) -> MachineProfile | None:
+    if isinstance(profile, MachineProfile):
+        return profile
+    if profile is not None:
+        return load_profile(profile)
+    data = recording.attachments.get(PROFILE_ATTACHMENT)
+    if data is not None:
+        return MachineProfile.from_toml(data.decode("utf-8"), source=f"{recording.source}:{PROFILE_ATTACHMENT}")
+    return None
+
+
+def _program(recording: Recording, program: Program | str | Path | None) -> Program:
+    if isinstance(program, Program):
+        return program
+    if program is not None:
+        return parse_program(Path(program))
+    text = recording.program_text
+    if text is None:
+        raise AlignmentError(f"{recording.source or 'recording'}: no program given and none attached "
+                             "(program.ngc); pass one with --program")
+    return parse_program(text, name=f"{Path(recording.source).stem or 'recording'}:program.ngc")
+
+
+def _acc_limit(profile: MachineProfile | None) -> float:
+    if profile is None:
+        return np.inf
+    acc = profile.interpolator.path_acc_max_mm_s2
+    if np.isfinite(acc):
+        return float(acc)
+    lin = [profile.axes[a].acc_max for a in ("x", "y", "z") if a in profile.axes]
+    return float(min(lin)) if lin else np.inf
+
+
+def _positions(recording: Recording, cfg: AlignConfig) -> tuple[pd.DataFrame, list[str]]:
+    axes = recording.stream(cfg.positions)
+    missing = [c for c in LINEAR if c not in axes.columns]
+    if missing:
+        raise AlignmentError(f"{recording.source or 'recording'}: stream {cfg.positions!r} lacks {', '.join(missing)}")
+    cols = [c for c in (*LINEAR, *ROTARY) if c in axes.columns]
+    values = axes[cols].to_numpy(dtype=np.float64)
+    if not np.isfinite(values).all():
+        bad = int(np.flatnonzero(~np.isfinite(values).all(axis=1))[0])
+        raise AlignmentError(f"{recording.source or 'recording'}: stream {cfg.positions!r} sample {bad} "
+                             "has a non-finite position")
+    return axes, cols
+
+
+def align_recording(recording: Recording, program: Program | str | Path | None = None, *,
+                    profile: MachineProfile | str | Path | None = None, config: AlignConfig | None = None,
+                    **overrides: Any) -> Alignment:
+    """Align one recording with its part program (given, or the attached `program.ngc`).
+
+    Keyword overrides set `AlignConfig` fields, e.g. `align_recording(rec, tol_mm=2.0)`.
+    """
+    cfg = replace(config or AlignConfig(), **overrides) if overrides else (config or AlignConfig())
+    prof = _profile(recording, profile)
+    prog = _program(recording, program)
+    axes, cols = _positions(recording, cfg)
+    t = axes["t_ns"].to_numpy(dtype=np.int64)
+    pos = axes[cols].to_numpy(dtype=np.float64)
+    xyz = pos[:, :3]
+    report: dict[str, Any] = {"recording": recording.source, "program": prog.name, "config": _config_dict(cfg),
+                              "warnings": []}
+    timing = stream_timing(t, name=cfg.positions)
+    report["timing"] = {cfg.positions: timing.as_dict()}
+    if timing.gaps:
+        report["warnings"].append(f"{cfg.positions}: {timing.gaps} gap(s), largest {timing.largest_gap_ns / 1e6:.1f} ms; "
+                                  "matches and feeds across a gap use the straight chord over it")
+
+    span = motion_span(t, pos, still_mm=cfg.still_mm, acc_mm_s2=_acc_limit(prof))
+    report["motion"] = {"t_start_ns": span.t_start_ns, "t_end_ns": span.t_end_ns, "cycle_time_s": span.duration_s}
+
+    # --- CL points and the constrained match -------------------------------------------------------
+    cl = cl_points(prog, chord_tol_mm=cfg.chord_tol_mm).reset_index(drop=True)
+    if len(cl) < 2:
+        raise AlignmentError(f"{prog.name}: the program has no motion to align")
+    blocks_tab = prog.blocks.set_index("block")
+    blk = cl["block"].to_numpy()
+    p_tol = blocks_tab["tol_mm"].reindex(blk).to_numpy(dtype=np.float64)
+    tolerance = cfg.tol_mm + np.nan_to_num(p_tol, nan=0.0)
+    kind = cl["kind"].astype(str).to_numpy()
+    check = np.ones(len(cl), dtype=bool) if cfg.check_rapids else (kind != RAPID)
+    labels = [f"block {b} (line {ln})" for b, ln in zip(blk, cl["line"].to_numpy())]
+    mcfg = MatchConfig(tol_mm=float(tolerance.max()), window_mm=cfg.window_mm, still_mm=cfg.still_mm)
+    match = match_cl_points(cl[list(LINEAR)].to_numpy(dtype=np.float64), t, xyz, s_mm=cl["s_mm"].to_numpy(),
+                            config=mcfg, tolerance=tolerance, check=check, labels=labels)
+    d = match.dist_mm[np.isfinite(match.dist_mm)]
+    report["match"] = {"cl_points": len(cl), "measured_samples": len(t), "matched": int(match.matched.sum()),
+                       "dist_median_mm": float(np.median(d)) if len(d) else None,
+                       "dist_max_mm": float(d.max()) if len(d) else None,
+                       "rapid_dist_max_mm": float(np.nanmax(np.where(kind == RAPID, match.dist_mm, np.nan)))
+                       if (kind == RAPID).any() and np.isfinite(match.dist_mm[kind == RAPID]).any() else None}
+
+    # --- feeds --------------------------------------------------------------------------------------
+    feeds = feed_from_positions(t, axes[cols], smoothing=cfg.smoothing)
+    path_feed, feed_from = _path_feed(recording, cfg, feeds)
+    report["feed_source"] = feed_from
+    points = _points_table(cl, match, feeds, path_feed, span)
+
+    # --- blocks -------------------------------------------------------------------------------------
+    motion = prog.motion.reset_index(drop=True)
+    end_row = cl.reset_index().groupby("block")["index"].max()
+    end_idx = end_row.reindex(motion["block"]).to_numpy()
+    if np.isnan(end_idx.astype(float)).any():
+        raise AlignmentError(f"{prog.name}: some motion blocks have no CL point")
+    end_idx = end_idx.astype(np.int64)
+    boundary = cfg.boundary
+    if boundary == "auto":
+        boundary = "leave" if timing.period_ns <= 5_000_000 else "pass"
+    leave = None
+    if boundary == "leave":
+        straight = motion["kind"].astype(str).isin(STRAIGHT).to_numpy()[:, None]
+        p0 = motion[["x0_mm", "y0_mm", "z0_mm"]].to_numpy(dtype=np.float64)
+        p1 = motion[["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=np.float64)
+        leave = leave_times(t, xyz, np.where(straight, p0, np.nan), np.where(straight, p1, np.nan),
+                            match.index[end_idx], on_path_mm=cfg.on_path_mm)
+    geo = blocks_from_geometry(motion, match.t_ns[end_idx], match.t_depart_ns[end_idx], span=span,
+                               end_leave_ns=leave)
+    geo["source"] = "geometry"
+    report["boundary"] = boundary
+    line_blocks = _line_blocks(recording, cfg, motion, span, geo, report)
+    primary = line_blocks if line_blocks is not None else geo
+
+    feats = block_features(prog, prof)
+    blocks_out = primary.merge(feats.drop(columns=["line"]), on="block", how="left")
+    points = points.merge(feats.drop(columns=["line", "kind", "feed_mm_min"]), on="block", how="left")
+    report["blocks"] = {"motion_blocks": len(primary), "source": str(primary["source"].iloc[0]) if len(primary) else None,
+                        "unseen_in_line_stream": int((~line_blocks["seen"]).sum()) if line_blocks is not None else None,
+                        "sum_duration_s": float(primary["duration_s"].sum())}
+    report["cycle_time_s"] = span.duration_s
+    return Alignment(points=points, blocks=blocks_out, cycle_time_s=span.duration_s, report=report,
+                     geometry_blocks=geo, line_blocks=line_blocks)
+
+
+def _config_dict(cfg: AlignConfig) -> dict[str, Any]:
+    d = asdict(cfg)
+    d["smoothing"] = asdict(cfg.smoothing)
+    return d
+
+
+def _path_feed(recording: Recording, cfg: AlignConfig, feeds: pd.DataFrame) -> tuple[pd.DataFrame, str]:
+    stream = recording.streams.get(cfg.feed_stream)
+    has = stream is not None and "feed_mm_min" in stream.columns and len(stream) >= 2
+    if cfg.feed_source == "stream" and not has:
+        raise AlignmentError(f"{recording.source or 'recording'}: feed_source='stream' but there is no "
+                             f"{cfg.feed_stream!r} stream with feed_mm_min")
+    if has and cfg.feed_source in ("auto", "stream"):
+        return stream[["t_ns", "feed_mm_min"]], f"stream:{cfg.feed_stream}"
+    return feeds[["t_ns", "feed_mm_min"]], "positions"
+
+
+def _points_table(cl: pd.DataFrame, match, feeds: pd.DataFrame, path_feed: pd.DataFrame,
+                  span: MotionSpan) -> pd.DataFrame:
+    out = cl.rename(columns={"feed_mm_min": "programmed_feed_mm_min"}).copy()
+    out.insert(0, "point", np.arange(len(cl), dtype=np.int64))
+    ok = match.matched
+    tm = np.where(ok, match.t_ns, 0)
+    out["t_ns"] = np.where(ok, match.t_ns, NO_TIME)
+    out["t_rel_s"] = np.where(ok, (tm - span.t_start_ns) / 1e9, np.nan)
+    out["dist_mm"] = match.dist_mm
+    out["sample"] = match.nearest
+    ft = path_feed["t_ns"].to_numpy(dtype=np.int64)
+    base = ft[0]
+    q = (tm - base).astype(np.float64)
+    out["feed_meas_mm_min"] = np.where(ok, np.interp(q, (ft - base).astype(np.float64),
+                                                     path_feed["feed_mm_min"].to_numpy(dtype=np.float64)), np.nan)
+    pt = feeds["t_ns"].to_numpy(dtype=np.int64)
+    qp = (tm - pt[0]).astype(np.float64)
+    tp = (pt - pt[0]).astype(np.float64)
+    for c in feeds.columns:
+        if c.startswith("v"):
+            name = c.replace("_min", "").replace("v", "v", 1)
+            axis, unit = name[1:].split("_", 1)
+            out[f"v{axis}_meas_{unit}_min"] = np.where(ok, np.interp(qp, tp, feeds[c].to_numpy()), np.nan)
+    return out
+
+
+def _line_blocks(recording: Recording, cfg: AlignConfig, motion: pd.DataFrame, span: MotionSpan,
+                 geo: pd.DataFrame, report: dict[str, Any]) -> pd.DataFrame | None:
+    stream = recording.streams.get(cfg.line_stream)
+    if stream is None or "line" not in stream.columns or len(stream) < 2:
+        report["line_stream"] = None
+        return None
+    report["timing"][cfg.line_stream] = stream_timing(stream["t_ns"].to_numpy(), name=cfg.line_stream).as_dict()
+    try:
+        lb = blocks_from_lines(stream["t_ns"].to_numpy(), stream["line"].to_numpy(), motion, span=span)
+    except FeedlogError as exc:
+        report["warnings"].append(f"line stream unusable ({exc}); block times from geometry")
+        report["line_stream"] = None
+        return None
+    seen = lb["seen"].to_numpy()
+    inner = seen.copy()
+    inner[0] = False  # the first block's start is motion start in both
+    off = event_offset(geo["t_end_ns"].to_numpy()[inner], lb["t_end_ns"].to_numpy()[inner]) if inner.any() else None
+    info: dict[str, Any] = {"offset_vs_geometry": None if off is None else off.as_dict(), "shifted_ns": 0}
+    if cfg.sync_lines and off is not None and off.offset_ns != 0:
+        shifted = shift_stream(stream, -off.offset_ns)
+        lb = blocks_from_lines(shifted["t_ns"].to_numpy(), shifted["line"].to_numpy(), motion, span=span)
+        info["shifted_ns"] = -off.offset_ns
+    lb["source"] = "line"
+    info["geometry_vs_line"] = compare_blocks(lb, geo, servo_period_s=_period_s(recording))
+    report["line_stream"] = info
+    return split_merged(lb, geo)
+
+
+def _period_s(recording: Recording) -> float | None:
+    v = recording.metadata.get("servo_period_ns")
+    try:
+        return float(v) / 1e9 if v else None
+    except ValueError:
+        return None

@@ -1,0 +1,87 @@
+"""align's on-disk output: `points.parquet`, `blocks.parquet` and `report.json` in one folder per recording.
+
+Both Parquet files carry key `feedlog.align` in their schema metadata: a JSON object with
+`format_version`, `table`, `cycle_time_s`, `recording` and `program`. Readers refuse a newer
+format_version. Columns (units in names):
+- points: point, block, line, kind, x_mm ... c_deg, ori_*, programmed_feed_mm_min, s_mm (program),
+  t_ns (matched time), t_rel_s (since motion start), dist_mm, sample (nearest measured sample),
+  feed_meas_mm_min, v<axis>_meas_mm_min / _deg_min, then toolpath's per-block features of the block
+  the point ends (FEATURE_COLUMNS without line/kind/feed_mm_min).
+- blocks: block, line, t_start_ns, t_end_ns, duration_s, seen, source ("line" or "geometry"), then
+  toolpath's FEATURE_COLUMNS (kind, length_mm, ..., feed_mm_min = programmed feed).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from feedlog.align.pipeline import Alignment
+from feedlog.errors import AlignmentError, FeedlogError
+
+FORMAT_VERSION = 1
+META_KEY = b"feedlog.align"
+FILES = ("points.parquet", "blocks.parquet", "report.json")
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.floating):
+        return None if not np.isfinite(value) else float(value)
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    return str(value)
+
+
+def to_json(data: Any, **kw: Any) -> str:
+    return json.dumps(data, default=_json_default, **kw)
+
+
+def _write(path: Path, table: pd.DataFrame, meta: dict[str, Any]) -> None:
+    arrow = pa.Table.from_pandas(table, preserve_index=False)
+    schema_meta = dict(arrow.schema.metadata or {})
+    schema_meta[META_KEY] = to_json(meta).encode()
+    pq.write_table(arrow.replace_schema_metadata(schema_meta), path, compression="zstd")
+
+
+def write_alignment(outdir: str | Path, alignment: Alignment, *, overwrite: bool = False) -> list[Path]:
+    """Write the three files into `outdir` (created); refuses to replace existing files unless `overwrite`."""
+    out = Path(outdir)
+    paths = [out / name for name in FILES]
+    existing = [p for p in paths if p.exists()]
+    if existing and not overwrite:
+        raise FeedlogError(f"{existing[0]} exists; use --overwrite to replace it")
+    out.mkdir(parents=True, exist_ok=True)
+    base = {"format_version": FORMAT_VERSION, "cycle_time_s": alignment.cycle_time_s,
+            "recording": alignment.report.get("recording"), "program": alignment.report.get("program")}
+    _write(paths[0], alignment.points, {**base, "table": "points"})
+    _write(paths[1], alignment.blocks, {**base, "table": "blocks"})
+    paths[2].write_text(to_json(alignment.report, indent=2) + "\n")
+    return paths
+
+
+def read_table(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """One of align's Parquet tables and its feedlog metadata."""
+    p = Path(path)
+    try:
+        arrow = pq.read_table(p)
+    except (OSError, pa.ArrowException) as exc:
+        raise AlignmentError(f"{p}: not a readable Parquet file ({exc})") from None
+    raw = (arrow.schema.metadata or {}).get(META_KEY)
+    if raw is None:
+        raise AlignmentError(f"{p}: not written by feedlog align (no {META_KEY.decode()} metadata)")
+    meta = json.loads(raw)
+    version = int(meta.get("format_version", 0))
+    if version > FORMAT_VERSION:
+        raise AlignmentError(f"{p}: align format_version {version} is newer than this feedlog reads "
+                             f"({FORMAT_VERSION}); upgrade feedlog")
+    return arrow.to_pandas(), meta
