@@ -125,6 +125,10 @@ def recorder_tcl(layout: SamplerLayout, *, thread: str = "servo-thread") -> str:
         "}",
         f"loadrt sampler depth={depths} cfg={','.join(layout.cfgs)}",
     ]
+    # gate closed before any sampler runs: in a running HAL an ungated sampler would fill its FIFO
+    # at once (sampler.N.enable defaults to 1, and a new signal takes its first reader's value)
+    lines += [f"net {ENABLE_SIGNAL} sampler.{c}.enable" for c in layout.channels]
+    lines.append(f"sets {ENABLE_SIGNAL} 0")
     if layout.clock:
         lines += [
             f"loadrt integ names={CLOCK_COMPONENT},{MOTION_TIME_COMPONENT}",
@@ -143,14 +147,11 @@ def recorder_tcl(layout: SamplerLayout, *, thread: str = "servo-thread") -> str:
     first = int(layout.clock)
     for k, (channel, group) in enumerate(zip(layout.channels, layout.groups)):
         lines.append(f"addf sampler.{channel} {thread}")
-        lines.append(f"net {ENABLE_SIGNAL} sampler.{channel}.enable")
         if layout.clock:
             lines.append(f"net feedlog:clock sampler.{channel}.pin.0" if k else
                          f"net feedlog:clock {CLOCK_COMPONENT}.out sampler.{channel}.pin.0")
         for i, column in enumerate(group, start=first):
             lines.append(f"feedlog_link {column.pin} sampler.{channel}.pin.{i}")
-    # a new signal without a writer takes its first reader's value (sampler.N.enable defaults to 1)
-    lines.append(f"sets {ENABLE_SIGNAL} 0")
     return "\n".join(lines) + "\n"
 
 

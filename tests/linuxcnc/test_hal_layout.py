@@ -53,4 +53,5 @@ def test_recorder_tcl_gates_every_sampler_with_one_signal_closed_at_load():
         assert f"addf sampler.{channel} servo-thread" in tcl
         assert f"sampler.{channel}.pin.0" in tcl
     assert "feedlog_link axis.c.pos-cmd sampler.0.pin.5" in tcl
-    assert tcl.rstrip().endswith(f"sets {ENABLE_SIGNAL} 0")
+    # the gate is closed before the first sampler is added to the thread
+    assert tcl.index(f"sets {ENABLE_SIGNAL} 0") < tcl.index("addf sampler.")
