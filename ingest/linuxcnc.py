@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import shutil
+import threading
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -55,8 +56,12 @@ def profile_toml_for(profile: str | None, ini: MachineIni) -> tuple[str, bytes]:
 
 def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, profile: str | None = None,
                     isolate: bool = False, timeout_s: float = 600.0, overwrite: bool = False,
-                    compression: str = "zstd", notes: str = "") -> dict[str, Any]:
+                    compression: str = "zstd", notes: str = "",
+                    stop_event: threading.Event | None = None) -> dict[str, Any]:
     """Run `program` on the LinuxCNC machine `ini`, write the recording to `out`, return a summary.
+
+    Setting `stop_event` (the CLI does on SIGINT/SIGTERM) stops the machine where it is and writes
+    what was recorded (metadata `status = stopped`).
 
     A G-code error raises ProgramError (file, line, LinuxCNC's message); if the machine had already
     moved, what was recorded up to then is still written to `out` (metadata `status = aborted`).
@@ -69,7 +74,7 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
     if out.exists() and not overwrite:
         raise IngestError("output exists; pass --overwrite to replace it", file=str(out))
     profile_name, profile_toml = profile_toml_for(profile, ini_cfg)
-    session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s)
+    session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s, stop_event=stop_event)
     try:
         error = session_error(session.report, program)
         streams, missing = load_capture(session.sample_files, session.layout, period_ns=ini_cfg.servo_period_ns,
@@ -114,7 +119,8 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
         "motion_end_ns": str(int(axes_t.iloc[span.last])) if span else "",
         "linuxcnc_motion_time_s": f"{motion_time_s:.6f}",
         "sampler_overruns": str(int(report.get("overruns", 0))),
-        "status": "complete" if error is None else f"aborted: {error}",
+        "status": (f"aborted: {error}" if error is not None else
+                   "stopped" if report.get("stopped") else "complete"),
     }
     attachments = {INI_ATTACHMENT: ini.text.encode(), PROFILE_ATTACHMENT: profile_toml}
     if program_bytes is not None:
@@ -137,6 +143,7 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
         "linuxcnc_motion_time_s": motion_time_s,
         "duration_s": recording.duration_s,
         "wall_s": round(wall_s, 3),
+        "status": metadata["status"],
     }
 
 
@@ -148,15 +155,21 @@ def add_arguments(group: argparse._ArgumentGroup) -> None:
                        help="run LinuxCNC in private namespaces (root only; allows parallel sessions)")
     group.add_argument("--attach", action="store_true",
                        help="record a LinuxCNC that is already running (see docs/linuxcnc.md)")
+    group.add_argument("--until-stopped", action="store_true",
+                       help="with --attach: record until Ctrl-C/SIGTERM, not just until the program ends")
     group.add_argument("--timeout-s", type=float, default=600.0, help="give up after this long (default 600)")
 
 
 def record(args: argparse.Namespace) -> dict[str, Any]:
     if getattr(args, "attach", False):
         from feedlog.ingest.linuxcnc_attach import attach_linuxcnc
+        if args.ini is None:
+            raise FeedlogError("--attach needs --ini: the INI the running LinuxCNC was started with")
         return attach_linuxcnc(args.ini, args.out, program=getattr(args, "program", None),
                                profile=getattr(args, "profile", None), timeout_s=args.timeout_s,
-                               overwrite=getattr(args, "overwrite", False))
+                               overwrite=getattr(args, "overwrite", False),
+                               until_program_end=not args.until_stopped,
+                               stop_event=getattr(args, "stop_event", None))
     if args.ini is None:
         raise FeedlogError("--source linuxcnc needs --ini MACHINE.ini")
     if getattr(args, "program", None) is None:
@@ -165,4 +178,5 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
         raise FeedlogError("LinuxCNC is not installed here (apt-get install linuxcnc-uspace)")
     return record_linuxcnc(args.ini, args.program, args.out, profile=getattr(args, "profile", None),
                            isolate=args.isolate, timeout_s=args.timeout_s,
-                           overwrite=getattr(args, "overwrite", False))
+                           overwrite=getattr(args, "overwrite", False),
+                           stop_event=getattr(args, "stop_event", None))

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import json
 import shutil
-import signal
 import subprocess
 import tempfile
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -24,7 +24,7 @@ from feedlog.ingest.linuxcnc_capture import load_capture
 from feedlog.ingest.linuxcnc_hal import ENABLE_SIGNAL, MOTION_TIME_COMPONENT, recorder_tcl, standard_layout, \
     unload_tcl
 from feedlog.ingest.linuxcnc_session import DEBIAN_PYTHON, DRIVER_SOURCE, MachineIni, linuxcnc_available, \
-    session_error
+    session_error, wait_with_stop
 
 # components the recorder loads; if the machine's HAL already has one, the recorder cannot load it again
 CLOCK_MODULES = ("integ", "not", "conv_bit_float")
@@ -48,7 +48,8 @@ def loaded_components() -> set[str]:
 
 def attach_linuxcnc(ini: str | Path, out: str | Path, *, program: str | Path | None = None,
                     profile: str | None = None, timeout_s: float = 3600.0, until_program_end: bool = True,
-                    overwrite: bool = False, compression: str = "zstd", notes: str = "") -> dict[str, Any]:
+                    overwrite: bool = False, compression: str = "zstd", notes: str = "",
+                    stop_event: threading.Event | None = None) -> dict[str, Any]:
     """Record the running LinuxCNC configured by `ini` into `out`; return the summary.
 
     `program` is attached when given; otherwise the file LinuxCNC has open is attached if readable.
@@ -76,7 +77,7 @@ def attach_linuxcnc(ini: str | Path, out: str | Path, *, program: str | Path | N
         sample_files = [workdir / f"sampler{c}.txt" for c in layout.channels]
         job = {"attach": True, "until_program_end": until_program_end, "channels": layout.channels,
                "sample_files": [str(p) for p in sample_files], "result": str(workdir / "result.json"),
-               "enable_signal": ENABLE_SIGNAL, "timeout_s": timeout_s,
+               "enable_signal": ENABLE_SIGNAL, "timeout_s": timeout_s, "stop_file": str(workdir / "stop"),
                "motion_time_pin": f"{MOTION_TIME_COMPONENT}.out" if clock else None}
         (workdir / "job.json").write_text(json.dumps(job))
         loaded = subprocess.run(["haltcl", str(workdir / "record.tcl")], capture_output=True, text=True, timeout=60)
@@ -86,13 +87,16 @@ def attach_linuxcnc(ini: str | Path, out: str | Path, *, program: str | Path | N
                               f"{(loaded.stderr or loaded.stdout).strip()[-400:]}")
         t0 = time.monotonic()
         try:
-            proc = subprocess.Popen([DEBIAN_PYTHON, str(driver), "--attach", str(workdir / "job.json")],
-                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-            try:
-                log, _ = proc.communicate(timeout=timeout_s + 60)
-            except KeyboardInterrupt:  # the user stops the recording: let the driver finish its files
-                proc.send_signal(signal.SIGINT)
-                log, _ = proc.communicate(timeout=60)
+            log_path = workdir / "driver.log"
+            with open(log_path, "w") as log_file:
+                proc = subprocess.Popen([DEBIAN_PYTHON, str(driver), "--attach", str(workdir / "job.json")],
+                                        stdout=log_file, stderr=subprocess.STDOUT)
+                try:
+                    wait_with_stop(proc, timeout_s + 60, stop_event, workdir / "stop")
+                except KeyboardInterrupt:  # the user stops the recording: let the driver finish its files
+                    (workdir / "stop").touch()
+                    proc.wait(timeout=60)
+            log = log_path.read_text(errors="replace")
         finally:
             subprocess.run(["haltcl", str(workdir / "unload.tcl")], capture_output=True, timeout=60)
         wall_s = time.monotonic() - t0

@@ -67,6 +67,12 @@ class Driver:
             else:
                 self.result["messages"].append(entry)
 
+    def check_stop(self):
+        stop_file = self.job.get("stop_file")
+        if stop_file and os.path.exists(stop_file):
+            self.stop_requested = True
+        return self.stop_requested
+
     def wait(self, what, predicate, timeout_s):
         end = min(time.monotonic() + timeout_s, self.deadline)
         while True:
@@ -74,8 +80,9 @@ class Driver:
             self.poll_errors()
             if predicate(self.stat):
                 return
-            if self.stop_requested:
-                raise Abort(f"stopped by signal while waiting for {what}")
+            if self.check_stop():
+                self.result["stopped"] = True
+                raise Abort(f"stopped on request while waiting for {what}")
             if time.monotonic() > end:
                 raise Abort(f"timed out waiting for {what}")
             time.sleep(POLL_S)
@@ -189,7 +196,7 @@ class Driver:
         self.result["motion_time_start_s"] = self.motion_time()
         self.result["run_wall_start"] = time.time()
         seen_running = False
-        while not self.stop_requested and time.monotonic() < self.deadline:
+        while not self.check_stop() and time.monotonic() < self.deadline:
             self.stat.poll()
             if self.stat.file:
                 self.result["program_file"] = self.stat.file
@@ -199,11 +206,18 @@ class Driver:
             if seen_running and not running and self.stat.inpos and self.job.get("until_program_end", True):
                 break
             time.sleep(0.02)
+        self.result["stopped"] = self.stop_requested
         time.sleep(0.05)
         self.result["motion_time_end_s"] = self.motion_time()
         self.result["run_wall_end"] = time.time()
 
     def finish(self):
+        if self.result.get("stopped") and not self.job.get("attach"):
+            try:
+                self.cmd.abort()  # stop the machine where it is
+                time.sleep(0.1)
+            except Exception:
+                pass
         if self.samplers:
             self.stop_samplers()
         if not self.job.get("attach"):

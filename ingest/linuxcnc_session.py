@@ -19,6 +19,7 @@ import shutil
 import signal
 import subprocess
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -194,11 +195,13 @@ def _launch_command(ini_path: Path, *, isolate: bool) -> list[str]:
 
 
 def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeout_s: float = 600.0,
-                keep_workdir: bool = False) -> SessionResult:
+                keep_workdir: bool = False, stop_event: threading.Event | None = None) -> SessionResult:
     """Run `program` on the machine `ini` from homing to program end; return the capture.
 
     Errors of the run itself (G-code errors, aborts) are in the report: see session_error(). Call
     cleanup() once the capture files are read. keep_workdir keeps the folder also when this raises.
+    Setting `stop_event` stops the program where it is (the driver sees a stop file); what was
+    recorded up to then is returned as usual, with `report["stopped"]`.
     """
     reason = linuxcnc_available()
     if reason:
@@ -226,7 +229,7 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
         job = {"program": str(program_copy), "channels": layout.channels,
                "sample_files": [str(p) for p in sample_files], "result": str(workdir / "result.json"),
                "enable_signal": ENABLE_SIGNAL, "motion_time_pin": f"{MOTION_TIME_COMPONENT}.out",
-               "timeout_s": timeout_s}
+               "timeout_s": timeout_s, "stop_file": str(workdir / "stop")}
         job_path.write_text(json.dumps(job))
         ini_path = workdir / "machine.ini"
         ini_path.write_text(ini.rewritten(display=f"{driver} {job_path}", recorder=recorder))
@@ -244,7 +247,7 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
                                     stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
                                     start_new_session=True)
             try:
-                proc.wait(timeout=timeout_s + 30)
+                wait_with_stop(proc, timeout_s + 30, stop_event, workdir / "stop")
             except subprocess.TimeoutExpired:
                 os.killpg(proc.pid, signal.SIGTERM)
                 try:
@@ -269,6 +272,21 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
                          log=log_text, wall_s=wall_s)
 
 
+def wait_with_stop(proc: subprocess.Popen, timeout_s: float, stop_event: threading.Event | None,
+                   stop_file: Path) -> None:
+    """Wait for `proc`; when `stop_event` is set, ask the driver to stop by creating `stop_file`."""
+    end = time.monotonic() + timeout_s
+    while True:
+        try:
+            proc.wait(timeout=0.2)
+            return
+        except subprocess.TimeoutExpired:
+            if time.monotonic() > end:
+                raise
+        if stop_event is not None and stop_event.is_set() and not stop_file.exists():
+            stop_file.touch()
+
+
 def cleanup(result: SessionResult) -> None:
     shutil.rmtree(result.workdir, ignore_errors=True)
 
@@ -277,6 +295,8 @@ def session_error(report: dict, program: Path) -> FeedlogError | None:
     """What went wrong in a session, as our error; None when it ran to the end."""
     if report.get("errors"):
         return program_error(report, program)
+    if report.get("stopped"):
+        return None  # stopped on request: a shorter recording, not a failure
     if report.get("abort") or not report.get("ok"):
         return IngestError(f"LinuxCNC session aborted in phase {report.get('phase')}: "
                            f"{report.get('abort', 'unknown reason')}", file=str(program))

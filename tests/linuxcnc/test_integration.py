@@ -96,3 +96,42 @@ def test_gcode_error_is_reported_with_file_and_line(tmp_path):
     assert info.value.line == 4
     if out.exists():  # the machine had started moving: what was recorded is kept, marked aborted
         assert read_recording(out).metadata["status"].startswith("aborted")
+
+
+def test_feedlog_record_cli_runs_a_program_and_feedlog_info_reads_it(tmp_path, capsys):
+    from feedlog.cli import main
+
+    program = tmp_path / "line.ngc"
+    program.write_text("G21 G90 G64 P0.01\nF3000\nG0 X0 Y0 Z0\nG1 X30 Y10\nM2\n")
+    out = tmp_path / "line.mcap"
+    argv = ["record", "--source", "linuxcnc", "--ini", str(CONFIGS / "xyz.ini"), str(program), "-o", str(out),
+            "--timeout-s", "60"] + (["--isolate"] if ISOLATE else [])
+    assert main(argv) == 0
+    assert "cycle_time_s" in capsys.readouterr().out
+    assert main(["record", *argv[1:]]) == 1  # refuses to overwrite
+    assert "output exists" in capsys.readouterr().err
+    assert main(["info", str(out)]) == 0
+    info = capsys.readouterr().out
+    assert "axes" in info and "1000.0 Hz" in info and "cycle_time_s" in info
+
+
+def test_stop_event_stops_the_machine_and_keeps_what_was_recorded(tmp_path):
+    import threading
+
+    program = tmp_path / "long.ngc"
+    program.write_text("G21 G90 G64 P0.01\nF1000\nG0 X0 Y0 Z0\nG1 X100\nG1 X0\nM2\n")  # ~12 s
+    out = tmp_path / "long.mcap"
+    stop = threading.Event()
+    timer = threading.Timer(4.0, stop.set)
+    timer.start()
+    try:
+        summary = record_linuxcnc(CONFIGS / "xyz.ini", program, out, isolate=ISOLATE, timeout_s=60,
+                                  stop_event=stop)
+    finally:
+        timer.cancel()
+    assert summary["status"] == "stopped"
+    rec = read_recording(out)
+    assert rec.metadata["status"] == "stopped"
+    x = rec.stream("axes")["x_mm"].to_numpy()
+    assert 0.5 < x.max() < 99.0  # moved, but not to the end of the first move
+    assert summary["wall_s"] < 11.0
