@@ -14,7 +14,11 @@ blendmath.c `blendComputeParameters`, `blendCheckConsume`), re-derived here in v
 - junctions where a rotary axis moves get LinuxCNC's parabolic blend: both blocks run at half
   acceleration and the next block starts while the current one decelerates from the blend speed
   (this is why LinuxCNC's five-axis G64 is slower than G61);
-- corners sharper than `sharp_corner_deg` from a reversal stop.
+- corners sharper than `sharp_corner_deg` from a reversal stop;
+- in G61 (exact path) tangent junctions are still passed without stopping; at the other G61
+  junctions LinuxCNC keeps the kink acceleration reduction (`kink_ratio`) on both blocks, so exact-stop
+  blocks run at 90 % of their acceleration (tp.c: `tpChooseBestBlend` returns before
+  `tcRemoveKinkProperties` for exact-path segments).
 """
 
 from __future__ import annotations
@@ -86,19 +90,22 @@ class BlendArcCorner(Mechanism):
         # speeds as LinuxCNC's segments know them: programmed feed, axis caps, one servo cycle
         v_seg = np.minimum(pc.v_max, np.where(length > 0, length / cyc, np.inf))
         v_req = np.minimum(blocks.feed[b], v_seg)
-        stop = blocks.stop_after[b1] | (pc.hold_s[j] > 0) | (length[j] <= 0) | (length[j + 1] <= 0)
+        exact = blocks.stop_after[b1]
+        # G61 (exact path) still passes tangent junctions; G61.1, dwells and holds always stop
+        g61 = exact & blocks.exact_path[b1] & (pc.hold_s[j] <= 0)
+        hard = (exact & ~g61) | (pc.hold_s[j] > 0) | (length[j] <= 0) | (length[j + 1] <= 0)
         rotary = blocks.rotary[b1] | blocks.rotary[b2]
         moves_xyz = (np.linalg.norm(u1, axis=1) > 0) & (np.linalg.norm(u2, axis=1) > 0)
         dot = np.clip(np.einsum("ij,ij->i", u1, u2), -1.0, 1.0)
         sharp = moves_xyz & (dot < -math.cos(math.radians(self.sharp_corner_deg)))
-        stop |= sharp
+        hard |= sharp | (g61 & rotary)
 
         v_end = np.zeros(m)
         a_max = pc.a_max.copy()
         overlap = np.zeros(m, bool)
 
-        # rotary axes move: parabolic blend (or stop)
-        para = ~stop & rotary
+        # rotary axes move in continuous mode: parabolic blend (or stop)
+        para = ~hard & ~g61 & rotary
         if self.rotary_blend == "parabolic" and para.any():
             jp = np.flatnonzero(para)
             overlap[jp] = True
@@ -108,8 +115,8 @@ class BlendArcCorner(Mechanism):
             a_max[halved] *= 0.5
             v_end[jp] = self._parabolic_speed(pc, blocks, jp, u1[jp], u2[jp], a_max, v_req, moves_xyz[jp])
 
-        # tangent (kink) check
-        cand = ~stop & ~rotary & moves_xyz
+        # tangent (kink) check, LinuxCNC tpSetupTangent
+        cand = ~hard & ~rotary & moves_xyz
         v_kink = np.minimum(v_req[j], v_req[j + 1])
         a_inst = v_kink / cyc + pc.a_max[j + 1]
         acc_scale = np.max(np.abs(a_inst[:, None] * (u2 - u1)) / acc_bound, axis=1)
@@ -118,16 +125,18 @@ class BlendArcCorner(Mechanism):
                             v_kink * self.kink_ratio / np.maximum(acc_scale, 1e-300))
         reduce = np.where(tangent, acc_scale, self.kink_ratio)
 
-        # blend arcs for the remaining line-line corners
-        arc_ok = cand & ~tangent & (pc.radius[j] <= 0) & (pc.radius[j + 1] <= 0)
+        # blend arcs for the remaining continuous-mode line-line corners
+        arc_ok = cand & ~g61 & ~tangent & (pc.radius[j] <= 0) & (pc.radius[j + 1] <= 0)
         arcs = self._arcs(pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, arc_ok)
         use_arc = arc_ok & arcs["ok"] & (arcs["v_arc"] >= kink_vel)
-        use_kink = cand & ~use_arc          # tangent blends, incl. arcs worse than the kink speed
+        use_kink = cand & ~use_arc & ~(g61 & ~tangent)   # tangent blends, incl. arcs worse than the kink
         jk = np.flatnonzero(use_kink)
         v_end[jk] = kink_vel[jk]
+        # G61 corners that are not tangent stop, but keep LinuxCNC's kink acceleration reduction
+        jr = np.flatnonzero(use_kink | (cand & g61 & ~tangent))
         red = np.zeros(m)
-        np.maximum.at(red, jk, reduce[jk])
-        np.maximum.at(red, jk + 1, reduce[jk])
+        np.maximum.at(red, jr, reduce[jr])
+        np.maximum.at(red, jr + 1, reduce[jr])
         a_max *= 1.0 - red
         ctx.pieces = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)
 

@@ -36,6 +36,7 @@ REGISTRY: dict[str, str] = {
     "blend_arc": "feedlog.sim.corner_blend:BlendArcCorner",
     "junction_deviation": "feedlog.sim.corner_junction:JunctionDeviationCorner",
     "trunnion": "feedlog.sim.kinematics:TrunnionKinematics",
+    "naive_cam": "feedlog.sim.naive_cam:NaiveCamMerge",
     "feed_override": "feedlog.sim.feed_override:FeedOverride",
     "rapid_override": "feedlog.sim.rapid_override:RapidOverride",
     "block_time": "feedlog.sim.block_time:BlockTimeFloor",
@@ -50,11 +51,12 @@ CONTROLLER_PRESETS: dict[str, dict[str, dict[str, Any]]] = {
         # task -> motion queue feeds ~600 blocks/s: the floor fitted to dense002q0.ngc (5.466 s)
         "block_time": {"enabled": True, "min_block_time_s": 0.00167},
         # canon (emccanon.cc getStraightAcceleration) projects the axis limits only; the TRAJ
-        # MAX_LINEAR_ACCELERATION does not cap a coordinated move. The exact-stop settle time is
-        # calibrated: test_g61.ngc runs 4.8 % slower than the ideal stop-to-stop plan (see docs/sim.md)
-        "lookahead": {"path_acc_max_mm_s2": float("inf"), "stop_settle_s": 0.0035},
+        # MAX_LINEAR_ACCELERATION does not cap a coordinated move
+        "lookahead": {"path_acc_max_mm_s2": float("inf")},
         # LinuxCNC plans in axis (program) coordinates; joint limits do not slow the feed
         "trunnion": {"limit_joints": False},
+        # the interpreter merges nearly collinear lines within G64 Q (Q defaults to P)
+        "naive_cam": {"enabled": True},
     },
 }
 

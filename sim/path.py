@@ -44,7 +44,9 @@ class Blocks:
     v_limit: np.ndarray      # speed limit from axis and path velocity limits (the feed may be lower)
     a_max: np.ndarray        # along-path acceleration limit from axis limits
     stop_after: np.ndarray   # exact stop at the end of the block (G61, G61.1, dwell, program end)
+    exact_path: np.ndarray   # G61: the stop may be skipped where the next block continues tangentially
     tol: np.ndarray          # G64 P tolerance (NaN: none given)
+    merge_tol: np.ndarray    # G64 Q tolerance for merging nearly collinear lines (NaN: none)
     hold_s: np.ndarray       # standstill after the block (G4 dwell, reversal dwell)
     min_time_s: np.ndarray   # lower bound of the block's duration (block processing time)
     rotary: np.ndarray       # block moves a rotary axis
@@ -57,6 +59,12 @@ class Blocks:
 
     def __len__(self) -> int:
         return len(self.block)
+
+    def take(self, index: np.ndarray) -> Blocks:
+        """The rows `index` (arrays and `extra` columns alike)."""
+        fields = {k: getattr(self, k) for k in self.__dataclass_fields__ if k not in ("axes", "extra")}
+        return Blocks(axes=self.axes, extra={k: v[index] for k, v in self.extra.items()},
+                      **{k: v[index] for k, v in fields.items()})
 
     @property
     def v_max(self) -> np.ndarray:
@@ -132,6 +140,16 @@ def _column(table: pd.DataFrame, name: str, default: float) -> np.ndarray:
     return table[name].to_numpy(dtype=np.float64, na_value=np.nan)
 
 
+def projected_limits(delta: np.ndarray, length: np.ndarray, vel: np.ndarray, acc: np.ndarray):
+    """Path speed and acceleration at which the first axis reaches its limit, per straight move
+    (RS274 canon: each axis' time d_i / v_i, the slowest one sets the move's limit)."""
+    ratio = np.abs(delta) / np.where(length > EPS_LEN, length, 1.0)[:, None]
+    with np.errstate(divide="ignore"):
+        v_axis = np.min(np.where(ratio > 1e-12, vel / ratio, np.inf), axis=1)
+        a_axis = np.min(np.where(ratio > 1e-12, acc / ratio, np.inf), axis=1)
+    return v_axis, a_axis
+
+
 def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     """Motion and dwell rows of the block table as `Blocks`, with axis-projected limits."""
     table = block_table(program)
@@ -202,10 +220,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     # axis limits projected on the block direction (lines: exact; arcs: the plane axes)
     vel = np.array([profile.axes[a].vel_max for a in axes])
     acc = np.array([profile.axes[a].acc_max for a in axes])
-    ratio = np.abs(delta) / np.where(length > EPS_LEN, length, 1.0)[:, None]
-    with np.errstate(divide="ignore"):
-        v_axis = np.min(np.where(ratio > 1e-12, vel / ratio, np.inf), axis=1)
-        a_axis = np.min(np.where(ratio > 1e-12, acc / ratio, np.inf), axis=1)
+    v_axis, a_axis = projected_limits(delta, length, vel, acc)
     for i in np.flatnonzero(is_arc):
         a1, a2, nrm = _PLANES[plane[i]]
         pl = [lin[a1], lin[a2]]
@@ -219,8 +234,10 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
 
     mode = t["path_mode"].astype(str).to_numpy()
     stop_after = (mode != schema.CONTINUOUS) | (code == KIND_DWELL)
+    exact_path = (mode == schema.EXACT_PATH) & (code != KIND_DWELL)
     if n:
         stop_after[-1] = True
+        exact_path[-1] = False
     hold = np.where(code == KIND_DWELL, np.nan_to_num(_column(t, "dwell_s", 0.0)), 0.0)
     length = np.where(moving, length, 0.0)
     extra = {}
@@ -230,7 +247,8 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
             extra["ori"] = ori
     return Blocks(axes=axes, block=t["block"].to_numpy(np.int64), line=t["line"].to_numpy(np.int64),
                   kind=code, p0=p0, p1=p1, length=length, feed=feed, v_limit=v_limit, a_max=a_max,
-                  stop_after=stop_after, tol=_column(t, "tol_mm", np.nan), hold_s=hold,
+                  stop_after=stop_after, exact_path=exact_path, tol=_column(t, "tol_mm", np.nan),
+                  merge_tol=_column(t, "merge_tol_mm", np.nan), hold_s=hold,
                   min_time_s=np.zeros(n), rotary=rot_len > 1e-9, center=center, normal_axis=normal_axis,
                   sweep=sweep, radius=radius, extra=extra)
 

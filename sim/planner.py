@@ -9,8 +9,8 @@ acceleration v^2 / R <= a_n (LinuxCNC `BLEND_ACC_RATIO_TANGENTIAL` = 0.5, normal
 The look-ahead window guarantees that the tool can stop within the next `lookahead_blocks` pieces.
 Each piece lasts at least `min_piece_cycles` servo periods (LinuxCNC clamps a segment's speed to
 length / cycle time). Without a corner law every junction is an exact stop; `stop_settle_s` adds a
-standstill at each exact stop (an in-position wait; LinuxCNC's preset uses 3.5 ms, see
-docs/sim.md for how it was calibrated).
+standstill at each exact stop (an in-position wait of controllers that check the following error
+before the next block; 0 by default and for LinuxCNC).
 """
 
 from __future__ import annotations

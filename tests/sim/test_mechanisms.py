@@ -104,3 +104,16 @@ def test_block_time_floor_caps_short_blocks(plain, gcode):
     res = simulate(prog, plain, mechanisms={"block_time": {"min_block_time_s": 0.004}})
     assert res.cycle_time_s >= 400 * 0.004 - 1e-6
     assert res.series["feed_mm_min"].max() <= 0.05 / 0.004 * 60 * 1.001
+
+
+def test_naive_cam_merges_collinear_lines_within_q(plain, gcode):
+    # 0.1 mm steps on a straight line with +-0.004 mm wiggle: merged with Q0.01, kept with Q0.001
+    pts = [(0.1 * i, 0.004 * (-1) ** i) for i in range(1, 301)]
+    body = "\n".join(f"G1 X{x:.4f} Y{y:.4f}" for x, y in pts) + "\n"
+    merged = simulate(gcode("G21 G90 G64 P0.01 Q0.01\nF3000\n" + body), plain, mechanisms={"naive_cam": True})
+    kept = simulate(gcode("G21 G90 G64 P0.01 Q0.001\nF3000\n" + body), plain, mechanisms={"naive_cam": True})
+    assert len(merged.blocks) <= 300 / 100 + 2  # chains of at most 101 points
+    assert len(kept.blocks) == 300
+    assert merged.cycle_time_s < kept.cycle_time_s
+    end = merged.series[["x_mm", "y_mm"]].iloc[-1].to_numpy()
+    assert np.allclose(end, pts[-1], atol=1e-9)

@@ -41,8 +41,10 @@ def test_diagonal_block_uses_projected_axis_limits(plain, gcode):
 def test_right_angle_corner_exact_stop_vs_continuous(plain, law, gcode):
     g61 = simulate(gcode("G21 G90 G61\nG1 X20 F3000\nG1 Y20\n"), plain, mechanisms=["lookahead", law])
     g64 = simulate(gcode("G21 G90 G64 P0.05\nG1 X20 F3000\nG1 Y20\n"), plain, mechanisms=["lookahead", law])
-    one = 20 / F3000 + F3000 / 1000
-    assert g61.cycle_time_s == pytest.approx(2 * one, abs=1e-6)  # two full stops
+    # two full stops; LinuxCNC's blend law keeps its 10 % kink acceleration reduction on G61 corners
+    acc = 900.0 if law == "blend_arc" else 1000.0
+    one = 20 / F3000 + F3000 / acc
+    assert g61.cycle_time_s == pytest.approx(2 * one, abs=1e-6)
     assert g64.cycle_time_s < g61.cycle_time_s - 0.002
     corner = g64.series.loc[(g64.series["x_mm"] > 19.0) & (g64.series["y_mm"] < 1.0), "feed_mm_min"]
     assert corner.min() > 0  # never stops in the corner

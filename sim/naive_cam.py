@@ -1,0 +1,92 @@
+"""Collinear merge ("naive CAM"): the interpreter joins nearly collinear G1 lines into one move.
+
+Source: LinuxCNC emccanon.cc `see_segment` / `linkable` / `flush_segments` (G64 P- Q-; Q defaults to
+P): consecutive straight feed moves without rotary motion are chained while every chained end point
+stays within Q of the straight line from the chain's start to the newest end point, up to
+`max_chain` points; the chain then goes to the planner as one line (reported with the last block's
+line number). Merged-away blocks get no time in the block table.
+
+Exactness note: a vectorised three-point test (the previous end point against the line from the
+previous start to the new end) pre-selects the candidates; the exact test of all chained points
+then runs in a short Python loop over the candidate runs only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from feedlog.sim.context import Context
+from feedlog.sim.mechanism import Mechanism
+from feedlog.sim.path import KIND_LINEAR, projected_limits
+
+
+def _distance_to_segment(points: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    m = end - start
+    mm = float(m @ m)
+    t = np.clip((points - start) @ m / mm, 0.0, 1.0) if mm > 0 else np.zeros(len(points))
+    return np.linalg.norm(points - (start + t[:, None] * m), axis=1)
+
+
+@dataclass
+class NaiveCamMerge(Mechanism):
+    name = "naive_cam"
+    kind = "limits"
+    order = 5
+
+    max_chain: int = 100
+
+    def __post_init__(self) -> None:
+        self.check_positive(max_chain=self.max_chain)
+
+    def limit(self, ctx: Context) -> None:
+        b = ctx.blocks
+        n = len(b)
+        if n < 2:
+            return
+        lin = b.linear_index
+        tol = np.nan_to_num(b.merge_tol, nan=0.0)
+        ok = (b.kind == KIND_LINEAR) & ~b.rotary & (b.length > 0) & ~b.stop_after & (tol > 0)
+        # i can join the chain of i - 1 only if both are eligible, the feed is unchanged, and (pre-test)
+        # the end of i - 1 lies within tol of the line from the start of i - 1 to the end of i
+        p0, p1 = b.p0[:, lin], b.p1[:, lin]
+        m = p1[1:] - p0[:-1]
+        mm = np.einsum("ij,ij->i", m, m)
+        t = np.clip(np.einsum("ij,ij->i", p1[:-1] - p0[:-1], m) / np.where(mm > 0, mm, 1.0), 0.0, 1.0)
+        d3 = np.linalg.norm(p1[:-1] - (p0[:-1] + t[:, None] * m), axis=1)
+        cand = ok[:-1] & ok[1:] & (b.feed[1:] == b.feed[:-1]) & (d3 <= tol[1:])
+        if not cand.any():
+            return
+        keep = np.ones(n, bool)
+        start_of = np.arange(n)       # for kept rows: the row whose start is the merged start
+        idx = np.flatnonzero(cand) + 1  # rows that may join their predecessor
+        chain_start = None
+        chain: list[int] = []
+        prev = -2
+        for i in idx:
+            if i != prev + 1 or chain_start is None:
+                chain_start, chain = i - 1, [i - 1]
+            start = p0[chain_start]
+            if len(chain) <= self.max_chain and \
+                    _distance_to_segment(p1[chain], start, p1[i]).max() <= tol[i]:
+                keep[chain[-1]] = False
+                chain.append(i)
+                start_of[i] = chain_start
+            else:
+                chain_start, chain = i, [i]  # the chain ending at i - 1 is flushed; i starts a new one
+            prev = i
+        merged = np.flatnonzero(keep & (start_of != np.arange(n)))
+        if not len(merged):
+            return
+        b.p0[merged] = b.p0[start_of[merged]]
+        delta = b.p1[merged] - b.p0[merged]
+        length = np.linalg.norm(delta[:, lin], axis=1)
+        vel = np.array([ctx.profile.axes[a].vel_max for a in b.axes])
+        acc = np.array([ctx.profile.axes[a].acc_max for a in b.axes])
+        v_axis, a_axis = projected_limits(delta, length, vel, acc)
+        b.length[merged] = length
+        b.v_limit[merged] = np.minimum(v_axis, ctx.profile.interpolator.path_vel_max_mm_s)
+        b.a_max[merged] = a_axis
+        ctx.blocks = b.take(np.flatnonzero(keep))
+        ctx.notes["merged_blocks"] = int(n - keep.sum())
