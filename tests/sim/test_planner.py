@@ -48,7 +48,9 @@ def test_right_angle_corner_exact_stop_vs_continuous(plain, law, gcode):
     assert g64.cycle_time_s < g61.cycle_time_s - 0.002
     corner = g64.series.loc[(g64.series["x_mm"] > 19.0) & (g64.series["y_mm"] < 1.0), "feed_mm_min"]
     assert corner.min() > 0  # never stops in the corner
-    assert g61.series["feed_mm_min"].iloc[int(one / 0.001)] == pytest.approx(0.0, abs=1.0)
+    assert g61.trajectory.plan.v1[0] == 0.0  # stops at the corner
+    near = g61.series["feed_mm_min"].iloc[int(one / 0.001) - 1: int(one / 0.001) + 2]
+    assert near.min() < 0.002 * acc * 60
 
 
 def test_junction_deviation_corner_speed_is_closed_form(plain, gcode):
