@@ -123,6 +123,8 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
                    "stopped" if report.get("stopped") else "complete"),
     }
     attachments = {INI_ATTACHMENT: ini.text.encode(), PROFILE_ATTACHMENT: profile_toml}
+    for hal_file in ini.hal_files():  # e.g. trt.hal with the trunnion kinematics' offsets
+        attachments.setdefault(f"hal/{hal_file.name}", hal_file.read_bytes())
     if program_bytes is not None:
         attachments[PROGRAM_ATTACHMENT] = program_bytes
     recording = Recording(streams=streams, metadata=metadata, attachments=attachments,

@@ -88,6 +88,18 @@ class MachineIni:
     def linear_units(self) -> str:
         return (self.get("TRAJ", "LINEAR_UNITS") or "mm").strip()
 
+    def hal_files(self) -> list[Path]:
+        """The machine's own HAL files that exist (not LIB: ones, not the recording HALFILE)."""
+        found = []
+        for value in self.values.get(("HAL", "HALFILE"), []):
+            first = value.split()[0] if value.split() else ""
+            if not first or first.startswith("LIB:") or re.match(r"record.*\.tcl$", Path(first).name):
+                continue
+            path = Path(first) if Path(first).is_absolute() else self.path.parent / first
+            if path.is_file():
+                found.append(path)
+        return found
+
     def layout(self) -> SamplerLayout:
         return standard_layout(self.coordinates, self.joints)
 

@@ -33,6 +33,7 @@ def test_rewritten_ini_runs_our_driver_and_recorder(tmp_path):
     # relative HAL files keep pointing at the INI's folder
     assert str(CONFIGS.resolve() / "trt.hal") in halfiles
     assert "TOOL_TABLE = feedlog.tbl" in lines
+    assert ini.hal_files() == [CONFIGS.resolve() / "trt.hal"]
 
 
 def test_recorder_is_appended_when_the_ini_has_no_recording_halfile(tmp_path):
