@@ -26,6 +26,12 @@ STREAM_ATTRIBUTE = "FeedlogStream"
 SEQ_SIGNAL = "seq"
 
 
+def seconds_to_us_ns(seconds) -> np.ndarray:
+    """python-can's float-second timestamps -> int64 ns, rounded to whole microseconds (a float64 epoch
+    time resolves only ~0.2 us, and CAN interfaces and log formats stamp in us or coarser)."""
+    return np.rint(np.asarray(seconds, dtype=np.float64) * 1e6).astype(np.int64) * 1000
+
+
 def default_dbc_path() -> Path:
     return Path(str(resources.files("feedlog.ingest") / "feedlog_axes.dbc"))
 

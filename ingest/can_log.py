@@ -13,15 +13,16 @@ from pathlib import Path
 import numpy as np
 
 from feedlog.errors import IngestError
+from feedlog.ingest.can_dbc import seconds_to_us_ns
 from feedlog.ingest.can_dbc import CanFrames, DbcLayout
-from feedlog.ingest.can_streams import assemble_streams, decode_frames
+from feedlog.ingest.can_streams import assemble_streams, decode_frames, lost_counts
 from feedlog.ingest.recording import Recording
 
 BLOCK = 65536
 
 
 def _block(ts: list[float], ids: list[int], payload: list[bytes], lengths: list[int]) -> CanFrames:
-    t_ns = np.rint(np.asarray(ts, dtype=np.float64) * 1e9).astype(np.int64)
+    t_ns = seconds_to_us_ns(ts)
     data = np.frombuffer(b"".join(payload), dtype=np.uint8).reshape(-1, 8)
     return CanFrames(t_ns, np.asarray(ids, dtype=np.uint32), data, np.asarray(lengths, dtype=np.uint8))
 
@@ -102,16 +103,19 @@ def _check_complete(path: Path, reader) -> None:
 
 
 def frames_to_recording(frames: CanFrames, layout: DbcLayout, *, source: str = "") -> Recording:
-    """Decode frames with the DBC into standard streams; unknown ids and lost samples in the metadata."""
+    """Decode frames with the DBC into standard streams; unknown ids and lost samples in the metadata.
+
+    `dropped_frames` is the number of frames missing from the seq counters (all message ids)."""
     decoded = decode_frames(frames, layout)
     streams, lost = assemble_streams(decoded, layout)
     metadata = {"source": Path(source).name if source else "", "dbc": layout.path.name, "frames": str(len(frames))}
     if decoded.unknown:
         metadata["unknown_ids"] = decoded.unknown_report()
+    missing = sum(lost_counts(decoded).values())
     if lost:
         metadata["lost_samples"] = str(lost)
     return Recording(streams=streams, metadata=metadata, attachments={layout.path.name: layout.source_text()},
-                     dropped_frames=lost, source=source)
+                     dropped_frames=missing, source=source)
 
 
 def read_can_source(path: Path, options) -> Recording:

@@ -91,8 +91,14 @@ def _message_table(message: MessageLayout, decoded: Decoded, stream: str) -> pd.
     return table
 
 
+def lost_counts(decoded: Decoded) -> dict[int, int]:
+    """Frames missing per frame id, from each message's own seq counter."""
+    return {fid: lost_samples(v[SEQ_SIGNAL][np.argsort(decoded.times[fid], kind="stable")])
+            for fid, v in decoded.values.items() if SEQ_SIGNAL in v}
+
+
 def assemble_streams(decoded: Decoded, layout: DbcLayout) -> tuple[dict[str, pd.DataFrame], int]:
-    """(streams, lost samples counted from the seq counters)."""
+    """(streams, samples lost: the most frames missing from any one message's seq counter)."""
     members: dict[str, list[MessageLayout]] = {}
     for message in layout.messages.values():
         for stream in dict.fromkeys(s.stream for s in message.signals if s.name != SEQ_SIGNAL):
@@ -107,8 +113,7 @@ def assemble_streams(decoded: Decoded, layout: DbcLayout) -> tuple[dict[str, pd.
         for other in tables[1:]:
             merged = _join(merged, other)
         streams[stream] = merged.drop(columns=["_seq"], errors="ignore")
-    lost = max((lost_samples(v[SEQ_SIGNAL]) for v in decoded.values.values() if SEQ_SIGNAL in v), default=0)
-    return streams, lost
+    return streams, max(lost_counts(decoded).values(), default=0)
 
 
 def _join(base: pd.DataFrame, other: pd.DataFrame) -> pd.DataFrame:

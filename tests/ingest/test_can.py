@@ -99,7 +99,7 @@ def test_can_log_fixture_decodes_into_standard_streams(source):
     assert rec.streams["line"]["line"].tolist() == (10 + i // 10).tolist()
     assert rec.streams["status"]["in_position"].tolist() == (i == 0).tolist()
     assert rec.metadata["unknown_ids"] == "10 frames with ids not in the DBC: 0x7FF (10)"
-    assert rec.dropped_frames == 1 and rec.metadata["lost_samples"] == "1"
+    assert rec.dropped_frames == 3 and rec.metadata["lost_samples"] == "1"  # its 3 frames are missing
     assert "feedlog_axes.dbc" in rec.attachments
 
 

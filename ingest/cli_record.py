@@ -1,0 +1,99 @@
+"""`feedlog record --source NAME [PROGRAM] [--profile P] -o REC.mcap`: record a live session.
+
+Sources are modules registered below by name; each provides `add_arguments(group)` for its own
+options and `record(args) -> dict` (a summary). SIGINT and SIGTERM stop a recording cleanly: the
+handler sets `args.stop_event`, the source finishes its file and returns.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import signal
+import threading
+from pathlib import Path
+
+from feedlog.errors import FeedlogError, IngestError
+from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT
+
+# source name -> module with add_arguments(group) and record(args) -> dict
+SOURCES: dict[str, str] = {
+    "can": "feedlog.ingest.source_can",
+    "sim": "feedlog.ingest.source_sim",
+    "linuxcnc": "feedlog.ingest.linuxcnc",
+}
+
+
+def _source_module(name: str):
+    try:
+        return importlib.import_module(SOURCES[name])
+    except ModuleNotFoundError as exc:
+        if exc.name == SOURCES[name]:
+            return None
+        raise
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("program", nargs="?", help="part program (sim, linuxcnc; attached to the recording)")
+    parser.add_argument("--source", default="can", choices=list(SOURCES), help="where the data comes from")
+    parser.add_argument("--profile", help="machine profile (name or TOML path), attached to the recording")
+    parser.add_argument("-o", "--out", required=True, help="recording to write (.mcap)")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    capture = parser.add_argument_group("CAN capture (can, sim)")
+    capture.add_argument("--dbc", help="DBC describing the frames (default: feedlog_axes.dbc)")
+    capture.add_argument("--duration-s", type=float, help="stop after this many seconds")
+    capture.add_argument("--quiet", action="store_true", help="no live progress line")
+    capture.add_argument("--json", action="store_true", help="print the summary as JSON")
+    for name in SOURCES:
+        module = _source_module(name)
+        if module is not None:
+            module.add_arguments(parser.add_argument_group(f"--source {name}"))
+
+
+def session_attachments(args: argparse.Namespace) -> tuple[dict[str, str], dict[str, bytes]]:
+    """Session metadata and attachments from the common arguments (program, profile)."""
+    metadata: dict[str, str] = {"machine": "", "controller": "", "units": "mm, deg, mm/min", "notes": ""}
+    attachments: dict[str, bytes] = {}
+    if getattr(args, "program", None):
+        path = Path(args.program)
+        if not path.is_file():
+            raise IngestError("part program not found", file=str(path))
+        attachments[PROGRAM_ATTACHMENT] = path.read_bytes()
+        metadata["program"] = path.name
+    if getattr(args, "profile", None):
+        from feedlog.profile import load_profile
+
+        profile = load_profile(args.profile)
+        attachments[PROFILE_ATTACHMENT] = profile.to_toml().encode("utf-8")
+        metadata["machine"] = profile.name
+    return metadata, attachments
+
+
+def run(args: argparse.Namespace) -> int:
+    module = _source_module(args.source)
+    if module is None:
+        raise FeedlogError(f"record source {args.source!r} is not available in this version")
+    if Path(args.out).exists() and not args.overwrite:
+        raise IngestError("output exists; pass --overwrite to replace it", file=args.out)
+    args.stop_event = threading.Event()
+    previous = {}
+
+    def on_signal(signum, frame) -> None:
+        args.stop_event.set()
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        previous[signum] = signal.signal(signum, on_signal)
+    try:
+        summary = module.record(args)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    if args.json:
+        print(json.dumps(summary, indent=2, default=str))
+    else:
+        print(", ".join(f"{k}: {v}" for k, v in summary.items() if k != "streams"))
+    if summary.get("error"):
+        raise IngestError(f"recording stopped: {summary['error']}; the frames recorded before are kept "
+                          "(read them with feedlog info --recover)")
+    return 0
