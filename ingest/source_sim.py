@@ -18,7 +18,7 @@ import queue
 import sys
 import threading
 import time
-from typing import Any
+from typing import Any, Iterable, Iterator
 
 import can
 import numpy as np
@@ -37,10 +37,10 @@ def add_arguments(group: argparse._ArgumentGroup) -> None:
     group.add_argument("--speedup", type=float, default=1.0, help="play K times faster than real time (default 1)")
 
 
-def sim_frames(series: pd.DataFrame, layout: DbcLayout, *, t0_ns: int = 0) -> CanFrames:
+def sim_frames(series: pd.DataFrame, layout: DbcLayout, *, t0_ns: int = 0, first_seq: int = 0) -> CanFrames:
     """All frames of a simulated series, sample by sample (XY, ZA, [BC], PATH), at t0_ns + t_ns."""
     n = len(series)
-    seq = np.arange(n) % 256
+    seq = (np.arange(n) + first_seq) % 256
     zeros = np.zeros(n)
 
     def col(name: str) -> np.ndarray:
@@ -79,12 +79,19 @@ class _PlayerBus(VirtualBus):
             raise can.CanOperationError("bus overrun: a receiver's queue is full")
 
 
+def frame_blocks(series: pd.DataFrame, layout: DbcLayout, *, t0_ns: int = 0,
+                 block: int = 10_000) -> Iterator[CanFrames]:
+    """`sim_frames` block by block, so a long session never holds all its frames at once."""
+    for start in range(0, len(series), block):
+        yield sim_frames(series.iloc[start:start + block], layout, t0_ns=t0_ns, first_seq=start)
+
+
 class Player(threading.Thread):
     """Sends frames on a virtual bus when their machine time is due (real time x speedup)."""
 
-    def __init__(self, frames: CanFrames, channel: str, *, speedup: float, stop: threading.Event) -> None:
+    def __init__(self, blocks: Iterable[CanFrames], channel: str, *, speedup: float, stop: threading.Event) -> None:
         super().__init__(name="feedlog-sim-player", daemon=True)
-        self.frames = frames
+        self.blocks = blocks
         self.channel = channel
         self.speedup = speedup
         self.stop_event = stop
@@ -95,30 +102,38 @@ class Player(threading.Thread):
     def run(self) -> None:
         bus = _PlayerBus(channel=self.channel, preserve_timestamps=True)
         try:
-            f = self.frames
-            due_s = (f.t_ns - f.t_ns[0]) / 1e9 if len(f) else np.zeros(0)
-            stamp = f.t_ns / 1e9
             start = time.monotonic()
-            k = 0
-            while k < len(f) and not self.stop_event.is_set():
-                end = int(np.searchsorted(due_s, (time.monotonic() - start) * self.speedup, side="right"))
-                end = min(end, k + 20_000)
-                if end <= k:
-                    time.sleep(0.001)
-                    continue
-                block = f.data[k:end].tobytes()
-                for j, (ts, can_id) in enumerate(zip(stamp[k:end].tolist(), f.can_id[k:end].tolist())):
-                    msg = can.Message(timestamp=ts, arbitration_id=can_id, data=block[8 * j: 8 * j + 8],
-                                      is_extended_id=False)
-                    try:
-                        bus.send(msg, timeout=0.05)
-                        self.sent += 1
-                    except can.CanError:
-                        self.overruns += 1
-                k = end
+            first_ns = None
+            for frames in self.blocks:
+                if first_ns is None and len(frames):
+                    first_ns = int(frames.t_ns[0])
+                if self.stop_event.is_set():
+                    break
+                self._play(bus, frames, start, first_ns or 0)
         finally:
             bus.shutdown()
             self.done.set()
+
+    def _play(self, bus, f: CanFrames, start: float, first_ns: int) -> None:
+        due_s = (f.t_ns - first_ns) / 1e9
+        stamp = f.t_ns / 1e9
+        k = 0
+        while k < len(f) and not self.stop_event.is_set():
+            end = int(np.searchsorted(due_s, (time.monotonic() - start) * self.speedup, side="right"))
+            end = min(end, k + 20_000)
+            if end <= k:
+                time.sleep(0.001)
+                continue
+            block = f.data[k:end].tobytes()
+            for j, (ts, can_id) in enumerate(zip(stamp[k:end].tolist(), f.can_id[k:end].tolist())):
+                msg = can.Message(timestamp=ts, arbitration_id=can_id, data=block[8 * j: 8 * j + 8],
+                                  is_extended_id=False)
+                try:
+                    bus.send(msg, timeout=0.05)
+                    self.sent += 1
+                except can.CanError:
+                    self.overruns += 1
+            k = end
 
 
 def record(args: argparse.Namespace) -> dict[str, Any]:
@@ -138,7 +153,7 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
         raise IngestError("the simulation produced no samples", file=args.program)
     layout = DbcLayout(args.dbc)
     t0_ns = time.time_ns() // 1_000_000 * 1_000_000  # whole ms, so frame times stay exact after the us rounding
-    frames = sim_frames(series, layout, t0_ns=t0_ns)
+    n_frames = len(series) * (4 if ("b_deg" in series or "c_deg" in series) else 3)
     channel = f"feedlog-sim-{os.getpid()}-{t0_ns}"
     metadata, attachments = session_attachments(args)
     metadata.update({"source": "sim", "controller": "feedlog sim", "nominal_rate_hz": f"{args.rate_hz:g}",
@@ -146,7 +161,7 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
                      "start_time": pd.Timestamp(t0_ns, tz="UTC").isoformat()})
     stop = getattr(args, "stop_event", None) or threading.Event()
     rx = can.Bus(interface="virtual", channel=channel, rx_queue_size=MAX_BUS_QUEUE)
-    player = Player(frames, channel, speedup=args.speedup, stop=stop)
+    player = Player(frame_blocks(series, layout, t0_ns=t0_ns), channel, speedup=args.speedup, stop=stop)
     try:
         player.start()
         summary = record_bus(rx, args.out, dbc=args.dbc, metadata=metadata, attachments=attachments,
@@ -156,7 +171,7 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
         stop.set()
         player.join(timeout=5)
         rx.shutdown()
-    summary.update({"frames_sent": player.sent, "bus_overruns": player.overruns, "frames_planned": len(frames),
+    summary.update({"frames_sent": player.sent, "bus_overruns": player.overruns, "frames_planned": n_frames,
                     "sim_samples": len(series)})
     return summary
 
