@@ -27,6 +27,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sim", action="store_true", help="overlay the simulated feed (needs a profile)")
     parser.add_argument("--model", type=Path, action="append", default=[],
                         help="trained model checkpoint (.pt) whose prediction to overlay; repeatable")
+    parser.add_argument("--lenient", action="store_true",
+                        help="skip G-codes the parser does not support (each one is listed) instead of failing")
     parser.add_argument("--no-align", action="store_true",
                         help="take block times from the recording's line stream instead of aligning")
     parser.add_argument("--arrow-every", type=int, default=50, help="five-axis: one orientation arrow per N samples")
@@ -45,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     recording = stage_function("read_recording")(args.recording)
     name = args.recording.stem
     gathered = gather(recording, name=name, program=args.program, profile=args.profile, simulate=args.sim,
-                      align=not args.no_align, arrow_every=args.arrow_every)
+                      align=not args.no_align, arrow_every=args.arrow_every, lenient=args.lenient)
     for checkpoint in args.model:
         if gathered.program is None:
             raise FeedlogError(f"--model {checkpoint}: a model predicts from the part program, and there is none")

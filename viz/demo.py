@@ -24,6 +24,7 @@ from feedlog.viz.report import (ReportSection, TableRow, cycle_time_table, table
 DEFAULT_RECORDINGS = Path("recordings")
 DEFAULT_OUT = Path("demo-out")
 MARKER = ".feedlog-demo"   # marks a folder the demo wrote, so a rerun may replace it
+DETAIL_PLOTS = 4  # recordings that get all four plots; the others get the feed plot
 OUTPUTS = ("report.md", "cycle_times.json", "plots", "rerun", "models", MARKER)
 
 
@@ -72,20 +73,36 @@ def _rows(result: DemoResult) -> list[TableRow]:
     return rows
 
 
-def write_outputs(result: DemoResult, out: Path, *, log) -> dict[str, Path]:
-    """Plots, .rrd files, JSON table and the Markdown report; returns what was written."""
+def detail_runs(result: DemoResult, count: int) -> set[str]:
+    """Recordings that get every plot: held-out (test) ones first, then training ones, `count` in all."""
+    shown = [r for r in result.runs if r.data is not None]
+    shown.sort(key=lambda r: r.entry.split != "test")
+    return {r.entry.name for r in shown[:count]}
+
+
+def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PLOTS) -> dict[str, Path]:
+    """Plots, .rrd files, JSON table and the Markdown report; returns what was written.
+
+    Every recording gets its feed plot and .rrd; `detail` recordings also get the axis, path and
+    block-time plots (matplotlib is the slow part of the demo).
+    """
+    started = time.perf_counter()
     plots_dir, rerun_dir = out / "plots", out / "rerun"
     model_names = list(result.training.checkpoints) if result.training and result.training.available else []
     table = cycle_time_table(_rows(result), model_names=model_names)
+    detailed = detail_runs(result, detail)
     for run in result.runs:
         if run.data is None:
             continue
-        run.plots = plot_view(run.data, plots_dir, stem=run.entry.name)
+        kinds = None if run.entry.name in detailed else ("feed",)
+        run.plots = plot_view(run.data, plots_dir, stem=run.entry.name, kinds=kinds)
         rerun_dir.mkdir(parents=True, exist_ok=True)
         run.rrd = rerun_dir / f"{run.entry.name}.rrd"
         save_view(run.data, run.rrd)
         log(f"{run.entry.name}: plots and {run.rrd.name} written")
     bars = plot_cycle_times(table, plots_dir / "cycle_times.png") if len(table) else None
+    result.timings_s["plots_and_rrd"] = time.perf_counter() - started
+    result.timings_s["total"] = result.timings_s.get("total", 0.0) + result.timings_s["plots_and_rrd"]
     json_path = out / "cycle_times.json"
     json_path.write_text(table_json(table) + "\n")
     report = write_report(out / "report.md", title="feedlog demo: cycle times on the bundled recordings",
@@ -126,7 +143,9 @@ def _sections(result: DemoResult, bars: Path | None) -> list[ReportSection]:
         if run.summary:
             streams = ", ".join(f"{k} {v}" for k, v in run.summary["streams"].items())
             s.lines.append(f"Duration {run.summary['duration_s']} s; samples per stream: {streams}; "
-                           f"dropped frames {run.summary['dropped_frames']}.")
+                           f"dropped frames {run.summary['dropped_frames']}"
+                           + ("; samples and dropped frames match the manifest." if run.summary.get("manifest")
+                              else "."))
         if run.measured_source:
             s.lines.append(f"Measured cycle time from {run.measured_source}.")
         if run.rrd is not None:
@@ -160,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"  trained models:                {written['models']}/<name>.pt  (feedlog predict PROGRAM --model ...)")
     if rrds:
         print(f"  Rerun recordings:              {written['rerun']}/")
-        print(f"  open them in Rerun with:       rerun {' '.join(str(p) for p in rrds)}")
+        print(f"  open them in Rerun with:       rerun {written['rerun']}/*.rrd   (or one: rerun {rrds[0]})")
         print(f"  or one recording at a time:    feedlog view RECORDING --sim")
     missing = [s for s, reason in result.stages.items() if reason]
     if missing:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from feedlog.errors import FeedlogError
-from feedlog.ingest.recording import PROGRAM_ATTACHMENT, Recording
+from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording
 from feedlog.viz.prepare import ModelPrediction, ViewData, prepare_view
 from feedlog.viz.sources import Gathered, finite_or_none, gather
 from feedlog.viz.stages import StageMissing, availability, stage_function
@@ -49,6 +49,9 @@ class RecordingEntry:
     name: str
     program: str
     split: str = "train"
+    program_path: Path | None = None      # manifest's program file (used when none is attached)
+    profile: str | None = None            # manifest's machine profile (used when none is attached)
+    expected: dict[str, Any] = field(default_factory=dict)   # manifest's samples, dropped_frames, cycle_time_s
 
 
 @dataclass
@@ -99,8 +102,11 @@ def discover(folder: Path) -> list[RecordingEntry]:
         if split not in SPLITS:
             raise FeedlogError(f"{manifest}: recording {file}: split must be one of {', '.join(SPLITS)}, got {split!r}")
         name = str(item.get("name", path.stem))
-        program = str(item.get("program", name))
-        entries.append(RecordingEntry(path=path, name=name, program=Path(program).stem, split=split))
+        program = item.get("program")
+        expected = {k: item[k] for k in ("samples", "dropped_frames", "cycle_time_s") if k in item}
+        entries.append(RecordingEntry(path=path, name=name, program=Path(program).stem if program else name,
+                                      split=split, program_path=folder / program if program else None,
+                                      profile=item.get("profile"), expected=expected))
     return entries
 
 
@@ -123,9 +129,32 @@ def verify(run: RecordingRun) -> bool:
         return False
     if recording.dropped_frames:
         run.notes.append(f"{recording.dropped_frames} frames were dropped while recording")
-    if PROGRAM_ATTACHMENT not in recording.attachments:
-        run.notes.append("no part program attached: no alignment, simulation or prediction")
+    if PROGRAM_ATTACHMENT not in recording.attachments and run.entry.program_path is None:
+        run.notes.append("no part program attached or listed: no alignment, simulation or prediction")
+    _check_manifest(run)
     return True
+
+
+def _check_manifest(run: RecordingRun) -> None:
+    """Compare the file with what the manifest says was recorded."""
+    expected, rec = run.entry.expected, run.recording
+    samples = len(rec.streams["axes"])
+    if "samples" in expected and int(expected["samples"]) != samples:
+        run.errors.append(f"manifest lists {expected['samples']} samples, the file's axes stream has {samples}")
+    if "dropped_frames" in expected and int(expected["dropped_frames"]) != rec.dropped_frames:
+        run.errors.append(f"manifest lists {expected['dropped_frames']} dropped frames, the file says "
+                          f"{rec.dropped_frames}")
+    if expected and not run.errors:
+        run.summary["manifest"] = "matches"
+
+
+def _check_cycle_time(run: RecordingRun) -> None:
+    expected = run.entry.expected.get("cycle_time_s")
+    if expected is None or run.measured_s is None:
+        return
+    if abs(float(expected) - run.measured_s) > 0.005:
+        run.notes.append(f"measured cycle time {run.measured_s:.3f} s ({run.measured_source}) differs from the "
+                         f"manifest's {float(expected):.3f} s")
 
 
 def _measured(run: RecordingRun) -> None:
@@ -192,8 +221,10 @@ def run_demo(config: DemoConfig) -> DemoResult:
         log(f"{run.entry.name}: verify, align, simulate")
         if not verify(run):
             continue
-        run.gathered = _guarded(run, "gather", lambda run=run: gather(run.recording, name=run.entry.name,
-                                                                        catch_bugs=True))
+        run.gathered = _guarded(run, "gather", lambda run=run: gather(
+            run.recording, name=run.entry.name, catch_bugs=True, lenient=True,
+            program=None if PROGRAM_ATTACHMENT in run.recording.attachments else run.entry.program_path,
+            profile=None if PROFILE_ATTACHMENT in run.recording.attachments else run.entry.profile))
         if run.gathered is not None:
             for note in run.gathered.notes:
                 (run.errors if "failed" in note else run.notes).append(note)
@@ -218,6 +249,7 @@ def run_demo(config: DemoConfig) -> DemoResult:
         run.gathered.inputs.models = list(run.models.values())
         run.data = _guarded(run, "overlays", lambda run=run: prepare_view(run.gathered.inputs))
         _measured(run)
+        _check_cycle_time(run)
     timings["overlays"] = time.perf_counter() - t2
     timings["total"] = time.perf_counter() - t0
     return DemoResult(runs=runs, stages=stages, training=training, timings_s=timings)

@@ -139,13 +139,15 @@ def plot_cycle_times(table: pd.DataFrame, path: str | Path) -> Path:
     return _save(fig, Path(path))
 
 
-def plot_view(data: ViewData, out_dir: str | Path, *, stem: str | None = None) -> dict[str, Path]:
-    """All per-recording plots into `out_dir`; returns kind -> path."""
+PLOTS = {"feed": plot_feed, "axes": plot_axes, "path": plot_path, "blocks": plot_block_times}
+
+
+def plot_view(data: ViewData, out_dir: str | Path, *, stem: str | None = None,
+              kinds: tuple[str, ...] | None = None) -> dict[str, Path]:
+    """Per-recording plots (`kinds` of PLOTS, default all) into `out_dir` as `<stem>_<kind>.png`."""
     out = Path(out_dir)
     stem = stem or data.name
-    return {
-        "feed": plot_feed(data, out / f"{stem}_feed.png"),
-        "axes": plot_axes(data, out / f"{stem}_axes.png"),
-        "path": plot_path(data, out / f"{stem}_path.png"),
-        "blocks": plot_block_times(data, out / f"{stem}_blocks.png"),
-    }
+    unknown = set(kinds or ()) - set(PLOTS)
+    if unknown:
+        raise ValueError(f"unknown plot kinds {sorted(unknown)}; known: {', '.join(PLOTS)}")
+    return {kind: PLOTS[kind](data, out / f"{stem}_{kind}.png") for kind in (kinds or tuple(PLOTS))}

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from feedlog.errors import FeedlogError
+from feedlog.errors import FeedlogError, ProgramError
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import MachineProfile, load_profile
 from feedlog.viz.prepare import ModelPrediction, ViewInputs
@@ -47,15 +47,30 @@ def recording_profile(recording: Recording, *, override: str | Path | None = Non
     return None
 
 
-def load_program(recording: Recording, *, program: str | Path | None = None, name: str = "program"):
-    """Parse the given program file, else the program attached to the recording; None when neither."""
+def load_program(recording: Recording, *, program: str | Path | None = None, name: str = "program",
+                 lenient: bool = False, notes: list[str] | None = None):
+    """Parse the given program file, else the program attached to the recording; None when neither.
+
+    Strict first; with `lenient`, a program the strict parser refuses is parsed again leniently and
+    every skipped code is named in `notes` (the user sees exactly what was not interpreted).
+    """
     parse_program = stage_function("parse_program")
     if program is not None:
-        return parse_program(Path(program))
-    text = recording.program_text
-    if text is None:
-        return None
-    return parse_program(text, name=f"{name}.ngc")
+        source, label = Path(program), None
+    else:
+        source, label = recording.program_text, f"{name}.ngc"
+        if source is None:
+            return None
+    try:
+        return parse_program(source, name=label)
+    except ProgramError as exc:
+        if not lenient:
+            raise
+        parsed = parse_program(source, name=label, lenient=True)
+        skipped = ", ".join(f"{u.code} (line {u.line})" for u in parsed.unsupported) or "nothing"
+        if notes is not None:
+            notes.append(f"program parsed leniently after: {exc}; skipped {skipped}")
+        return parsed
 
 
 def measured_blocks_of(aligned: Any) -> pd.DataFrame | None:
@@ -69,7 +84,7 @@ def measured_blocks_of(aligned: Any) -> pd.DataFrame | None:
 def gather(recording: Recording, *, name: str, program: str | Path | None = None,
            profile: str | Path | MachineProfile | None = None, simulate: bool = True, align: bool = True,
            models: list[ModelPrediction] | None = None, arrow_every: int = 50,
-           catch_bugs: bool = False) -> Gathered:
+           catch_bugs: bool = False, lenient: bool = False) -> Gathered:
     """Everything available to overlay on `recording`; what is not is named in `.notes`.
 
     With `catch_bugs` an unexpected exception inside align or sim becomes a note too (the demo must
@@ -83,7 +98,7 @@ def gather(recording: Recording, *, name: str, program: str | Path | None = None
 
     prog = path = None
     try:
-        prog = load_program(recording, program=program, name=name)
+        prog = load_program(recording, program=program, name=name, lenient=lenient, notes=notes)
         if prog is None:
             notes.append("no part program (none attached, none given): programmed path and blocks not shown")
         else:
