@@ -1,0 +1,155 @@
+"""Train every requested model on the training tables and evaluate it on the held-out ones.
+
+`train_and_evaluate` returns (and writes as CSV and Markdown) a table in the papers' shape: one row
+per held-out recording with its measured cycle time, CAM's estimate, the simulation's when it ran,
+and each model's prediction, with errors in percent as (predicted - measured) / measured.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from feedlog.errors import FeedlogError, ModelError
+from feedlog.train.checkpoint import save_checkpoint
+from feedlog.train.dataset import TARGET, ProgramTable, fingerprint
+from feedlog.train.model_final import FinalBiLSTM
+from feedlog.train.model_hybrid import SIM_COLUMN, attach_sim
+from feedlog.train.registry import make_config, model_class, model_names
+
+DEFAULT_MODELS = ("mlp", "bilstm-block", "bilstm-final", "bilstm-r", "hybrid")
+RESULTS_CSV, RESULTS_MD, PREDICTIONS_DIR = "results.csv", "results.md", "predictions"
+
+
+def error_pct(predicted: float, measured: float) -> float:
+    return float("nan") if not measured else 100.0 * (predicted - measured) / measured
+
+
+def _with_sim(tables: Sequence[ProgramTable], log: Callable[[str], None]) -> list[ProgramTable] | None:
+    out = []
+    for t in tables:
+        try:
+            out.append(attach_sim(t))
+        except FeedlogError as exc:
+            log(f"simulation unavailable for {t.name}: {exc}")
+            return None
+    return out
+
+
+def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
+                       models: Sequence[str] = DEFAULT_MODELS, seed: int = 0, preset: str = "full",
+                       overrides: dict[str, dict[str, Any]] | None = None, overwrite: bool = False,
+                       progress: bool = True, log: Callable[[str], None] | None = None) -> pd.DataFrame:
+    """Fit `models` on the 'train' tables, save `<out_dir>/<model>.pt`, evaluate on the 'test' tables.
+
+    `preset` "quick" trains the small, fast variants (the demo's); `overrides` maps a model name to
+    config fields. A model that cannot be trained here (the hybrid without a simulator) is skipped
+    and said so; the returned frame's `attrs["summary"]` holds per-model training reports.
+    """
+    log = log or (lambda msg: print(msg, file=sys.stderr))
+    for name in models:
+        model_class(name)  # unknown names fail before any training
+    train = [t for t in tables if t.split == "train"]
+    test = [t for t in tables if t.split == "test"]
+    if not train:
+        raise ModelError("no training recordings (split = 'train')")
+    if not test:
+        raise ModelError("no held-out test recordings (split = 'test'); name some with --test or the manifest")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    sim_train = sim_test = None
+    if "hybrid" in models:
+        sim_train, sim_test = _with_sim(train, log), _with_sim(test, log)
+    rows = [_base_row(t) for t in test]
+    if sim_test is not None:
+        for row, t in zip(rows, sim_test):
+            row["sim_s"] = float(t.blocks[SIM_COLUMN].sum())
+            row["sim_err_pct"] = error_pct(row["sim_s"], row["measured_s"])
+    block_preds = {t.name: t.blocks[["block", "line", TARGET]].copy() for t in test}
+    summary: dict[str, Any] = {}
+    for name in models:
+        fit_on, test_on = train, test
+        if name == "hybrid":
+            if sim_train is None or sim_test is None:
+                summary[name] = {"skipped": "the simulation could not run on every recording"}
+                log(f"{name}: skipped (no simulation)")
+                continue
+            fit_on, test_on = sim_train, sim_test
+        config = make_config(name, preset=preset, **{"seed": seed, **(overrides or {}).get(name, {})})
+        cls = model_class(name)
+        model = cls(config, target_lengths=[len(t.blocks) for t in test]) if cls is FinalBiLSTM else cls(config)
+        start = time.perf_counter()
+        model.fit(fit_on, progress=progress)
+        train_s = time.perf_counter() - start
+        if fit_on[0].profile is not None:
+            model.params.setdefault("profile", fit_on[0].profile.name)
+        model.fingerprint = fingerprint(fit_on, model.required_columns + [TARGET])
+        path = save_checkpoint(model, out / f"{name}.pt", overwrite=overwrite)
+        notes: list[str] = []
+        for row, t in zip(rows, test_on):
+            pred = model.predict(t)
+            row[f"{name}_s"] = pred.cycle_time_s
+            row[f"{name}_err_pct"] = error_pct(pred.cycle_time_s, row["measured_s"])
+            notes += [f"{t.name}: {n}" for n in pred.notes]
+            if pred.durations_s is not None:
+                block_preds[t.name][f"{name}_s"] = pred.durations_s
+        errs = np.abs([r[f"{name}_err_pct"] for r in rows])
+        summary[name] = {"checkpoint": str(path), "train_s": round(train_s, 2), "fingerprint": model.fingerprint[:16],
+                         "mean_abs_err_pct": float(np.mean(errs)), "max_abs_err_pct": float(np.max(errs)),
+                         "report": model.report, "notes": notes}
+        log(f"{name}: trained in {train_s:.1f} s, mean |error| {np.mean(errs):.2f} % on {len(rows)} test recording(s)")
+    results = pd.DataFrame(rows)
+    results.attrs["summary"] = summary
+    _write(results, block_preds, out, overwrite=overwrite)
+    return results
+
+
+def _base_row(t: ProgramTable) -> dict[str, Any]:
+    feed = t.blocks["feed_mm_min"].dropna()
+    tol = t.blocks["tol_mm"]
+    measured = t.measured_cycle_time_s
+    return {"recording": t.name, "program": t.program, "blocks": len(t.blocks),
+            "feed_mm_min": float(feed.median()) if len(feed) else float("nan"),
+            "tol_mm": float(tol.median()) if tol.notna().any() else float("nan"),
+            "measured_s": measured, "cam_s": t.cam_time_s, "cam_err_pct": error_pct(t.cam_time_s, measured)}
+
+
+def _write(results: pd.DataFrame, block_preds: dict[str, pd.DataFrame], out: Path, *, overwrite: bool) -> None:
+    for name in (RESULTS_CSV, RESULTS_MD):
+        if (out / name).exists() and not overwrite:
+            raise ModelError(f"{out / name} exists; refusing to overwrite it")
+    results.to_csv(out / RESULTS_CSV, index=False)
+    (out / RESULTS_MD).write_text(format_results(results, markdown=True) + "\n")
+    pred_dir = out / PREDICTIONS_DIR
+    pred_dir.mkdir(exist_ok=True)
+    for name, table in block_preds.items():
+        table.to_parquet(pred_dir / f"{name}.parquet", index=False)
+
+
+def model_columns(results: pd.DataFrame) -> list[str]:
+    known = set(model_names()) | {"cam", "sim"}
+    return [c[:-2] for c in results.columns if c.endswith("_s") and c[:-2] in known and c != "measured_s"]
+
+
+def format_results(results: pd.DataFrame, *, markdown: bool = False) -> str:
+    """The papers' table: measured time, then each estimate as `seconds (err %)`; a mean |error| row."""
+    names = model_columns(results)
+    header = ["recording", "F mm/min", "tol mm", "blocks", "measured s"] + [f"{n} s (err)" for n in names]
+    body = []
+    for _, r in results.iterrows():
+        cells = [str(r["recording"]), f"{r['feed_mm_min']:.0f}", f"{r['tol_mm']:g}", str(int(r["blocks"])),
+                 f"{r['measured_s']:.3f}"]
+        cells += [f"{r[f'{n}_s']:.3f} ({r[f'{n}_err_pct']:+.2f} %)" for n in names]
+        body.append(cells)
+    body.append(["mean |error|", "", "", "", ""] + [f"{np.mean(np.abs(results[f'{n}_err_pct'])):.2f} %" for n in names])
+    if markdown:
+        lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        return "\n".join(lines + ["| " + " | ".join(c) + " |" for c in body])
+    widths = [max(len(row[i]) for row in [header] + body) for i in range(len(header))]
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(row, widths)) for row in [header] + body)

@@ -1,0 +1,179 @@
+"""Model inputs: derived columns, neighbour context, the presence check and normalisation.
+
+Models read align's block tables, whose feature columns are `feedlog.toolpath.schema.FEATURE_COLUMNS`
+(plus `duration_s`, the measured block time). A few inputs are derived here:
+
+- `feed_eff_mm_min`: the feed the block is commanded at; rapids (and blocks without F) take
+  `length_mm / nominal_time_s`, i.e. the rapid rate the toolpath stage used for CAM time.
+- `tol_eff_mm`: `tol_mm` with "no tolerance" (NaN, G64 without P) as -1 so the net can tell it apart.
+- `ori_tol_deg`, `xo_mm`, `yo_mm`, `zo_mm`: machine constants from the profile (Chien Table 1:
+  epsilon_ORI and the workpiece offset [Xo, Yo, Zo]); profile defaults when no profile is given.
+- `<col>_prev` / `<col>_next`: the value at block n-1 / n+1 of the same program (0 beyond its ends,
+  where the machine is at rest), for Sun Table 1's n-1, n, n+1 context.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from feedlog.errors import ModelError
+from feedlog.profile import MachineProfile
+
+AXES3 = ("x", "y", "z")
+PROFILE_COLUMNS = ("ori_tol_deg", "xo_mm", "yo_mm", "zo_mm")
+NO_TOLERANCE_MM = -1.0
+
+# derived column -> raw columns it is computed from
+DERIVED: dict[str, tuple[str, ...]] = {
+    "feed_eff_mm_min": ("feed_mm_min", "length_mm", "nominal_time_s"),
+    "tol_eff_mm": ("tol_mm",),
+    **{c: () for c in PROFILE_COLUMNS},
+}
+
+# Chien Table 1 (F, L, theta_TCP,k, theta_TCP,k+1, eps_TCP, theta_k, theta_ORI,k, theta_ORI,k+1,
+# eps_ORI, sin(A), [Xo, Yo, Zo]) plus the CAM time L/F of the block.
+CHIEN_INPUTS = ("feed_eff_mm_min", "length_mm", "corner_start_deg", "corner_end_deg", "tol_eff_mm",
+                "ori_arc_deg", "ori_corner_start_deg", "ori_corner_end_deg", "ori_tol_deg", "sin_rot",
+                "xo_mm", "yo_mm", "zo_mm", "nominal_time_s")
+
+
+def sun_inputs(axis: str) -> tuple[str, ...]:
+    """Sun Table 1 for one axis: corner angles, nominal axis feed and acceleration at n-1, n, n+1.
+
+    The corner at CL point n-1 is the block's `corner_start_deg`, at n its `corner_end_deg`, at n+1
+    the next block's `corner_end_deg`.
+    """
+    feed, acc = f"v{axis}_nom_mm_min", f"a{axis}_nom_mm_s2"
+    return ("corner_start_deg", "corner_end_deg", "corner_end_deg_next",
+            f"{feed}_prev", feed, f"{feed}_next", f"{acc}_prev", acc, f"{acc}_next")
+
+
+def raw_columns(inputs: Iterable[str]) -> list[str]:
+    """The columns an input table must hold so that `inputs` can be built."""
+    out: list[str] = []
+    for name in inputs:
+        base = _context_base(name)
+        for col in DERIVED.get(base, (base,)):
+            if col not in out:
+                out.append(col)
+    return out
+
+
+def require(table: pd.DataFrame, columns: Iterable[str], *, what: str, source: str = "") -> None:
+    """Raise ModelError naming every missing column."""
+    missing = [c for c in columns if c not in table.columns]
+    if missing:
+        where = f"{source}: " if source else ""
+        raise ModelError(f"{where}input lacks column(s) {', '.join(missing)} needed by {what}; "
+                         f"it has: {', '.join(map(str, table.columns))}")
+
+
+def profile_constants(profile: MachineProfile | None) -> dict[str, float]:
+    """Machine constants used as inputs (Chien's eps_ORI and workpiece offset)."""
+    if profile is None:
+        from feedlog.profile import Interpolator, Kinematics
+        ori_tol, offset = Interpolator().orientation_tolerance_deg, Kinematics().workpiece_offset_mm
+    else:
+        ori_tol, offset = profile.interpolator.orientation_tolerance_deg, profile.kinematics.workpiece_offset_mm
+    return {"ori_tol_deg": float(ori_tol), "xo_mm": float(offset[0]), "yo_mm": float(offset[1]),
+            "zo_mm": float(offset[2])}
+
+
+def build_inputs(table: pd.DataFrame, inputs: Sequence[str], *, constants: dict[str, float] | None = None,
+                 what: str = "the model", source: str = "") -> np.ndarray:
+    """The float32 matrix (rows x inputs) of one program's block table, in `inputs` order."""
+    require(table, raw_columns(inputs), what=what, source=source)
+    cols: dict[str, np.ndarray] = {}
+    for name in inputs:
+        base = _context_base(name)
+        if base not in cols:
+            cols[base] = _base_column(table, base, constants or {})
+        values = cols[base]
+        if name.endswith("_prev"):
+            values = np.concatenate([[0.0], values[:-1]]) if len(values) else values
+        elif name.endswith("_next"):
+            values = np.concatenate([values[1:], [0.0]]) if len(values) else values
+        cols[name] = values
+    matrix = np.column_stack([cols[n] for n in inputs]) if len(inputs) else np.zeros((len(table), 0))
+    bad = ~np.isfinite(matrix)
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        where = f"{source}: " if source else ""
+        raise ModelError(f"{where}input column {inputs[col]!r} is not finite at row {row} "
+                         f"(block {table['block'].iloc[row] if 'block' in table else row}); "
+                         f"{int(bad.sum())} bad value(s) in all")
+    return matrix.astype(np.float32)
+
+
+def _context_base(name: str) -> str:
+    for suffix in ("_prev", "_next"):
+        if name.endswith(suffix):
+            return name[: -len(suffix)]
+    return name
+
+
+def _base_column(table: pd.DataFrame, name: str, constants: dict[str, float]) -> np.ndarray:
+    n = len(table)
+    if name in PROFILE_COLUMNS:
+        if name in table.columns:
+            return table[name].to_numpy(np.float64)
+        return np.full(n, constants.get(name, 0.0))
+    if name == "feed_eff_mm_min":
+        return effective_feed(table)
+    if name == "tol_eff_mm":
+        tol = table["tol_mm"].to_numpy(np.float64)
+        return np.where(np.isnan(tol), NO_TOLERANCE_MM, tol)
+    return pd.to_numeric(table[name], errors="coerce").to_numpy(np.float64)
+
+
+def effective_feed(table: pd.DataFrame) -> np.ndarray:
+    """Commanded feed (mm/min); L / nominal time where F is absent or zero (rapids)."""
+    feed = table["feed_mm_min"].to_numpy(np.float64)
+    length = table["length_mm"].to_numpy(np.float64)
+    nominal = table["nominal_time_s"].to_numpy(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        from_time = np.where(nominal > 0, length / nominal * 60.0, np.nan)
+    rapid = (table["kind"].astype(str).to_numpy() == "rapid") if "kind" in table else np.zeros(len(table), bool)
+    use_time = rapid | ~np.isfinite(feed) | (feed <= 0)
+    out = np.where(use_time & np.isfinite(from_time), from_time, feed)
+    return np.where(np.isfinite(out), out, 0.0)
+
+
+@dataclass(frozen=True)
+class Normaliser:
+    """Per-column z-score: (x - mean) / std, std floored so constant columns map to 0."""
+
+    mean: tuple[float, ...]
+    std: tuple[float, ...]
+
+    @classmethod
+    def fit(cls, matrix: np.ndarray) -> Normaliser:
+        matrix = np.asarray(matrix, np.float64)
+        if matrix.ndim == 1:
+            matrix = matrix[:, None]
+        if len(matrix) == 0:
+            raise ModelError("no training rows to compute normalisation statistics from")
+        mean = matrix.mean(axis=0)
+        std = matrix.std(axis=0)
+        std = np.where(std > 1e-9 * np.maximum(1.0, np.abs(mean)), std, 1.0)
+        return cls(tuple(float(v) for v in mean), tuple(float(v) for v in std))
+
+    def apply(self, matrix: np.ndarray) -> np.ndarray:
+        return ((matrix - np.asarray(self.mean, np.float32)) / np.asarray(self.std, np.float32)).astype(np.float32)
+
+    def invert(self, values: np.ndarray) -> np.ndarray:
+        return np.asarray(values, np.float64) * np.asarray(self.std) + np.asarray(self.mean)
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {"mean": list(self.mean), "std": list(self.std)}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Normaliser:
+        try:
+            return cls(tuple(float(v) for v in data["mean"]), tuple(float(v) for v in data["std"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ModelError(f"checkpoint normalisation statistics are malformed: {exc}") from None

@@ -1,0 +1,114 @@
+"""Reading align's output folders into `ProgramTable`s, with split, profile and program from the manifest.
+
+An aligned folder (`feedlog align ... -o OUT` writes OUT/<recording>/) holds `blocks.parquet` and
+`points.parquet`. The recordings' `manifest.toml` (recordings/manifest.toml: `[[recording]]` tables
+with `name`, `split`, `profile`, `program`, `family`) says which recordings are held out for testing.
+It is found next to the recording named in the tables' metadata, or in a parent of the aligned folder
+(or its `recordings/` subfolder), unless given explicitly.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from feedlog.errors import FeedlogError, ModelError
+from feedlog.profile import load_profile
+from feedlog.train.dataset import ProgramTable
+
+MANIFEST = "manifest.toml"
+
+
+def read_manifest(path: str | Path) -> dict[str, dict[str, Any]]:
+    """Recording name -> its manifest entry (with `_dir`, the manifest's folder)."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise ModelError(f"{path}: cannot read the recordings manifest ({exc})") from None
+    entries = data.get("recording", [])
+    if not isinstance(entries, list):
+        raise ModelError(f"{path}: [[recording]] entries expected")
+    out = {}
+    for i, entry in enumerate(entries):
+        if not isinstance(entry, dict) or "name" not in entry:
+            raise ModelError(f"{path}: recording entry {i + 1} has no name")
+        out[str(entry["name"])] = {**entry, "_dir": str(path.parent)}
+    return out
+
+
+def _manifest_candidates(folder: Path, meta: dict[str, Any]) -> Iterable[Path]:
+    rec = meta.get("recording")
+    if rec:
+        yield Path(rec).parent / MANIFEST
+    for parent in [folder, *folder.resolve().parents]:
+        yield parent / MANIFEST
+        yield parent / "recordings" / MANIFEST
+
+
+def load_aligned(folder: str | Path, *, manifest: str | Path | None = None, split: str | None = None,
+                 with_points: bool = False) -> ProgramTable:
+    """One aligned recording. `split` overrides the manifest's; without either it is 'train'."""
+    from feedlog.align.tables import read_table  # align is only needed to read its files
+
+    folder = Path(folder)
+    blocks_path = folder / "blocks.parquet"
+    if not blocks_path.is_file():
+        raise ModelError(f"{folder}: no blocks.parquet (is this a `feedlog align` output folder?)")
+    try:
+        blocks, meta = read_table(blocks_path)
+        points = read_table(folder / "points.parquet")[0] if with_points and (folder / "points.parquet").is_file() else None
+    except FeedlogError as exc:
+        raise ModelError(str(exc)) from None
+    name = folder.name
+    entries: dict[str, dict[str, Any]] = {}
+    candidates = [Path(manifest)] if manifest is not None else _manifest_candidates(folder, meta)
+    for cand in candidates:
+        if cand.is_file():
+            entries = read_manifest(cand)
+            if name in entries:
+                break
+    entry = entries.get(name, {})
+    profile = None
+    if entry.get("profile"):
+        profile = load_profile(entry["profile"])
+    program_text = None
+    if entry.get("program"):
+        program_path = Path(entry["_dir"]) / entry["program"]
+        if program_path.is_file():
+            program_text = program_path.read_text()
+    return ProgramTable(
+        name, blocks, program=str(entry.get("family", name)), split=split or str(entry.get("split", "train")),
+        points=points, profile=profile, program_text=program_text,
+        metadata={k: str(v) for k, v in entry.items() if not k.startswith("_")} | {
+            "aligned_dir": str(folder), "recording": str(meta.get("recording", ""))})
+
+
+def expand_aligned(paths: Iterable[str | Path]) -> list[Path]:
+    """Aligned folders from the given paths: a folder with blocks.parquet, or a folder of such folders."""
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if (p / "blocks.parquet").is_file():
+            out.append(p)
+        elif p.is_dir():
+            found = sorted(d for d in p.iterdir() if (d / "blocks.parquet").is_file())
+            if not found:
+                raise ModelError(f"{p}: holds no aligned recordings (no */blocks.parquet)")
+            out += found
+        else:
+            raise ModelError(f"{p}: not an aligned recording folder")
+    return out
+
+
+def load_many(paths: Iterable[str | Path], *, manifest: str | Path | None = None,
+              test: Iterable[str] = ()) -> list[ProgramTable]:
+    """Every aligned recording under `paths`; names in `test` are held out whatever the manifest says."""
+    test = set(test)
+    tables = [load_aligned(f, manifest=manifest, split="test" if f.name in test else None)
+              for f in expand_aligned(paths)]
+    unknown = test - {t.name for t in tables}
+    if unknown:
+        raise ModelError(f"--test names no loaded recording: {', '.join(sorted(unknown))}")
+    return tables

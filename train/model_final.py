@@ -1,0 +1,160 @@
+"""Bi-LSTM direct final cycle time (Chien Fig. 8): sequence to last, trained on whole-sequence times only.
+
+The "stopwatch" strategy: the network never sees a block time, only the total time of a stretch of
+blocks. Training examples are crops of the training programs whose lengths lie within
+`length_tolerance` (Chien §2.5: 5 %) of `crop_blocks`; a program shorter than a crop is used whole
+(the packed LSTM ignores padding). `crop_blocks` = 0 picks the median length of the programs the
+caller names as targets (`target_lengths`, e.g. the test programs) or else of the training programs.
+
+A program of N blocks is predicted as k = round(N / crop_blocks) consecutive, near-equal chunks whose
+predicted totals are summed; with k = 1 this is the paper's single pass. Chunks outside the trained
+length range are flagged in the prediction's notes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+import torch
+
+from feedlog.errors import ModelError
+from feedlog.train.dataset import ProgramTable
+from feedlog.train.features import CHIEN_INPUTS, Normaliser, build_inputs, profile_constants
+from feedlog.train.fitting import setup_torch, train_net
+from feedlog.train.nets import BiLSTMLast
+from feedlog.train.registry import Model, ModelConfig, TablePrediction, register_model
+
+PREDICT_BATCH = 1024
+
+
+@dataclass(frozen=True)
+class FinalConfig(ModelConfig):
+    inputs: tuple[str, ...] = CHIEN_INPUTS
+    hidden: int = 50
+    layers: int = 1
+    crop_blocks: int = 0
+    length_tolerance: float = 0.05
+    crops: int = 300
+    batch_size: int = 16
+    epochs: int = 150
+    patience: int = 20
+
+    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8, "crops": 160,
+                                                              "hidden": 32}}
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.hidden < 1 or self.layers < 1 or self.crops < 2:
+            raise ModelError(f"FinalConfig: need hidden, layers >= 1 and crops >= 2, got {self.hidden}, "
+                             f"{self.layers}, {self.crops}")
+        if self.crop_blocks < 0 or not 0 <= self.length_tolerance < 1:
+            raise ModelError(f"FinalConfig: need crop_blocks >= 0 and length_tolerance in [0, 1), got "
+                             f"{self.crop_blocks}, {self.length_tolerance}")
+
+
+def _padded(seqs: Sequence[np.ndarray]) -> tuple[torch.Tensor, torch.Tensor]:
+    lengths = np.array([len(s) for s in seqs])
+    out = np.zeros((len(seqs), int(lengths.max()), seqs[0].shape[1]), np.float32)
+    for i, s in enumerate(seqs):
+        out[i, :len(s)] = s
+    return torch.from_numpy(out), torch.from_numpy(lengths)
+
+
+@register_model
+class FinalBiLSTM(Model):
+    name = "bilstm-final"
+    config_class = FinalConfig
+    description = "Bi-LSTM sequence to last, whole-stretch times only (Chien Fig. 8, stopwatch strategy)"
+    config: FinalConfig
+
+    def __init__(self, config: FinalConfig | None = None, *, target_lengths: Sequence[int] = ()) -> None:
+        super().__init__(config)
+        self.target_lengths = list(target_lengths)
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        return tuple(self.config.inputs)
+
+    def build_nets(self) -> None:
+        setup_torch(self.config.seed)
+        self.nets = {"net": BiLSTMLast(len(self.inputs), self.config.hidden, self.config.layers)}
+
+    def _matrix(self, table: ProgramTable) -> np.ndarray:
+        constants = profile_constants(table.profile) if table.profile is not None else self.constants
+        return build_inputs(table.blocks, self.inputs, constants=constants, what=self.name, source=table.name)
+
+    def _crop_length(self, tables: Sequence[ProgramTable]) -> int:
+        if self.config.crop_blocks:
+            return self.config.crop_blocks
+        lengths = self.target_lengths or [len(t.blocks) for t in tables]
+        return max(2, int(np.median(lengths)))
+
+    def fit(self, tables: Sequence[ProgramTable], *, progress: bool = True) -> None:
+        cfg = self.config
+        if not tables:
+            raise ModelError(f"{self.name}: no training tables")
+        self.constants = profile_constants(tables[0].profile)
+        xs = [self._matrix(t) for t in tables]
+        ds = [t.durations() for t in tables]
+        crop = self._crop_length(tables)
+        lo, hi = max(1, int(np.floor(crop * (1 - cfg.length_tolerance)))), int(np.ceil(crop * (1 + cfg.length_tolerance)))
+        self.params = {"crop_blocks": crop, "min_blocks": lo, "max_blocks": hi}
+        rng = np.random.default_rng(cfg.seed)
+        sizes = np.array([len(x) for x in xs], np.float64)
+        which = rng.choice(len(xs), size=cfg.crops, p=sizes / sizes.sum())
+        seqs, totals = [], []
+        for i in which:
+            n = len(xs[i])
+            length = min(n, int(rng.integers(lo, hi + 1)))
+            start = int(rng.integers(0, n - length + 1))
+            seqs.append(xs[i][start:start + length])
+            totals.append(ds[i][start:start + length].sum())
+        totals_arr = np.array(totals)
+        n_val = int(round(cfg.crops * cfg.val_fraction))
+        order = rng.permutation(cfg.crops)
+        val_idx, train_idx = order[:n_val], order[n_val:]
+        self.norms["x"] = Normaliser.fit(np.concatenate([seqs[i] for i in train_idx]))
+        self.norms["y"] = Normaliser.fit(totals_arr[train_idx])
+        norm_seqs = [self.norms["x"].apply(s) for s in seqs]
+        y = torch.from_numpy(self.norms["y"].apply(totals_arr[:, None])[:, 0])
+        x_all, len_all = _padded(norm_seqs)
+        data = {"train": (x_all[train_idx], len_all[train_idx], y[train_idx]),
+                "val": (x_all[val_idx], len_all[val_idx], y[val_idx])}
+        self.build_nets()
+
+        def loss_fn(net, idx, split):
+            xb, lb, yb = data[split]
+            if idx is not None:
+                xb, lb, yb = xb[idx], lb[idx], yb[idx]
+            return torch.mean((net(xb, lb) - yb) ** 2)
+
+        self.report["net"] = train_net(
+            self.nets["net"], loss_fn, n_train=len(train_idx), n_val=len(val_idx), seed=cfg.seed,
+            epochs=cfg.epochs, lr=cfg.lr, batch_size=cfg.batch_size, patience=cfg.patience,
+            desc=self.name, progress=progress)
+
+    def chunks(self, n: int) -> list[np.ndarray]:
+        """Row index chunks a program of n blocks is predicted in."""
+        k = max(1, int(round(n / self.params["crop_blocks"])))
+        return np.array_split(np.arange(n), k)
+
+    def predict(self, table: ProgramTable) -> TablePrediction:
+        self.check_trained()
+        setup_torch()
+        x = self.norms["x"].apply(self._matrix(table))
+        if len(x) == 0:
+            return TablePrediction(0.0, None)
+        parts = self.chunks(len(x))
+        outside = [len(p) for p in parts if not self.params["min_blocks"] <= len(p) <= self.params["max_blocks"]]
+        net = self.nets["net"].eval()
+        total = 0.0
+        with torch.no_grad():
+            for i in range(0, len(parts), PREDICT_BATCH):
+                xb, lb = _padded([x[p] for p in parts[i:i + PREDICT_BATCH]])
+                total += float(self.norms["y"].invert(net(xb, lb).numpy()[:, None]).sum())
+        notes = [f"{len(outside)} of {len(parts)} chunk(s) outside the trained length range "
+                 f"{self.params['min_blocks']}-{self.params['max_blocks']} blocks (e.g. {outside[0]})"] if outside else []
+        return TablePrediction(max(total, 0.0), None, notes)

@@ -1,0 +1,134 @@
+"""Per-axis MLP (Sun et al. 2022): one small tanh network per axis, resultant feed (Eq. 9), time (Eq. 10).
+
+Inputs per axis are Sun Table 1: corner angles at CL points n-1, n, n+1 and the axis' nominal feed and
+acceleration at n-1, n, n+1 (`features.sun_inputs`). The target is the axis' *mean* feed over the
+segment ending at CL point n, `v_axis_nom * nominal_time_s / duration_s`: Sun takes the measured feed
+at the CL point itself, but Eq. 10 integrates the time over each segment, and the segment's mean feed
+makes that integral exact (at a sharp corner the instantaneous feed is near zero and Eq. 10 would
+explode). Eq. 9 gives the resultant f = sqrt(fx^2 + fy^2 + fz^2); Eq. 10 gives each block's time as
+its nominal time scaled by |v_nom| / f (= L / f for lines).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+import torch
+
+from feedlog.errors import ModelError
+from feedlog.train.dataset import ProgramTable, tail_split
+from feedlog.train.features import AXES3, Normaliser, build_inputs, sun_inputs
+from feedlog.train.fitting import setup_torch, train_net
+from feedlog.train.nets import AxisMLP
+from feedlog.train.registry import Model, ModelConfig, TablePrediction, register_model
+
+
+@dataclass(frozen=True)
+class MLPConfig(ModelConfig):
+    hidden: tuple[int, ...] = (5, 10)
+    axes: tuple[str, ...] = AXES3
+    lr: float = 0.01
+    batch_size: int = 256
+    epochs: int = 300
+    patience: int = 30
+    min_feed_ratio: float = 0.02  # predicted resultant feed floored at this fraction of the nominal one
+
+    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 80, "patience": 15}}
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.hidden or any(h < 1 for h in self.hidden):
+            raise ModelError(f"MLPConfig.hidden needs positive layer sizes, got {self.hidden}")
+        if not self.axes or any(a not in AXES3 for a in self.axes):
+            raise ModelError(f"MLPConfig.axes must be a subset of {AXES3}, got {self.axes}")
+        if not 0 < self.min_feed_ratio < 1:
+            raise ModelError(f"MLPConfig.min_feed_ratio must be in (0, 1), got {self.min_feed_ratio}")
+
+
+def _nominal(table: ProgramTable, axes: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Nominal axis feeds (rows x axes, mm/min) and nominal block times (s)."""
+    b = table.blocks
+    v = np.column_stack([b[f"v{a}_nom_mm_min"].to_numpy(np.float64) for a in axes])
+    return np.nan_to_num(v), np.nan_to_num(b["nominal_time_s"].to_numpy(np.float64))
+
+
+@register_model
+class PerAxisMLP(Model):
+    name = "mlp"
+    config_class = MLPConfig
+    description = "per-axis MLP on Sun Table 1 features; resultant feed (Eq. 9), cycle time (Eq. 10)"
+    config: MLPConfig
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        out: list[str] = []
+        for a in self.config.axes:
+            out += [c for c in sun_inputs(a) if c not in out]
+        return tuple(out) + ("nominal_time_s",)
+
+    def build_nets(self) -> None:
+        setup_torch(self.config.seed)
+        self.nets = {a: AxisMLP(len(sun_inputs(a)), self.config.hidden) for a in self.config.axes}
+
+    def fit(self, tables: Sequence[ProgramTable], *, progress: bool = True) -> None:
+        cfg = self.config
+        xs: dict[str, list[np.ndarray]] = {a: [] for a in cfg.axes}
+        ys: dict[str, list[np.ndarray]] = {a: [] for a in cfg.axes}
+        is_val: list[np.ndarray] = []
+        for t in tables:
+            v, nominal = _nominal(t, cfg.axes)
+            d = t.durations()
+            keep = (nominal > 0) & (d > 0) & (np.abs(v).sum(axis=1) > 0)
+            val = np.zeros(len(d), bool)
+            val[tail_split(len(d), cfg.val_fraction):] = True
+            is_val.append(val[keep])
+            for i, a in enumerate(cfg.axes):
+                xs[a].append(build_inputs(t.blocks, sun_inputs(a), what="mlp", source=t.name)[keep])
+                ys[a].append((v[:, i] * nominal / np.where(d > 0, d, 1.0))[keep])
+        val_mask = np.concatenate(is_val)
+        if (~val_mask).sum() < 2:
+            raise ModelError("mlp: fewer than 2 usable training blocks (need nominal time and duration > 0)")
+        self.build_nets()
+        for a in cfg.axes:
+            x, y = np.concatenate(xs[a]), np.concatenate(ys[a])
+            self.norms[f"x_{a}"] = Normaliser.fit(x[~val_mask])
+            self.norms[f"y_{a}"] = Normaliser.fit(y[~val_mask])
+            xn = torch.from_numpy(self.norms[f"x_{a}"].apply(x))
+            yn = torch.from_numpy(self.norms[f"y_{a}"].apply(y[:, None])[:, 0])
+            data = {"train": (xn[torch.from_numpy(~val_mask)], yn[torch.from_numpy(~val_mask)]),
+                    "val": (xn[torch.from_numpy(val_mask)], yn[torch.from_numpy(val_mask)])}
+
+            def loss_fn(net, idx, split, data=data):
+                xb, yb = data[split]
+                if idx is not None:
+                    xb, yb = xb[idx], yb[idx]
+                return torch.mean((net(xb) - yb) ** 2)
+
+            self.report[a] = train_net(self.nets[a], loss_fn, n_train=int((~val_mask).sum()),
+                                       n_val=int(val_mask.sum()), seed=cfg.seed, epochs=cfg.epochs, lr=cfg.lr,
+                                       batch_size=cfg.batch_size, patience=cfg.patience,
+                                       desc=f"mlp {a}", progress=progress)
+
+    def axis_feeds(self, table: ProgramTable) -> np.ndarray:
+        """Predicted mean axis feeds (rows x axes, mm/min)."""
+        self.check_trained()
+        setup_torch()
+        out = []
+        with torch.no_grad():
+            for a in self.config.axes:
+                x = build_inputs(table.blocks, sun_inputs(a), what="mlp", source=table.name)
+                pred = self.nets[a](torch.from_numpy(self.norms[f"x_{a}"].apply(x))).numpy()
+                out.append(self.norms[f"y_{a}"].invert(pred[:, None])[:, 0])
+        return np.column_stack(out)
+
+    def predict(self, table: ProgramTable) -> TablePrediction:
+        f = self.axis_feeds(table)
+        v, nominal = _nominal(table, self.config.axes)
+        v_res = np.sqrt((v * v).sum(axis=1))
+        f_res = np.maximum(np.sqrt((f * f).sum(axis=1)), self.config.min_feed_ratio * v_res)  # Eq. 9
+        with np.errstate(divide="ignore", invalid="ignore"):
+            durations = np.where(v_res > 0, nominal * v_res / f_res, nominal)  # Eq. 10, per segment
+        return TablePrediction(float(durations.sum()), durations)

@@ -1,0 +1,169 @@
+"""Sequence-to-sequence models over a program's blocks: Bi-LSTM block by block (Chien Fig. 7) and BiLSTM-R.
+
+Long programs are cut into overlapping windows (`window` blocks, every `stride`); each block's
+prediction is taken from the window whose centre is nearest, so every block sees context on both
+sides except at the program's ends. Training uses the same windows; the last `val_fraction` of every
+training program's windows is held out for early stopping.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+import torch
+
+from feedlog.errors import ModelError
+from feedlog.train.dataset import ProgramTable, make_windows, stitch_windows, tail_split
+from feedlog.train.features import CHIEN_INPUTS, Normaliser, build_inputs, profile_constants
+from feedlog.train.fitting import masked_mse, setup_torch, train_net
+from feedlog.train.nets import BiLSTMR, BiLSTMSeq
+from feedlog.train.registry import Model, ModelConfig, TablePrediction, register_model
+
+PREDICT_BATCH = 4096  # windows per forward pass at prediction time
+
+
+@dataclass(frozen=True)
+class SeqConfig(ModelConfig):
+    inputs: tuple[str, ...] = CHIEN_INPUTS
+    hidden: int = 20
+    layers: int = 1
+    window: int = 64
+    stride: int = 32
+    batch_size: int = 16
+    epochs: int = 150
+    patience: int = 20
+
+    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8}}
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.inputs:
+            raise ModelError(f"{type(self).__name__}.inputs must name at least one column")
+        if self.hidden < 1 or self.layers < 1:
+            raise ModelError(f"{type(self).__name__}: hidden and layers must be >= 1, got {self.hidden}, {self.layers}")
+        if not 1 <= self.stride <= self.window:
+            raise ModelError(f"{type(self).__name__}: need 1 <= stride <= window, got stride {self.stride}, "
+                             f"window {self.window}")
+
+
+class SeqModel(Model):
+    """Shared windowing, normalisation and training for per-block sequence models."""
+
+    config: SeqConfig
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        return tuple(self.config.inputs)
+
+    def target(self, table: ProgramTable) -> np.ndarray:
+        """Per-block training target (default: the measured block time)."""
+        return table.durations()
+
+    def to_durations(self, table: ProgramTable, values: np.ndarray) -> np.ndarray:
+        """Per-block predicted target -> per-block time."""
+        return np.maximum(values, 0.0)
+
+    def _matrix(self, table: ProgramTable) -> np.ndarray:
+        constants = profile_constants(table.profile) if table.profile is not None else self.constants
+        return build_inputs(table.blocks, self.inputs, constants=constants, what=self.name, source=table.name)
+
+    def fit(self, tables: Sequence[ProgramTable], *, progress: bool = True) -> None:
+        cfg = self.config
+        if not tables:
+            raise ModelError(f"{self.name}: no training tables")
+        self.constants = profile_constants(tables[0].profile)
+        xs = [self._matrix(t) for t in tables]
+        ys = [self.target(t) for t in tables]
+        heads = [tail_split(len(y), cfg.val_fraction) for y in ys]
+        self.norms["x"] = Normaliser.fit(np.concatenate([x[:h] for x, h in zip(xs, heads)]))
+        self.norms["y"] = Normaliser.fit(np.concatenate([y[:h] for y, h in zip(ys, heads)]))
+        parts: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {"train": [], "val": []}
+        for x, y, h in zip(xs, ys, heads):
+            xn, yn = self.norms["x"].apply(x), self.norms["y"].apply(y[:, None])[:, 0]
+            parts["train"].append(make_windows(xn[:h], yn[:h], length=cfg.window, stride=cfg.stride))
+            if h < len(y):
+                parts["val"].append(make_windows(xn[h:], yn[h:], length=cfg.window, stride=cfg.stride))
+        data = {k: tuple(torch.from_numpy(np.concatenate([p[i] for p in v]).astype(np.float32))
+                         for i in range(3)) if v else None for k, v in parts.items()}
+        self.build_nets()
+
+        def loss_fn(net, idx, split):
+            xb, yb, mb = data[split]
+            if idx is not None:
+                xb, yb, mb = xb[idx], yb[idx], mb[idx]
+            return masked_mse(net(xb), yb, mb)
+
+        self.report["net"] = train_net(
+            self.nets["net"], loss_fn, n_train=len(data["train"][0]),
+            n_val=0 if data["val"] is None else len(data["val"][0]), seed=cfg.seed, epochs=cfg.epochs,
+            lr=cfg.lr, batch_size=cfg.batch_size, patience=cfg.patience, desc=self.name, progress=progress)
+
+    def predict_values(self, table: ProgramTable) -> np.ndarray:
+        """Per-block predicted target (in target units)."""
+        self.check_trained()
+        setup_torch()
+        cfg = self.config
+        x = self.norms["x"].apply(self._matrix(table))
+        if len(x) == 0:
+            return np.zeros(0)
+        xw, _, _ = make_windows(x, None, length=cfg.window, stride=cfg.stride)
+        net = self.nets["net"].eval()
+        with torch.no_grad():
+            out = np.concatenate([net(torch.from_numpy(xw[i:i + PREDICT_BATCH])).numpy()
+                                  for i in range(0, len(xw), PREDICT_BATCH)])
+        per_row = stitch_windows(out, len(x), length=cfg.window, stride=cfg.stride)
+        return self.norms["y"].invert(per_row[:, None])[:, 0]
+
+    def predict(self, table: ProgramTable) -> TablePrediction:
+        durations = self.to_durations(table, self.predict_values(table))
+        return TablePrediction(float(durations.sum()), durations)
+
+
+@register_model
+class BlockBiLSTM(SeqModel):
+    name = "bilstm-block"
+    config_class = SeqConfig
+    description = "Bi-LSTM sequence to sequence, each block's time (Chien Fig. 7)"
+
+    def build_nets(self) -> None:
+        setup_torch(self.config.seed)
+        self.nets = {"net": BiLSTMSeq(len(self.inputs), self.config.hidden, self.config.layers)}
+
+
+@dataclass(frozen=True)
+class BiLSTMRConfig(SeqConfig):
+    hidden: int = 32
+    units: int = 2
+    dropout: float = 0.3
+    window: int = 128
+    stride: int = 64
+    lr: float = 0.002
+
+    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 30, "patience": 6, "hidden": 24}}
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.units < 1 or not 0 <= self.dropout < 1:
+            raise ModelError(f"BiLSTMRConfig: need units >= 1 and dropout in [0, 1), got {self.units}, {self.dropout}")
+
+
+@register_model
+class BiLSTMRModel(SeqModel):
+    """Lee et al.'s BiLSTM-R (two residual BiLSTM units with layer norm and dropout, Eq. 4-7).
+
+    Lee predict a dense signal (cutting force at 12.8 kHz) from 128-sample windows; here the same
+    network regresses each block's time over windows of 128 blocks.
+    """
+
+    name = "bilstm-r"
+    config_class = BiLSTMRConfig
+    description = "stacked residual BiLSTM with layer norm and dropout (Lee et al.), per-block time"
+    config: BiLSTMRConfig
+
+    def build_nets(self) -> None:
+        setup_torch(self.config.seed)
+        cfg = self.config
+        self.nets = {"net": BiLSTMR(len(self.inputs), cfg.hidden, cfg.units, cfg.dropout)}

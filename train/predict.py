@@ -1,0 +1,80 @@
+"""Predicting a part program's block times and cycle time with a trained checkpoint."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from feedlog.errors import ModelError
+from feedlog.profile import MachineProfile, load_profile
+from feedlog.train.checkpoint import SUFFIX, load_checkpoint
+from feedlog.train.dataset import ProgramTable
+from feedlog.train.model_hybrid import HybridModel, attach_sim
+from feedlog.train.registry import Model
+
+
+@dataclass
+class Prediction:
+    """`blocks`: block, line, kind, nominal_time_s (CAM) and duration_s (predicted; NaN for models that
+    only predict the whole program); `cycle_time_s` includes the program's dwells."""
+
+    model: str
+    cycle_time_s: float
+    cam_time_s: float
+    blocks: pd.DataFrame
+    fingerprint: str = ""
+    profile: str = ""
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"model": self.model, "cycle_time_s": self.cycle_time_s, "cam_time_s": self.cam_time_s,
+                "blocks": int(len(self.blocks)), "profile": self.profile, "fingerprint": self.fingerprint,
+                "notes": list(self.notes)}
+
+
+def _looks_like_checkpoint(value: Any) -> bool:
+    return isinstance(value, Model) or (isinstance(value, (str, Path)) and str(value).endswith(SUFFIX)
+                                        and Path(value).is_file())
+
+
+def predict_program(program: Any, checkpoint: str | Path | Model, profile: MachineProfile | str | None = None,
+                    *, name: str | None = None) -> Prediction:
+    """Predict `program` (path, G-code text or parsed Program) with a checkpoint (path or loaded Model).
+
+    `profile` defaults to the profile the model was trained with. For convenience the first two
+    arguments may also come in the order (checkpoint, program).
+    """
+    if _looks_like_checkpoint(program) and not _looks_like_checkpoint(checkpoint):
+        program, checkpoint = checkpoint, program
+    from feedlog.toolpath import block_features, parse_program
+
+    model = checkpoint if isinstance(checkpoint, Model) else load_checkpoint(checkpoint)
+    model.check_trained()
+    if profile is None and model.params.get("profile"):
+        profile = str(model.params["profile"])
+    prof = load_profile(profile) if isinstance(profile, (str, Path)) else profile
+    parsed = program if hasattr(program, "blocks") else parse_program(program)
+    features = block_features(parsed, prof)
+    label = name or str(getattr(parsed, "name", "") or (Path(program).stem if isinstance(program, Path) else "program"))
+    table = ProgramTable(label, features, profile=prof, split="test")
+    if isinstance(model, HybridModel):
+        if prof is None:
+            raise ModelError("the hybrid model needs a machine profile to simulate (--profile)")
+        table = attach_sim(table, program=parsed)
+    result = model.predict(table)
+    dwell = float(np.nansum(parsed.blocks["dwell_s"].to_numpy(np.float64))) if "dwell_s" in parsed.blocks else 0.0
+    blocks = features[["block", "line", "kind", "nominal_time_s"]].copy()
+    blocks["duration_s"] = result.durations_s if result.durations_s is not None else np.nan
+    notes = list(result.notes)
+    if result.durations_s is None:
+        notes.append(f"{model.name} predicts the whole program only; per-block durations are NaN")
+    if dwell:
+        notes.append(f"includes {dwell:.3f} s of programmed dwell")
+    return Prediction(model=model.name, cycle_time_s=result.cycle_time_s + dwell,
+                      cam_time_s=float(np.nansum(features["nominal_time_s"].to_numpy())) + dwell,
+                      blocks=blocks, fingerprint=model.fingerprint, profile=getattr(prof, "name", ""),
+                      notes=notes)
