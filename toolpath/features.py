@@ -33,13 +33,16 @@ import pandas as pd
 
 from feedlog.profile import MachineProfile, load_profile
 from feedlog.toolpath import arcs
-from feedlog.toolpath.schema import (ARC_CCW, ARC_CW, DWELL, END_COLUMNS, FEATURE_COLUMNS, MOTION_KINDS,
-                                     RAPID, START_COLUMNS)
+from feedlog.toolpath.program import (K_ARC_CCW, K_ARC_CW, K_DWELL, K_RAPID, kind_codes,
+                                      kind_column)
+from feedlog.toolpath.schema import END_COLUMNS, FEATURE_COLUMNS, START_COLUMNS
 
 DEFAULT_PROFILE = "linuxcnc-xyz"
 STOP_MCODES = ("M0", "M1", "M2", "M6", "M30", "M60")
 _STOP_RE = r"\bM(?:" + "|".join(c[1:] for c in STOP_MCODES) + r")\b"
 EPS = 1e-9
+_NEEDED = ("block", "line", "kind", *START_COLUMNS, *END_COLUMNS, "plane", "cx_mm", "cy_mm", "cz_mm",
+           "sweep_deg", "length_mm", "feed_mm_min", "tol_mm", "ori_i", "ori_j", "ori_k")
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -54,15 +57,15 @@ def _tangents(m: pd.DataFrame, p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarr
     """Unit TCP direction (n, 3) at the start and at the end of each block (NaN without TCP motion)."""
     t0, _ = _unit(p1 - p0)
     t1 = t0.copy()
-    kind = m["kind"].to_numpy()
-    arc = (kind == ARC_CW) | (kind == ARC_CCW)
+    kind = kind_codes(m["kind"])
+    arc = (kind == K_ARC_CW) | (kind == K_ARC_CCW)
     if arc.any():
         a = np.flatnonzero(arc)
         idx = arcs.plane_index(m["plane"].to_numpy()[a])
         s = arcs.to_plane(p0[a], idx)
         e = arcs.to_plane(p1[a], idx)
         c = arcs.to_plane(m[["cx_mm", "cy_mm", "cz_mm"]].to_numpy()[a], idx)
-        sgn = np.where(kind[a] == ARC_CCW, 1.0, -1.0)
+        sgn = np.where(kind[a] == K_ARC_CCW, 1.0, -1.0)
         swept = np.radians(m["sweep_deg"].to_numpy()[a])
         r0 = np.hypot(s[:, 0] - c[:, 0], s[:, 1] - c[:, 1])
         r1 = np.hypot(e[:, 0] - c[:, 0], e[:, 1] - c[:, 1])
@@ -126,27 +129,30 @@ def block_features(program, profile: MachineProfile | str | None = None) -> pd.D
         kin_profile = None if profile is None else prof
     else:
         prof = kin_profile = profile
-    kind_all = table["kind"].to_numpy()
-    is_motion = np.isin(kind_all, MOTION_KINDS)
-    # a rest between motion blocks: dwell or program stop rows in between
-    mc = table["mcodes"].fillna("").to_numpy(dtype=object)
-    rest_row = kind_all == DWELL
-    with_m = np.flatnonzero(mc != "")
-    if len(with_m):
-        rest_row[with_m] |= pd.Series(mc[with_m]).str.contains(_STOP_RE, regex=True).to_numpy()
+    kind_all = kind_codes(table["kind"])
+    is_motion = (kind_all >= 0) & (kind_all <= K_ARC_CCW)
+    # a rest between motion blocks: a dwell or a program stop (M0 M1 M2 M6 M30 M60) in between
+    rest_row = kind_all == K_DWELL
+    if "stop" in table.columns:
+        rest_row |= table["stop"].to_numpy(dtype=bool)
+    else:
+        mc = table["mcodes"].fillna("").to_numpy(dtype=object)
+        with_m = np.flatnonzero(mc != "")
+        if len(with_m):
+            rest_row[with_m] |= pd.Series(mc[with_m]).str.contains(_STOP_RE, regex=True).to_numpy()
     rest_count = np.cumsum(rest_row)
-    m = table[is_motion]
+    m = table.loc[is_motion, [c for c in _NEEDED if c in table.columns]]
     n = len(m)
     rc = rest_count[is_motion]
     stop_before = np.r_[True, rc[1:] != rc[:-1]] if n else np.zeros(0, bool)
     # a program stop on the block's own line happens after its motion
-    own_stop = rest_row[is_motion] & (kind_all[is_motion] != DWELL)
+    own_stop = rest_row[is_motion] & (kind_all[is_motion] != K_DWELL)
     stop_before[1:] |= own_stop[:-1]
 
     p0 = m[list(START_COLUMNS[:3])].to_numpy()
     p1 = m[list(END_COLUMNS[:3])].to_numpy()
     length = m["length_mm"].to_numpy()
-    kind = m["kind"].to_numpy()
+    kind = kind_all[is_motion]
     t0, t1 = _tangents(m, p0, p1)
     tcp_moving = length > EPS
     corner_start, corner_end = _corners(t0, t1, tcp_moving, stop_before)
@@ -190,7 +196,7 @@ def block_features(program, profile: MachineProfile | str | None = None) -> pd.D
                 t_rapid = np.maximum(t_rapid, np.abs(rot[:, j]) / prof.axes[ax].vel_max)
             else:
                 t_rapid = np.maximum(t_rapid, np.abs(rot[:, j]) / prof.rapid_mm_min * 60.0)
-    t = np.where(kind == RAPID, t_rapid, t_feed)
+    t = np.where(kind == K_RAPID, t_rapid, t_feed)
     t = np.where(time_len > EPS, t, 0.0)
     dt = np.where(t > 0, t, np.inf)
     v = (p1 - p0) / dt[:, None] * 60.0  # mm/min
@@ -199,7 +205,7 @@ def block_features(program, profile: MachineProfile | str | None = None) -> pd.D
     acc = (v - v_prev) / 60.0 / dt[:, None]
 
     out = pd.DataFrame({
-        "block": m["block"].to_numpy(), "line": m["line"].to_numpy(), "kind": m["kind"].to_numpy(),
+        "block": m["block"].to_numpy(), "line": m["line"].to_numpy(), "kind": kind_column(kind),
         "length_mm": length,
         "ori_arc_deg": ori_arc,
         "corner_start_deg": corner_start, "corner_end_deg": corner_end,
@@ -211,6 +217,5 @@ def block_features(program, profile: MachineProfile | str | None = None) -> pd.D
         "ax_nom_mm_s2": acc[:, 0], "ay_nom_mm_s2": acc[:, 1], "az_nom_mm_s2": acc[:, 2],
         "corner_cos_end": -np.cos(np.radians(corner_end)),
     })
-    out["kind"] = out["kind"].astype(table["kind"].dtype)
     assert tuple(out.columns[:len(FEATURE_COLUMNS)]) == FEATURE_COLUMNS
     return out.reset_index(drop=True)

@@ -18,11 +18,13 @@ import re
 from dataclasses import dataclass, field
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
 
 from feedlog.errors import ProgramError
 
 _LF = 10
-_OPEN, _CLOSE, _PERCENT, _SLASH = ord("("), ord(")"), ord("%"), ord("/")
+_OPEN, _CLOSE, _SEMI, _PERCENT, _SLASH = ord("("), ord(")"), ord(";"), ord("%"), ord("/")
 _A, _Z, _D0 = ord("A"), ord("Z"), ord("0")
 _DOT, _PLUS, _MINUS = ord("."), ord("+"), ord("-")
 _COMMENT = re.compile(rb"\(([^()\n]*)\)|;([^\n]*)")
@@ -72,18 +74,22 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
     def fail(i: int, message: str, code: str | None = None) -> ProgramError:
         return ProgramError(message, file=file, line=int(i) + 1, code=code or line_text(i)[:40])
 
-    # -- comments (slow path only when there are any): blank them out, keep their text -----------
+    # -- comments (per comment, only on the lines that hold one): blank them out, keep their text --
     comments: dict[int, str] = {}
     if b"(" in data or b";" in data or b")" in data:
-        nl_src = np.flatnonzero(np.frombuffer(data, dtype=np.uint8) == _LF)
-        spans = [(m.start(), (m.group(1) if m.group(1) is not None else m.group(2)))
-                 for m in _COMMENT.finditer(data)]
-        if spans:
-            lines = np.searchsorted(nl_src, [p for p, _ in spans])
-            for i, (_, raw) in zip(lines.tolist(), spans):
+        src = np.frombuffer(data, dtype=np.uint8)
+        nl_src = np.flatnonzero(src == _LF)
+        marks = np.flatnonzero((src == _OPEN) | (src == _SEMI) | (src == _CLOSE))
+        line_ends = np.r_[nl_src, len(src)]
+        blanked = bytearray(data)
+        for i in np.unique(np.searchsorted(nl_src, marks)).tolist():
+            lo = int(nl_src[i - 1]) + 1 if i else 0
+            for m in _COMMENT.finditer(data, lo, int(line_ends[i])):
+                raw = m.group(1) if m.group(1) is not None else m.group(2)
                 piece = raw.decode("utf-8", "replace").strip()
                 comments[i] = f"{comments[i]} {piece}" if i in comments else piece
-            data = _COMMENT.sub(lambda m: b" " * (m.end() - m.start()), data)
+                blanked[m.start():m.end()] = b" " * (m.end() - m.start())
+        data = bytes(blanked)
 
     # -- code: upper case, no blanks; lines keep their newline ------------------------------------
     b = np.frombuffer(data.upper().translate(None, _BLANKS), dtype=np.uint8)
@@ -136,7 +142,7 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
     wstart = np.flatnonzero(cls == _LETTER)
     wline = cl[wstart]
     wletter = (cb[wstart] - _A).astype(np.uint8)
-    values = _parse_numbers(cb, cls, wstart)
+    values = _numbers(cb, cls, wstart)
     bad_value = np.isnan(values)
 
     if bad_value.any():
@@ -160,6 +166,27 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
     return Tokens(n_lines=n_lines, rows=rows, line=wline.astype(np.int64), letter=wletter,
                   value=values, comments=comments, percent=pct_lines.astype(np.int64),
                   block_delete=bd_lines.astype(np.int64), unsupported=unsupported)
+
+
+def _numbers(cb: np.ndarray, cls: np.ndarray, wstart: np.ndarray) -> np.ndarray:
+    """The number after each word letter as float64 (NaN where malformed).
+
+    Fast path: the number characters already lie between the letters, so dropping the letters gives
+    an Arrow string array without copying per word, and Arrow's C++ cast parses them all. It refuses
+    the whole array if one is malformed; then the numpy path below finds which.
+    """
+    n_words = len(wstart)
+    if not n_words:
+        return np.zeros(0)
+    length = np.r_[wstart[1:], len(cb)] - wstart - 1
+    offsets = np.zeros(n_words + 1, dtype=np.int32)
+    np.cumsum(length, out=offsets[1:])
+    digits = np.ascontiguousarray(cb[cls != _LETTER])
+    arr = pa.StringArray.from_buffers(n_words, pa.py_buffer(offsets), pa.py_buffer(digits))
+    try:
+        return pc.cast(arr, pa.float64()).to_numpy(zero_copy_only=False)
+    except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+        return _parse_numbers(cb, cls, wstart)
 
 
 def _parse_numbers(cb: np.ndarray, cls: np.ndarray, wstart: np.ndarray) -> np.ndarray:

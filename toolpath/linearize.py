@@ -12,9 +12,8 @@ import pandas as pd
 
 from feedlog.errors import FeedlogError
 from feedlog.toolpath import arcs
-from feedlog.toolpath.program import Program
-from feedlog.toolpath.schema import (ARC_CCW, ARC_CW, AXES, END_COLUMNS, LINEAR, MOTION_KINDS,
-                                     START_COLUMNS)
+from feedlog.toolpath.program import K_ARC_CCW, K_ARC_CW, Program, kind_codes
+from feedlog.toolpath.schema import ARC_CCW, ARC_CW, AXES, END_COLUMNS, LINEAR, MOTION_KINDS, START_COLUMNS
 
 DEFAULT_CHORD_TOL_MM = 0.001
 
@@ -26,9 +25,9 @@ def _check_tol(chord_tol_mm: float) -> None:
 
 def segments_per_block(blocks: pd.DataFrame, chord_tol_mm: float) -> np.ndarray:
     """Number of chords for each row: 1 for everything but arcs."""
-    kind = blocks["kind"].to_numpy()
+    kind = kind_codes(blocks["kind"])
     n_seg = np.ones(len(blocks), dtype=np.int64)
-    arc = (kind == ARC_CW) | (kind == ARC_CCW)
+    arc = (kind == K_ARC_CW) | (kind == K_ARC_CCW)
     if arc.any():
         r = np.maximum(blocks["radius_mm"].to_numpy()[arc], 1e-12)
         swept = np.radians(blocks["sweep_deg"].to_numpy()[arc])
@@ -48,10 +47,11 @@ def _expand(blocks: pd.DataFrame, chord_tol_mm: float) -> tuple[np.ndarray, np.n
     p0 = blocks[list(START_COLUMNS)].to_numpy()
     p1 = blocks[list(END_COLUMNS)].to_numpy()
     end = p1[src].copy()
-    kind = blocks["kind"].to_numpy()
-    arc_out = np.isin(kind[src], (ARC_CW, ARC_CCW)) & (n_seg[src] > 1)
+    kind = kind_codes(blocks["kind"])
+    is_arc = (kind == K_ARC_CW) | (kind == K_ARC_CCW)
+    arc_out = is_arc[src] & (n_seg[src] > 1)
     if arc_out.any():
-        a = np.flatnonzero(np.isin(kind, (ARC_CW, ARC_CCW)))
+        a = np.flatnonzero(is_arc)
         local = np.full(len(blocks), -1)
         local[a] = np.arange(len(a))
         idx = arcs.plane_index(blocks["plane"].to_numpy()[a])
@@ -62,7 +62,7 @@ def _expand(blocks: pd.DataFrame, chord_tol_mm: float) -> tuple[np.ndarray, np.n
         r1 = np.hypot(e[:, 0] - c[:, 0], e[:, 1] - c[:, 1])
         a0 = np.arctan2(s[:, 1] - c[:, 1], s[:, 0] - c[:, 0])
         swept = np.radians(blocks["sweep_deg"].to_numpy()[a])
-        ccw = kind[a] == ARC_CCW
+        ccw = kind[a] == K_ARC_CCW
         owner = local[src[arc_out]]
         uvw = arcs.sample(s, c[:, :2], r0, r1, a0, swept, ccw, e[:, 2] - s[:, 2], frac[arc_out], owner)
         end[arc_out, :3] = arcs.from_plane(uvw, idx[owner])
@@ -106,7 +106,8 @@ def cl_points(program: Program, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM) -> p
     """
     _check_tol(chord_tol_mm)
     blocks = getattr(program, "blocks", program)
-    m = blocks[blocks["kind"].isin(MOTION_KINDS)]
+    kc = kind_codes(blocks["kind"])
+    m = blocks[(kc >= 0) & (kc <= K_ARC_CCW)]
     src, end, _ = _expand(m, chord_tol_mm)
     names = [f"{a}_{'mm' if a in 'xyz' else 'deg'}" for a in AXES]
     pts = np.vstack([m[list(START_COLUMNS)].to_numpy()[:1], end]) if len(m) else np.zeros((0, 6))
@@ -116,9 +117,9 @@ def cl_points(program: Program, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM) -> p
     line = m["line"].to_numpy()[src]
     out.insert(0, "block", np.r_[-1, block].astype(np.int32) if len(m) else np.zeros(0, np.int32))
     out.insert(1, "line", np.r_[line[:1], line].astype(np.int32) if len(m) else np.zeros(0, np.int32))
-    kind = m["kind"].to_numpy()[src]
-    out.insert(2, "kind", pd.Categorical(np.r_[["start"], kind] if len(m) else [],
-                                         categories=["start", *MOTION_KINDS]))
+    kind = kind_codes(m["kind"])[src]
+    out.insert(2, "kind", pd.Categorical.from_codes(np.r_[-1, kind] + 1 if len(m) else np.zeros(0, np.int8),
+                                                    categories=["start", *MOTION_KINDS]))
     for col in ("ori_i", "ori_j", "ori_k", "feed_mm_min"):
         vals = m[col].to_numpy()[src]
         out[col] = np.r_[vals[:1], vals] if len(m) else []

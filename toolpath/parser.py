@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 
 from feedlog.errors import ProgramError
 from feedlog.toolpath import arcs
@@ -55,10 +56,14 @@ DEFAULTS = {"motion": -1, "plane": 170, "units": 210, "distance": 900, "arc_dist
 M_CODES = frozenset([0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 30, 48, 49, 50, 51, 52, 53, 60, 61,
                      62, 63, 64, 65, 66, 67, 68, 70, 71, 72, 73] + list(range(100, 200)))
 PROGRAM_END = (2, 30)
+STOP_M = (0, 1, 2, 6, 30, 60)  # the machine comes to rest: program stop/end, tool change, pallet
 LETTERS = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
 L = {ch: i for i, ch in enumerate(LETTERS)}
 ACCEPTED_LETTERS = set("ABCFGHIJKMNOPQRSTXYZ")
 AXIS_LETTERS = "XYZABC"
+_ACCEPTED_LUT = np.array([c in ACCEPTED_LETTERS for c in LETTERS])
+_GEO_LUT = np.array([c in "XYZABCIJKRPQ" for c in LETTERS])
+_M_LUT = np.array([m in M_CODES for m in range(200)] + [False])
 PATH_MODE_OF = {610: EXACT_PATH, 611: EXACT_STOP, 640: CONTINUOUS}
 KIND_OF_MOTION = {0: RAPID, 10: LINEAR, 20: ARC_CW, 30: ARC_CCW}
 RADIUS_TOL_MM, RADIUS_TOL_REL = 0.002, 0.001  # start vs end radius mismatch allowed on I/J/K arcs
@@ -70,6 +75,18 @@ def _ffill(values: np.ndarray, present: np.ndarray, initial) -> np.ndarray:
     np.maximum.accumulate(idx, out=idx)
     out = values[np.maximum(idx, 0)]
     return np.where(idx >= 0, out, initial)
+
+
+def _strings(n: int, rows=None, values=None, *, fill: str = "") -> pd.api.extensions.ExtensionArray:
+    """A pandas "string" column of `fill` with `values` at `rows`, built in Arrow (no per-row objects)."""
+    codes = np.zeros(n, dtype=np.int32)
+    dictionary = [fill]
+    if values is not None and len(values):
+        uniq, inverse = np.unique(np.asarray(values, dtype=object).astype(str), return_inverse=True)
+        dictionary += uniq.tolist()
+        codes[rows] = inverse + 1
+    arr = pa.DictionaryArray.from_arrays(pa.array(codes), pa.array(dictionary, pa.string()))
+    return pd.array(arr.cast(pa.string()), dtype="string")
 
 
 def _read_source(source: str | Path, name: str | None) -> tuple[str, Path | None, str]:
@@ -136,25 +153,34 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     code_of = lambda k: _word(int(letter[k]), float(value[k]))  # noqa: E731
 
     is_g, is_m = letter == L["G"], letter == L["M"]
-    g10 = np.rint(value * 10).astype(np.int64)
-    known_g = (g10 >= 0) & (g10 < 1000) & np.isclose(value * 10, g10)
-    known_g[known_g] = _GROUP_LUT[g10[known_g]] >= 0
-    m_int = np.rint(value).astype(np.int64)
-    checks = [(is_g & ~known_g, "unsupported G code", True),
-              (~np.isin(letter, [L[c] for c in ACCEPTED_LETTERS]), "unsupported word", False),
-              (is_m & ~(np.isin(m_int, list(M_CODES)) & (m_int == value)), "unsupported M code", False)]
-    if not lenient:  # report the earliest line first
-        firsts = [(int(row_of[mask].min()), i) for i, (mask, _, _) in enumerate(checks) if mask.any()]
-        checks = [checks[i] for _, i in sorted(firsts)]
-    keep = np.ones(len(letter), dtype=bool)
-    for mask, message, taints in checks:
-        keep &= R.reject(mask & keep, message, code_of, taints_line=taints)
-    if R.dirty_rows.any():  # a line with a skipped code: drop its geometry words too
-        geo = np.isin(letter, [L[c] for c in "XYZABCIJKRPQ"])
-        keep &= ~(geo & R.dirty_rows[row_of])
-    letter, value, row_of, g10, m_int = letter[keep], value[keep], row_of[keep], g10[keep], m_int[keep]
-    is_g, is_m = letter == L["G"], letter == L["M"]
-    code_of = lambda k: _word(int(letter[k]), float(value[k]))  # noqa: E731
+    g10 = np.full(len(letter), -1, dtype=np.int64)
+    m_int = np.full(len(letter), -1, dtype=np.int64)
+    g_idx, m_idx = np.flatnonzero(is_g), np.flatnonzero(is_m)
+    g10[g_idx] = np.rint(value[g_idx] * 10)
+    m_int[m_idx] = np.rint(value[m_idx])
+    g_ok = (g10[g_idx] >= 0) & (g10[g_idx] < 1000) & (np.abs(value[g_idx] * 10 - g10[g_idx]) < 1e-6)
+    g_ok[g_ok] = _GROUP_LUT[g10[g_idx][g_ok]] >= 0
+    m_ok = _M_LUT[np.where((m_int[m_idx] >= 0) & (m_int[m_idx] < 200), m_int[m_idx], 200)] & (
+        m_int[m_idx] == value[m_idx])
+    bad_letter = ~_ACCEPTED_LUT[letter]
+    if not (g_ok.all() and m_ok.all() and not bad_letter.any()):
+        bad_g = np.zeros(len(letter), dtype=bool)
+        bad_g[g_idx[~g_ok]] = True
+        bad_m = np.zeros(len(letter), dtype=bool)
+        bad_m[m_idx[~m_ok]] = True
+        checks = [(bad_g, "unsupported G code", True), (bad_letter, "unsupported word", False),
+                  (bad_m, "unsupported M code", False)]
+        if not lenient:  # report the earliest line first
+            firsts = [(int(row_of[mask].min()), i) for i, (mask, _, _) in enumerate(checks) if mask.any()]
+            checks = [checks[i] for _, i in sorted(firsts)]
+        keep = np.ones(len(letter), dtype=bool)
+        for mask, message, taints in checks:
+            keep &= R.reject(mask & keep, message, code_of, taints_line=taints)
+        if R.dirty_rows.any():  # a line with a skipped G code: drop its geometry words too
+            keep &= ~(_GEO_LUT[letter] & R.dirty_rows[row_of])
+        letter, value, row_of, g10, m_int = letter[keep], value[keep], row_of[keep], g10[keep], m_int[keep]
+        is_g, is_m = letter == L["G"], letter == L["M"]
+        code_of = lambda k: _word(int(letter[k]), float(value[k]))  # noqa: E731
 
     # -- modal groups of G codes -----------------------------------------------------------------
     g_rows, g_codes = row_of[is_g], g10[is_g]
@@ -175,14 +201,12 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     # -- other words: one per letter and line ------------------------------------------------------
     other = ~is_g & ~is_m
     W = np.full((n, 26), np.nan)
-    if other.any():
-        key = row_of[other] * 26 + letter[other]
-        counts = np.bincount(key, minlength=n * 26)
-        if counts.max() > 1:
-            k = int(np.flatnonzero(counts > 1)[0])
-            raise R.error(k // 26, "word repeated on one line", LETTERS[k % 26])
-        W[row_of[other], letter[other]] = value[other]
+    W[row_of[other], letter[other]] = value[other]
     has = ~np.isnan(W)
+    if np.count_nonzero(has) < np.count_nonzero(other):  # a letter twice on one line
+        counts = np.bincount(row_of[other] * 26 + letter[other], minlength=n * 26)
+        k = int(np.flatnonzero(counts > 1)[0])
+        raise R.error(k // 26, "word repeated on one line", LETTERS[k % 26])
 
     # -- modal state -------------------------------------------------------------------------------
     modal = {g: _ffill(groups[g], groups[g] >= 0, DEFAULTS[g]) for g in DEFAULTS}
@@ -333,17 +357,19 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     if (dwell < 0).any():
         raise R.error(int(np.flatnonzero(dwell < 0)[0]), "negative dwell time", "P")
     spindle = _ffill(W[:, L["S"]], has[:, L["S"]], 0.0)
-    mcodes = np.full(n, "", dtype=object)
+    mcodes = _strings(n)
+    stop = np.zeros(n, dtype=bool)
     if is_m.any():
         ms = pd.Series([f"M{int(v)}" for v in m_int[is_m]]).groupby(row_of[is_m]).agg(" ".join)
-        mcodes[ms.index.to_numpy()] = ms.to_numpy()
-    comment = np.full(n, "", dtype=object)
+        mcodes = _strings(n, ms.index.to_numpy(), ms.to_numpy())
+        stop[row_of[is_m][np.isin(m_int[is_m], STOP_M)]] = True
+    comment = _strings(n)
     if tok.comments:
         lines = np.fromiter(tok.comments.keys(), dtype=np.int64)
-        comment[np.searchsorted(tok.rows, lines)] = list(tok.comments.values())
+        comment = _strings(n, np.searchsorted(tok.rows, lines), list(tok.comments.values()))
 
     blocks = pd.DataFrame({
-        "file": pd.array(np.full(n, file, dtype=object), dtype="string"),
+        "file": _strings(n, fill=file),
         "line": (tok.rows + 1).astype(np.int32),
         "block": np.arange(n, dtype=np.int32),
         "kind": pd.Categorical.from_codes(kind_code, categories=list(KINDS)),
@@ -361,13 +387,14 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         "ori_i": ori[:, 0], "ori_j": ori[:, 1], "ori_k": ori[:, 2],
         "units": pd.Categorical.from_codes((modal["units"] == 200).astype(np.int8), categories=["mm", "in"]),
         "spindle_rpm": spindle,
-        "mcodes": pd.array(mcodes, dtype="string"),
-        "comment": pd.array(comment, dtype="string"),
+        "mcodes": mcodes,
+        "comment": comment,
         # added columns
         "length_mm": np.where(is_motion, length, 0.0),
         "radius_mm": radius,
         "sweep_deg": sweep_deg,
         "n_word": np.where(has[:, L["N"]], W[:, L["N"]], -1).astype(np.int64),
+        "stop": stop,
     })
     assert list(blocks.columns[:len(BLOCK_COLUMNS)]) == list(BLOCK_COLUMNS)
     metadata = _metadata(tok, W, has, m_int[is_m], row_of[is_m], is_motion, R, file, warnings)

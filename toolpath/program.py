@@ -6,9 +6,27 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
-from feedlog.toolpath.schema import MOTION_KINDS
+from feedlog.toolpath.schema import KINDS, MOTION_KINDS
+
+# codes of kind_codes(): indices into schema.KINDS
+K_RAPID, K_LINEAR, K_ARC_CW, K_ARC_CCW, K_DWELL, K_NONE = range(6)
+
+
+def kind_codes(kind: pd.Series) -> np.ndarray:
+    """The `kind` column as int8 indices into schema.KINDS (-1 for unknown), without going through
+    per-row strings (motion kinds are 0..3)."""
+    if isinstance(kind.dtype, pd.CategoricalDtype):
+        lut = np.array([KINDS.index(c) if c in KINDS else -1 for c in kind.cat.categories] + [-1],
+                       dtype=np.int8)
+        return lut[kind.cat.codes.to_numpy()]
+    return pd.Categorical(kind, categories=list(KINDS)).codes.astype(np.int8)
+
+
+def kind_column(codes: np.ndarray) -> pd.Categorical:
+    return pd.Categorical.from_codes(codes, categories=list(KINDS))
 
 
 @dataclass(frozen=True)
