@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
             raise FeedlogError(f"cannot write {args.parquet}: {exc.strerror or exc}") from None
         summary["parquet"] = str(args.parquet)
     if args.json:
-        print(json.dumps(summary))
+        print(json.dumps(summary, allow_nan=False))
     else:
         print(format_summary(summary))
         if args.parquet is not None:

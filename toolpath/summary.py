@@ -44,16 +44,16 @@ def summarize(program: Program, profile: MachineProfile) -> dict[str, Any]:
         "kinds": {k: int(kinds.get(k, 0)) for k in (*MOTION_KINDS, "dwell")},
         "length_mm": float(feats["length_mm"].sum()),
         "rapid_length_mm": float(feats.loc[rapid, "length_mm"].sum()),
-        "cam_time_s": float(feats["nominal_time_s"].sum()) + dwell_s,
+        "cam_time_s": float(np.nansum(feats["nominal_time_s"].to_numpy())) + dwell_s,
+        "blocks_without_time": int(np.isnan(feats["nominal_time_s"].to_numpy()).sum()),
         "rapid_time_s": float(feats.loc[rapid, "nominal_time_s"].sum()),
         "dwell_s": dwell_s,
         "bbox": bbox,
         "feed_mm_min": [float(feed.min()), float(feed.max())] if len(feed) else None,
-        "path_modes": sorted(str(m) for m in feats.join(b["path_mode"], on="block")["path_mode"].unique())
-        if len(feats) else [],
+        "path_modes": sorted(str(m) for m in program.motion["path_mode"].unique()),
         "tol_mm": [_num(np.nanmin(tol)), _num(np.nanmax(tol))] if np.isfinite(tol).any() else None,
         "units": sorted(str(u) for u in b["units"].unique()),
-        "five_axis": bool(b[["ori_i"]].notna().any().iloc[0] or (b[["a_deg", "b_deg", "c_deg"]] != 0).any().any()),
+        "five_axis": bool(b["ori_i"].notna().any() or (b[["a_deg", "b_deg", "c_deg"]] != 0).any(axis=None)),
         "warnings": list(program.warnings),
         "unsupported": [{"line": u.line, "code": u.code, "reason": u.reason} for u in program.unsupported],
         "metadata": {k: v for k, v in program.metadata.items() if k not in ("percent_lines",)},
@@ -78,6 +78,8 @@ def format_summary(s: dict[str, Any]) -> str:
     lines.append(f"  path mode    {', '.join(s['path_modes']) or '-'}"
                  + (f"; G64 P {tol[0]:g} .. {tol[1]:g} mm" if tol else ""))
     lines.append(f"  units        {', '.join(s['units'])}")
+    if s["blocks_without_time"]:
+        lines.append(f"  {s['blocks_without_time']} blocks without a feed are left out of the CAM time")
     for w in s["warnings"]:
         lines.append(f"  warning: {w}")
     return "\n".join(lines)

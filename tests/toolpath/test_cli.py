@@ -63,3 +63,13 @@ def test_five_axis_example_with_its_profile(capsys):
 def test_plane_arcs_example(capsys):
     s = run_json(capsys, str(EXAMPLES / "arcs_g18_g19.ngc"))
     assert s["kinds"]["arc_cw"] + s["kinds"]["arc_ccw"] >= 4
+
+
+def test_lenient_json_stays_valid_json_when_feeds_are_missing(tmp_path, capsys):
+    prog = tmp_path / "nofeed.ngc"
+    prog.write_text("G0 X1\nG1 X2\nG1 X3 F60\n")
+    assert main(["program", str(prog)]) == 1
+    assert "F" in capsys.readouterr().err
+    s = run_json(capsys, str(prog), "--lenient")
+    assert s["blocks_without_time"] == 1 and s["cam_time_s"] == pytest.approx(1 / 6000 * 60 + 1.0)
+    assert any("feed" in w for w in s["warnings"])
