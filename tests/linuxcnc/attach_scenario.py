@@ -1,6 +1,6 @@
 """A machine someone else started, and feedlog attaching to it (run by test_attach.py).
 
-Usage: python attach_scenario.py MACHINE.ini PROGRAM.ngc OUT.mcap RESULT.json
+Usage: python attach_scenario.py MACHINE.ini PROGRAM.ngc OUT.mcap RESULT.json [--machine-uses-integ]
 Starts LinuxCNC headless with a plain operator (feedlog's driver without samplers: it homes, waits
 a few seconds, runs the program and exits), attaches feedlog's recorder to the running HAL, and
 writes attach_linuxcnc()'s summary or error to RESULT.json. Runs inside the test's namespaces.
@@ -22,7 +22,7 @@ from feedlog.ingest.linuxcnc_attach import attach_linuxcnc, loaded_components
 from feedlog.ingest.linuxcnc_session import DRIVER_SOURCE, MachineIni
 
 
-def main(ini_path: str, program: str, out: str, result: str) -> int:
+def main(ini_path: str, program: str, out: str, result: str, *options: str) -> int:
     work = Path(tempfile.mkdtemp(prefix="feedlog-operator-", dir="/var/tmp"))
     work.chmod(0o755)
     driver = work / "driver.py"
@@ -32,7 +32,13 @@ def main(ini_path: str, program: str, out: str, result: str) -> int:
            "enable_signal": None, "motion_time_pin": None, "timeout_s": 60, "start_delay_s": 4.0}
     (work / "job.json").write_text(json.dumps(job))
     ini = MachineIni.read(ini_path)
-    (work / "machine.ini").write_text(ini.rewritten(display=f"{driver} {work / 'job.json'}", recorder=None))
+    text = ini.rewritten(display=f"{driver} {work / 'job.json'}", recorder=None)
+    if "--machine-uses-integ" in options:  # the machine's own HAL already loads integ: no clock for us
+        (work / "own.hal").write_text("loadrt integ names=own-integ\naddf own-integ servo-thread\n")
+        lines = text.splitlines()
+        at = next(i for i, line in enumerate(lines) if "basic_sim.tcl" in line)
+        text = "\n".join(lines[:at + 1] + [f"HALFILE = {work / 'own.hal'}"] + lines[at + 1:]) + "\n"
+    (work / "machine.ini").write_text(text)
     (work / "feedlog.tbl").write_text("T1 P1 D6.0\n")
     fifo = work / "fifo"
     fifo.mkdir(mode=0o777)

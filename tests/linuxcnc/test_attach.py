@@ -21,7 +21,9 @@ CONFIGS = HERE.parents[1] / "recordings" / "configs"
 PROGRAM = "G21 G90 G64 P0.01\nF3000\nG0 X0 Y0 Z0\nG1 X20 Y0\nG1 X20 Y20\nG1 X0 Y0\nM2\n"
 
 
-def test_attach_records_the_running_program_until_it_ends(tmp_path_factory):
+@pytest.mark.parametrize("machine_hal", ["plain", "uses-integ"])
+def test_attach_records_the_running_program_until_it_ends(tmp_path_factory, machine_hal):
+    """`uses-integ`: the machine's HAL already loads integ, so the recorder runs without its clock."""
     # the scenario may run in a private /tmp: keep its files where both sides see them
     base = Path("/var/tmp") if Path("/var/tmp").is_dir() else None
     tmp = tmp_path_factory.mktemp("attach") if base is None else Path(
@@ -30,7 +32,7 @@ def test_attach_records_the_running_program_until_it_ends(tmp_path_factory):
     program, out, result = tmp / "tri.ngc", tmp / "tri.mcap", tmp / "result.json"
     program.write_text(PROGRAM)
     args = [sys.executable, str(HERE / "attach_scenario.py"), str(CONFIGS / "xyz.ini"), str(program), str(out),
-            str(result)]
+            str(result)] + (["--machine-uses-integ"] if machine_hal == "uses-integ" else [])
     if os.geteuid() == 0 and isolation_available() is None:
         cmd = [*UNSHARE, "sh", "-c", NAMESPACE_SETUP + ' && exec "$@"', "sh", *args]
     else:
@@ -49,8 +51,13 @@ def test_attach_records_the_running_program_until_it_ends(tmp_path_factory):
         assert rec.attachments[PROGRAM_ATTACHMENT].decode() == PROGRAM
         # 20 + 20 + 28.3 mm at 50 mm/s with accelerations: ~1.5 s, as LinuxCNC itself counted it
         assert 1.3 < summary["cycle_time_s"] < 2.0
-        if np.isfinite(summary["linuxcnc_motion_time_s"]):
+        if machine_hal == "plain":
             assert abs(summary["cycle_time_s"] - summary["linuxcnc_motion_time_s"]) <= 0.001
+        else:
+            assert not np.isfinite(summary["linuxcnc_motion_time_s"])
+        # samplers joined row by row: joint commands trail the planner by exactly 2 servo periods
+        x, j0 = rec.stream("axes")["x_mm"].to_numpy(), rec.stream("joints")["j0_pos"].to_numpy()
+        assert np.abs(j0[2:] - x[:-2]).max() < 1e-3 < np.abs(j0[1:] - x[:-1]).max()
     finally:
         if base is not None:
             import shutil

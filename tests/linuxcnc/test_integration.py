@@ -53,6 +53,9 @@ def test_recording_is_1khz_without_missing_samples(square_recording):
         assert len(t) > 1500
         assert np.all(np.diff(t) == 1_000_000), f"stream {name} is not one sample per 1 ms servo period"
     assert rec.metadata["nominal_rate_hz"] == "1000"
+    # the two samplers are joined row by row: joint commands trail the planner by 2 servo periods
+    x, j0 = rec.stream("axes")["x_mm"].to_numpy(), rec.stream("joints")["j0_pos"].to_numpy()
+    assert np.abs(j0[2:] - x[:-2]).max() < 1e-3 < np.abs(j0[1:] - x[:-1]).max()
     assert rec.metadata["sampler_overruns"] == "0"
 
 
