@@ -101,9 +101,11 @@ def attach_linuxcnc(ini: str | Path, out: str | Path, *, program: str | Path | N
             subprocess.run(["haltcl", str(workdir / "unload.tcl")], capture_output=True, timeout=60)
         wall_s = time.monotonic() - t0
         result_path = Path(job["result"])
-        if not result_path.exists():
-            raise IngestError(f"the attached recorder stopped without a report: {(log or '').strip()[-400:]}")
-        report = json.loads(result_path.read_text())
+        if result_path.exists():
+            report = json.loads(result_path.read_text())
+        else:  # keep whatever was sampled
+            report = {"ok": False, "errors": [], "phase": "attach",
+                      "abort": f"the attached recorder stopped without a report: {(log or '').strip()[-400:]}"}
         program_path = Path(program) if program else (Path(report["program_file"]) if report.get("program_file")
                                                       else None)
         error = session_error(report, program_path or Path("<running program>"))

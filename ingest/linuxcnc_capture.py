@@ -41,6 +41,8 @@ def read_capture(path: Path, names: list[str]) -> pd.DataFrame:
         text = Path(path).read_text()
     except OSError as exc:
         raise IngestError(f"cannot read sampler capture: {exc.strerror}", file=str(path)) from None
+    if text and not text.endswith("\n"):
+        text = text[:text.rfind("\n") + 1]  # halsampler stopped mid-line: that last sample is incomplete
     if not text.strip():
         return pd.DataFrame({n: pd.Series(dtype="float64") for n in names})
     try:

@@ -270,11 +270,13 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
         wall_s = time.monotonic() - t0
         log_text = log_path.read_text(errors="replace")
         result_path = Path(job["result"])
-        if not result_path.exists():
+        if result_path.exists():
+            report = json.loads(result_path.read_text())
+        else:  # killed, timed out or never started: report it, and keep whatever was sampled
             tail = "\n".join(log_text.strip().splitlines()[-12:])
-            raise IngestError(f"LinuxCNC did not run the driver to the end (exit {proc.returncode}); "
-                              f"log tail:\n{tail}", file=str(ini.path))
-        report = json.loads(result_path.read_text())
+            report = {"ok": False, "errors": [], "phase": "unknown",
+                      "abort": f"LinuxCNC did not run the driver to the end (exit {proc.returncode}); "
+                               f"log tail:\n{tail}"}
     except BaseException:
         if not keep_workdir:
             shutil.rmtree(workdir, ignore_errors=True)

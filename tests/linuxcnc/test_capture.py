@@ -134,3 +134,13 @@ def test_wrong_field_count_is_refused(tmp_path):
     files = write_captures(tmp_path, fake_session(200), standard_layout("XYZ", 3))
     with pytest.raises((IngestError, ValueError)):
         load_capture(files, layout, period_ns=PERIOD_NS)
+
+
+def test_capture_cut_mid_line_keeps_every_complete_sample(tmp_path):
+    layout = standard_layout("XYZ", 3)
+    files = write_captures(tmp_path, fake_session(300), layout)
+    for f in files:  # halsampler killed while writing its last line
+        text = f.read_text()
+        f.write_text(text[:-25])
+    streams, missing = load_capture(files, layout, period_ns=PERIOD_NS)
+    assert len(streams["axes"]) == 299 and missing == 0

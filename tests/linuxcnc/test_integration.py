@@ -138,3 +138,16 @@ def test_stop_event_stops_the_machine_and_keeps_what_was_recorded(tmp_path):
     x = rec.stream("axes")["x_mm"].to_numpy()
     assert 0.5 < x.max() < 99.0  # moved, but not to the end of the first move
     assert summary["wall_s"] < 11.0
+
+
+def test_timeout_keeps_what_was_recorded_and_says_so(tmp_path):
+    from feedlog.errors import IngestError
+
+    program = tmp_path / "slow.ngc"
+    program.write_text("G21 G90 G64 P0.01\nF1000\nG0 X0 Y0 Z0\nG1 X100\nG1 X0\nM2\n")  # ~12 s
+    out = tmp_path / "slow.mcap"
+    with pytest.raises(IngestError, match=r"timed out waiting for program end.*recording up to the error kept"):
+        record_linuxcnc(CONFIGS / "xyz.ini", program, out, isolate=ISOLATE, timeout_s=4)
+    rec = read_recording(out)
+    assert rec.metadata["status"].startswith("aborted")
+    assert 0.5 < rec.stream("axes")["x_mm"].max() < 99.0
