@@ -74,10 +74,19 @@ def _rows(result: DemoResult) -> list[TableRow]:
 
 
 def detail_runs(result: DemoResult, count: int) -> set[str]:
-    """Recordings that get every plot: held-out (test) ones first, then training ones, `count` in all."""
+    """Recordings that get every plot, `count` in all: held-out (test) ones first, one per program
+    family and five-axis ones early, so the report shows the variety of the set."""
     shown = [r for r in result.runs if r.data is not None]
-    shown.sort(key=lambda r: r.entry.split != "test")
-    return {r.entry.name for r in shown[:count]}
+    chosen: list[RecordingRun] = []
+    families: set[str] = set()
+    for run in sorted(shown, key=lambda r: (r.entry.split != "test", len(r.data.axes) <= 3)):
+        if len(chosen) < count and (not run.entry.family or run.entry.family not in families):
+            chosen.append(run)
+            families.add(run.entry.family)
+    for run in shown:  # fewer families than `count`: fill up in order
+        if len(chosen) < count and run not in chosen:
+            chosen.append(run)
+    return {r.entry.name for r in chosen}
 
 
 def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PLOTS) -> dict[str, Path]:

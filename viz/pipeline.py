@@ -49,6 +49,7 @@ class RecordingEntry:
     name: str
     program: str
     split: str = "train"
+    family: str = ""                      # manifest's program family (corners, pocket, ...)
     program_path: Path | None = None      # manifest's program file (used when none is attached)
     profile: str | None = None            # manifest's machine profile (used when none is attached)
     expected: dict[str, Any] = field(default_factory=dict)   # manifest's samples, dropped_frames, cycle_time_s
@@ -105,7 +106,7 @@ def discover(folder: Path) -> list[RecordingEntry]:
         program = item.get("program")
         expected = {k: item[k] for k in ("samples", "dropped_frames", "cycle_time_s") if k in item}
         entries.append(RecordingEntry(path=path, name=name, program=Path(program).stem if program else name,
-                                      split=split, program_path=folder / program if program else None,
+                                      split=split, family=str(item.get("family", "")), program_path=folder / program if program else None,
                                       profile=item.get("profile"), expected=expected))
     return entries
 
