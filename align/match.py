@@ -11,18 +11,25 @@ constrained to progress along the program:
    and dwell collapse to their first and last sample; nothing moves between them), and its cumulative
    length S is computed.
 2. The first CL point that the tool reaches fixes the start: the *earliest* passage within `tol_mm`.
-3. CL points are then processed in order, in chunks. Within a chunk, CL point k may only match measured
-   segments whose length coordinate lies within +-W_k of its prediction S_anchor + (s_k - s_anchor),
-   where the anchor is the last well-matched point of the previous chunk and
-   W_k = window_mm + drift x (s_k - s_anchor) allows for corner blending, chords and noise. A pass that
-   comes back to the same place is a whole pass length away in S and so never inside the window. Inside
-   the window the candidate with the least distance + progress_weight x |S - predicted S| wins, which
-   separates a line that is retraced right after a reversal (equally close, but far in progress).
+3. CL points are then processed in order, in chunks (`chunk_points`, `chunk_mm`). The anchor is the last
+   well-matched point of the previous chunk. CL point k, ds = s_k - s_anchor of program ahead of it, may
+   only match measured segments whose length coordinate S lies in
+   [S_anchor - W, S_anchor + (1 + drift) ds + W] (W = `window_mm`): the measured path can be much shorter
+   than the program (sampled chords across wiggles, corner blends) but not much longer. A pass that
+   comes back to the same place later lies beyond the window. Inside it the candidate with the least
+   distance + progress_weight x |S - S_pred| wins, S_pred = S_anchor + r ds with r the measured/programmed
+   length ratio of the last chunk; this separates a line retraced right after a reversal (equally close,
+   far apart in progress) and never moves the foot point on a straight stretch (weight < 1).
 4. Progress is made monotone (a running maximum over the matched positions); a point pushed forward is
    re-measured at its new position.
 
 Every match returns the fractional sample index, the time (interpolated between samples) and the
-distance. Points farther than `tol_mm` (among those checked) raise `AlignmentError` listing the worst.
+distance. Points farther than their tolerance (among those checked) raise `AlignmentError` listing the
+worst. The tolerance is `tol_mm` (or the per-point `tolerance`) plus `chord_allowance` x the reach of
+the sampling interval the point matched in: the sampled chord's length, or (when `speed_mm_s` is given)
+the programmed speed x the interval, if longer. Between two samples the tool travels at most that far,
+so it may leave the chord by up to half of it (a corner, a reversal tip); sparse data (5 Hz, several mm
+per sample) is judged fairly and dense data keeps a tight tolerance.
 """
 
 from __future__ import annotations
@@ -44,6 +51,7 @@ class MatchConfig:
     chunk_mm: float = 50.0         # program length per chunk (at least one point)
     resolution_mm: float = 1e-3    # vertex spacing of the reduced measured path
     still_mm: float = 1e-6         # path length below which the tool has not left a point (departure)
+    chord_allowance: float = 0.5   # tolerance += this x the matched sampled chord (a chord cuts corners)
 
     def __post_init__(self) -> None:
         if not self.tol_mm > 0:
@@ -56,6 +64,8 @@ class MatchConfig:
             raise AlignmentError(f"progress_weight must be in [0, 1), got {self.progress_weight}")
         if self.chunk_points < 1 or not self.chunk_mm > 0:
             raise AlignmentError(f"chunk_points >= 1 and chunk_mm > 0 needed, got {self.chunk_points}, {self.chunk_mm}")
+        if not self.chord_allowance >= 0:
+            raise AlignmentError(f"chord_allowance must be >= 0, got {self.chord_allowance}")
         if not self.still_mm >= 0:
             raise AlignmentError(f"still_mm must be >= 0, got {self.still_mm}")
         if not self.resolution_mm > 0:
@@ -108,13 +118,14 @@ def _project(c: np.ndarray, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
 def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray, *,
                     s_mm: np.ndarray | None = None, config: MatchConfig | None = None,
                     tolerance: np.ndarray | None = None, check: np.ndarray | None = None,
-                    labels: list[str] | None = None) -> Match:
+                    labels: list[str] | None = None, speed_mm_s: np.ndarray | None = None) -> Match:
     """Match ordered CL points (k, 3) to the measured path (`t_ns` (n,), `positions` (n, 3)).
 
     `s_mm`: the program's cumulative length at each CL point (default: chord length of `cl_xyz`).
     `tolerance`: per-point tolerance in mm (default `config.tol_mm` everywhere), e.g. widened by a
     block's G64 P blending tolerance. `check`: which points the tolerance applies to (default all finite
-    ones); `labels` name points in the error message (e.g. "block 12 (line 40)").
+    ones); `labels` name points in the error message (e.g. "block 12 (line 40)"); `speed_mm_s`: the
+    programmed speed at each point, which bounds how far the tool can stray between two samples.
     """
     cfg = config or MatchConfig()
     cl = np.asarray(cl_xyz, dtype=np.float64)
@@ -171,6 +182,12 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
                              f"points (e.g. {np.round(cl[order[0]], 3).tolist() if len(order) else '-'}); wrong "
                              "program, units or work offset?")
     anchor_s, anchor_S = s_prog[start], sv[seg_of[start]] + u_of[start] * np.sqrt(dd[seg_of[start]])
+    ratio = 1.0
+    speed = None if speed_mm_s is None else np.nan_to_num(np.asarray(speed_mm_s, dtype=np.float64), nan=0.0)
+    tv = t[keep]
+    seg_dt = np.diff(tv) / 1e9
+    if len(seg_dt):
+        seg_dt = np.minimum(seg_dt, 10 * max(float(np.median(seg_dt)), 1e-9))
 
     # 3. chunks of CL points after the start
     rest = order[order > start]
@@ -183,10 +200,12 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         hi_i = i + max(1, cut)
         ks = rest[i:hi_i]
         ds = np.maximum(s_prog[ks] - anchor_s, 0.0)
-        pred = anchor_S + ds
-        win = w0 + cfg.drift * ds
-        lo = np.clip(np.searchsorted(sv, pred - win, side="right") - 1, 0, max(nseg - 1, 0))
-        hi = np.clip(np.searchsorted(sv, pred + win, side="left"), 0, max(nseg - 1, 0))
+        pred = anchor_S + ratio * ds
+        # the measured path may be much shorter than the program (chords over wiggles, blends) but not
+        # much longer: search from just behind the anchor to (1 + drift) x the programmed distance ahead
+        lo = np.clip(np.searchsorted(sv, anchor_S - w0, side="right") - 1, 0, max(nseg - 1, 0))
+        lo = np.full(len(ks), lo)
+        hi = np.clip(np.searchsorted(sv, anchor_S + (1 + cfg.drift) * ds + w0, side="left"), 0, max(nseg - 1, 0))
         band = int((hi - lo).max()) + 1
         idx = lo[:, None] + np.arange(band)[None, :]
         valid = idx <= hi[:, None]
@@ -205,10 +224,16 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         seg_of[ks] = idx[rows, best]
         u_of[ks] = u[rows, best]
         dist[ks] = dk[rows, best]
-        good = ks[dist[ks] <= tol[ks]]
+        reach = seg_len[seg_of[ks]]
+        if speed is not None:
+            reach = np.maximum(reach, speed[ks] * seg_dt[seg_of[ks]])
+        good = ks[dist[ks] <= tol[ks] + cfg.chord_allowance * reach]
         if len(good):
             a = good[-1]
-            anchor_s, anchor_S = s_prog[a], sv[seg_of[a]] + u_of[a] * seg_len[seg_of[a]]
+            new_s, new_S = s_prog[a], sv[seg_of[a]] + u_of[a] * seg_len[seg_of[a]]
+            if new_s - anchor_s > w0:  # local ratio of measured to programmed length, for the prediction
+                ratio = float(np.clip((new_S - anchor_S) / (new_s - anchor_s), 0.05, 1.0 + cfg.drift))
+            anchor_s, anchor_S = new_s, new_S
         i = hi_i
 
     # 4. monotone progress
@@ -251,6 +276,15 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
                    t_depart_ns=depart)
 
     checked = finite_cl if check is None else (np.asarray(check, dtype=bool) & finite_cl)
+    # a sampled path is a chord polygon: between two samples it may cut a corner by up to half the chord
+    if m.any() and cfg.chord_allowance > 0:
+        reach = seg_len[seg_of[m]]
+        if speed_mm_s is not None:
+            sub_i = np.floor(index[m]).astype(np.int64)
+            dt = (t[np.minimum(sub_i + 1, len(t) - 1)] - t[sub_i]) / 1e9
+            sp = np.nan_to_num(np.asarray(speed_mm_s, dtype=np.float64)[m], nan=0.0)
+            reach = np.maximum(reach, sp * dt)
+        tol[m] += cfg.chord_allowance * reach
     bad = checked & ~(dist <= tol)
     if bad.any():
         raise AlignmentError(violation_message(np.flatnonzero(bad), dist, cl, tol, labels))

@@ -28,6 +28,7 @@ from feedlog.align.blocks import (NO_TIME, MotionSpan, blocks_from_geometry, blo
 from feedlog.align.clock import event_offset, shift_stream
 from feedlog.align.feed import LINEAR, ROTARY, FeedSmoothing, feed_from_positions
 from feedlog.align.match import MatchConfig, match_cl_points
+from feedlog.align.subsample import refine_span
 from feedlog.align.timing import stream_timing
 from feedlog.errors import AlignmentError, FeedlogError
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
@@ -38,6 +39,7 @@ from feedlog.toolpath.schema import MOTION_KINDS, RAPID
 BOUNDARIES = ("auto", "pass", "leave")
 FEED_SOURCES = ("auto", "stream", "positions")
 STRAIGHT = ("linear", RAPID)
+SPARSE_NS = 5_000_000  # sampling periods above this count as sparse (5 Hz logging, not a servo trace)
 
 
 @dataclass(frozen=True)
@@ -57,6 +59,8 @@ class AlignConfig:
     on_path_mm: float = 1e-6         # "on the block's segment" for `leave` (raise for noisy positions)
     still_mm: float = 1e-6           # per-sample motion below this is standstill
     sync_lines: bool = False         # remove the line stream's clock offset (estimated from geometry)
+    model_span: bool = True          # sparse data: place motion start/end inside their sampling interval
+                                     # with feedlog.sim's trajectory of the program (needs a profile)
     window_mm: float | None = None   # match search window (see MatchConfig)
     smoothing: FeedSmoothing = field(default_factory=FeedSmoothing)
 
@@ -154,7 +158,11 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
                                   "matches and feeds across a gap use the straight chord over it")
 
     span = motion_span(t, pos, still_mm=cfg.still_mm, acc_mm_s2=_acc_limit(prof))
-    report["motion"] = {"t_start_ns": span.t_start_ns, "t_end_ns": span.t_end_ns, "cycle_time_s": span.duration_s}
+    refined = None
+    if timing.period_ns > SPARSE_NS and prof is not None and cfg.model_span:
+        span, refined = _refine_with_sim(span, t, xyz, prog, prof, report)
+    report["motion"] = {"t_start_ns": span.t_start_ns, "t_end_ns": span.t_end_ns, "cycle_time_s": span.duration_s,
+                        "sub_sample_model": refined}
 
     # --- CL points and the constrained match -------------------------------------------------------
     cl = cl_points(prog, chord_tol_mm=cfg.chord_tol_mm).reset_index(drop=True)
@@ -168,8 +176,10 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     check = np.ones(len(cl), dtype=bool) if cfg.check_rapids else (kind != RAPID)
     labels = [f"block {b} (line {ln})" for b, ln in zip(blk, cl["line"].to_numpy())]
     mcfg = MatchConfig(tol_mm=float(tolerance.max()), window_mm=cfg.window_mm, still_mm=cfg.still_mm)
+    rapid_mm_min = prof.rapid_mm_min if prof is not None else np.nan
+    speed = np.where(kind == RAPID, rapid_mm_min, cl["feed_mm_min"].to_numpy(dtype=np.float64)) / 60.0
     match = match_cl_points(cl[list(LINEAR)].to_numpy(dtype=np.float64), t, xyz, s_mm=cl["s_mm"].to_numpy(),
-                            config=mcfg, tolerance=tolerance, check=check, labels=labels)
+                            config=mcfg, tolerance=tolerance, check=check, labels=labels, speed_mm_s=speed)
     d = match.dist_mm[np.isfinite(match.dist_mm)]
     report["match"] = {"cl_points": len(cl), "measured_samples": len(t), "matched": int(match.matched.sum()),
                        "dist_median_mm": float(np.median(d)) if len(d) else None,
@@ -192,7 +202,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     end_idx = end_idx.astype(np.int64)
     boundary = cfg.boundary
     if boundary == "auto":
-        boundary = "leave" if timing.period_ns <= 5_000_000 else "pass"
+        boundary = "leave" if timing.period_ns <= SPARSE_NS else "pass"
     leave = None
     if boundary == "leave":
         straight = motion["kind"].astype(str).isin(STRAIGHT).to_numpy()[:, None]
@@ -216,6 +226,18 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     report["cycle_time_s"] = span.duration_s
     return Alignment(points=points, blocks=blocks_out, cycle_time_s=span.duration_s, report=report,
                      geometry_blocks=geo, line_blocks=line_blocks)
+
+
+def _refine_with_sim(span: MotionSpan, t: np.ndarray, xyz: np.ndarray, prog: Program, prof: MachineProfile,
+                     report: dict[str, Any]) -> tuple[MotionSpan, str | None]:
+    try:
+        from feedlog.sim import simulate  # noqa: PLC0415 - only sparse recordings need the model
+        sim = simulate(prog, prof)
+    except (ImportError, FeedlogError) as exc:
+        report["warnings"].append(f"no model for sub-sample motion start/end ({exc}); kinematic estimate used")
+        return span, None
+    series = sim.series
+    return refine_span(span, t, xyz, series["t_ns"].to_numpy(), series[list(LINEAR)].to_numpy()), f"sim:{prof.name}"
 
 
 def _config_dict(cfg: AlignConfig) -> dict[str, Any]:
