@@ -1,7 +1,14 @@
-"""What flows between mechanisms: the simulation context and the interpolated trajectory."""
+"""What flows between mechanisms: the simulation context and the interpolated trajectory.
+
+A `Trajectory` knows its timing (per-block start/end, motion start/end: the cycle time) as soon as
+the interpolator has planned; the sampled series (positions on the interpolation grid) is computed
+on first access, so a cycle-time prediction does not pay for a million-row series it never reads.
+`series` mechanisms chain transformations onto the sampler with `Trajectory.map`.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -9,6 +16,9 @@ import numpy as np
 from feedlog.profile import MachineProfile
 from feedlog.sim.motion import Plan, sample_plan
 from feedlog.sim.path import Blocks, Pieces
+
+# (t_s, pos, speed, row): sample times, (N, k) axis positions, path speed, Blocks row index
+Samples = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 @dataclass
@@ -22,23 +32,50 @@ class Context:
     notes: dict[str, object] = field(default_factory=dict)
 
 
-@dataclass
 class Trajectory:
-    """Interpolated motion on a regular time grid (seconds; axis units)."""
+    """Interpolated motion: timing now, samples on a regular grid on demand (seconds; axis units)."""
 
-    t_s: np.ndarray          # (N,) sample times, 0 = start of the first block
-    pos: np.ndarray          # (N, k) axis positions
-    speed: np.ndarray        # (N,) path speed (mm/s; deg/s for rotary-only moves)
-    row: np.ndarray          # (N,) index into Blocks of the executing block
-    block_start_s: np.ndarray  # (n,) per Blocks row
-    block_end_s: np.ndarray
-    motion_start_s: float
-    motion_end_s: float
-    plan: Plan | None = None
+    def __init__(self, sampler: Callable[[], Samples], *, block_start_s: np.ndarray, block_end_s: np.ndarray,
+                 motion_start_s: float, motion_end_s: float, plan: Plan | None = None) -> None:
+        self._sampler = sampler
+        self._samples: Samples | None = None
+        self.block_start_s = block_start_s
+        self.block_end_s = block_end_s
+        self.motion_start_s = motion_start_s
+        self.motion_end_s = motion_end_s
+        self.plan = plan
+
+    @property
+    def samples(self) -> Samples:
+        if self._samples is None:
+            self._samples = self._sampler()
+        return self._samples
+
+    @property
+    def t_s(self) -> np.ndarray:
+        return self.samples[0]
+
+    @property
+    def pos(self) -> np.ndarray:
+        return self.samples[1]
+
+    @property
+    def speed(self) -> np.ndarray:
+        return self.samples[2]
+
+    @property
+    def row(self) -> np.ndarray:
+        return self.samples[3]
 
     @property
     def cycle_time_s(self) -> float:
         return max(self.motion_end_s - self.motion_start_s, 0.0)
+
+    def map(self, fn: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], Samples]) -> Trajectory:
+        """The same timing with the samples passed through `fn` (applied lazily)."""
+        return Trajectory(lambda: fn(*self.samples), block_start_s=self.block_start_s,
+                          block_end_s=self.block_end_s, motion_start_s=self.motion_start_s,
+                          motion_end_s=self.motion_end_s, plan=self.plan)
 
 
 def time_grid(total_s: float, dt_s: float) -> np.ndarray:
@@ -51,18 +88,25 @@ def block_times(row_of_piece: np.ndarray, start: np.ndarray, end: np.ndarray, n_
     """Per block: earliest start and latest end of its pieces (NaN for blocks with no piece)."""
     b_start = np.full(n_rows, np.inf)
     b_end = np.full(n_rows, -np.inf)
-    np.minimum.at(b_start, row_of_piece, start)
-    np.maximum.at(b_end, row_of_piece, end)
+    # pieces are in time order, so a block's first piece has its start and its last piece its end
+    if len(row_of_piece):
+        first = np.unique(row_of_piece, return_index=True)[1]
+        last = len(row_of_piece) - 1 - np.unique(row_of_piece[::-1], return_index=True)[1]
+        rows = row_of_piece[first]
+        b_start[rows] = np.minimum(b_start[rows], start[first])
+        b_end[row_of_piece[last]] = np.maximum(b_end[row_of_piece[last]], end[last])
     b_start[np.isinf(b_start)] = np.nan
     b_end[np.isinf(b_end)] = np.nan
     return b_start, b_end
 
 
 def trajectory_from_plan(plan: Plan, pieces: Pieces, blocks: Blocks, dt_s: float) -> Trajectory:
-    total = plan.total_s
-    t = time_grid(total, dt_s)
-    pos, speed, idx = sample_plan(plan, pieces, t)
-    row = pieces.block[idx] if len(pieces) else np.zeros(len(t), np.int64)
+    def sample() -> Samples:
+        t = time_grid(plan.total_s, dt_s)
+        pos, speed, idx = sample_plan(plan, pieces, t)
+        row = pieces.block[idx] if len(pieces) else np.zeros(len(t), np.int64)
+        return t, pos, speed, row
+
     b_start, b_end = block_times(pieces.block, plan.t0, plan.t_end + plan.hold, len(blocks))
     moving = pieces.length > 0
     if moving.any():
@@ -70,19 +114,21 @@ def trajectory_from_plan(plan: Plan, pieces: Pieces, blocks: Blocks, dt_s: float
         m_end = float(plan.t_end[moving].max())
     else:
         m_start = m_end = 0.0
-    return Trajectory(t_s=t, pos=pos, speed=speed, row=row, block_start_s=b_start, block_end_s=b_end,
-                      motion_start_s=m_start, motion_end_s=m_end, plan=plan)
+    return Trajectory(sample, block_start_s=b_start, block_end_s=b_end, motion_start_s=m_start,
+                      motion_end_s=m_end, plan=plan)
 
 
 def hold_end(traj: Trajectory, extra_s: float, dt_s: float) -> Trajectory:
     """The trajectory with `extra_s` of standstill appended (for mechanisms that settle after the end)."""
     n = int(np.ceil(extra_s / dt_s))
-    if n <= 0 or not len(traj.t_s):
+    if n <= 0:
         return traj
-    t = np.concatenate([traj.t_s, traj.t_s[-1] + dt_s * np.arange(1, n + 1)])
-    pos = np.vstack([traj.pos, np.repeat(traj.pos[-1:], n, axis=0)])
-    speed = np.concatenate([traj.speed, np.zeros(n)])
-    row = np.concatenate([traj.row, np.repeat(traj.row[-1:], n)])
-    return Trajectory(t_s=t, pos=pos, speed=speed, row=row, block_start_s=traj.block_start_s,
-                      block_end_s=traj.block_end_s, motion_start_s=traj.motion_start_s,
-                      motion_end_s=traj.motion_end_s, plan=traj.plan)
+
+    def extend(t, pos, speed, row) -> Samples:
+        if not len(t):
+            return t, pos, speed, row
+        return (np.concatenate([t, t[-1] + dt_s * np.arange(1, n + 1)]),
+                np.vstack([pos, np.repeat(pos[-1:], n, axis=0)]),
+                np.concatenate([speed, np.zeros(n)]), np.concatenate([row, np.repeat(row[-1:], n)]))
+
+    return traj.map(extend)

@@ -120,29 +120,34 @@ class FirInterpolator(Mechanism):
         dur = d_s + d_m + d_e
         t0 = np.concatenate(([0.0], np.cumsum(dur + gap)[:-1])) if len(pc) else dur
         raw_end = float((t0 + dur + gap)[-1]) if len(pc) else 0.0
-        t = time_grid(raw_end + td, dt)
-        idx = np.clip(np.searchsorted(t0, t, side="right") - 1, 0, max(len(pc) - 1, 0))
-        tau = np.clip(t - t0[idx], 0.0, dur[idx])
-        s = (np.minimum(tau, d_s[idx]) * f_s[idx]
-             + np.clip(tau - d_s[idx], 0.0, d_m[idx]) * feed[idx]
-             + np.clip(tau - d_s[idx] - d_m[idx], 0.0, d_e[idx]) * f_e[idx])
-        s = np.minimum(s, pc.length[idx])
-        raw = pc.position(idx, s)
-        pos = moving_average(moving_average(raw, max(int(round(self.t1_s / dt)), 1)),
-                             max(int(round(self.t2_s / dt)), 1))
-        lin = blocks.linear_index
-        step = np.diff(pos, axis=0, prepend=pos[:1])
-        speed = np.linalg.norm(step[:, lin], axis=1) / dt
-        rot_only = speed < 1e-9
-        if rot_only.any() and len(lin) < pos.shape[1]:
-            rot = [i for i in range(pos.shape[1]) if i not in lin]
-            speed = np.where(rot_only, np.linalg.norm(step[:, rot], axis=1) / dt, speed)
         delay = 0.5 * td
-        row_idx = np.clip(np.searchsorted(t0, t - delay, side="right") - 1, 0, max(len(pc) - 1, 0))
-        row = pc.block[row_idx] if len(pc) else np.zeros(len(t), np.int64)
+        n1 = max(int(round(self.t1_s / dt)), 1)
+        n2 = max(int(round(self.t2_s / dt)), 1)
+        lin = blocks.linear_index
+        last = max(len(pc) - 1, 0)
+
+        def sample():
+            t = time_grid(raw_end + td, dt)
+            idx = np.clip(np.searchsorted(t0, t, side="right") - 1, 0, last)
+            tau = np.clip(t - t0[idx], 0.0, dur[idx])
+            s = (np.minimum(tau, d_s[idx]) * f_s[idx]
+                 + np.clip(tau - d_s[idx], 0.0, d_m[idx]) * feed[idx]
+                 + np.clip(tau - d_s[idx] - d_m[idx], 0.0, d_e[idx]) * f_e[idx])
+            s = np.minimum(s, pc.length[idx])
+            pos = moving_average(moving_average(pc.position(idx, s), n1), n2)
+            step = np.diff(pos, axis=0, prepend=pos[:1])
+            speed = np.linalg.norm(step[:, lin], axis=1) / dt
+            rot_only = speed < 1e-9
+            if rot_only.any() and len(lin) < pos.shape[1]:
+                rot = [i for i in range(pos.shape[1]) if i not in lin]
+                speed = np.where(rot_only, np.linalg.norm(step[:, rot], axis=1) / dt, speed)
+            row_idx = np.clip(np.searchsorted(t0, t - delay, side="right") - 1, 0, last)
+            row = pc.block[row_idx] if len(pc) else np.zeros(len(t), np.int64)
+            return t, pos, speed, row
+
         b_start, b_end = block_times(pc.block, t0 + delay, t0 + dur + gap + delay, len(blocks))
         moving = pc.length > 0
         m_start = float(t0[moving].min()) if moving.any() else 0.0
         m_end = float((t0 + dur)[moving].max() + td) if moving.any() else 0.0
-        return Trajectory(t_s=t, pos=pos, speed=speed, row=row, block_start_s=b_start, block_end_s=b_end,
+        return Trajectory(sample, block_start_s=b_start, block_end_s=b_end,
                           motion_start_s=m_start, motion_end_s=m_end)

@@ -10,7 +10,7 @@ motion and so the cycle time are unchanged, the series gets `settle` lags of sta
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -36,14 +36,18 @@ class FollowingLag(Mechanism):
         from scipy.signal import lfilter  # noqa: PLC0415 (scipy.signal imports slowly)
 
         trajectory = hold_end(trajectory, self.settle * max(self.lag_s.values(), default=0.0), ctx.dt_s)
-        pos = trajectory.pos.copy()
         dt = ctx.dt_s
-        for i, axis in enumerate(ctx.blocks.axes):
-            tau = float(self.lag_s.get(axis, 0.0))
-            if tau <= 0 or not len(pos):
-                continue
-            alpha = 1.0 - np.exp(-dt / tau)
-            x0 = pos[0, i]
-            out, _ = lfilter([alpha], [1.0, alpha - 1.0], pos[:, i] - x0, zi=[0.0])
-            pos[:, i] = out + x0
-        return replace(trajectory, pos=pos)
+        lags = [(i, float(self.lag_s.get(axis, 0.0))) for i, axis in enumerate(ctx.blocks.axes)]
+
+        def lag(t, pos, speed, row):
+            pos = pos.copy()
+            for i, tau in lags:
+                if tau <= 0 or not len(pos):
+                    continue
+                alpha = 1.0 - np.exp(-dt / tau)
+                x0 = pos[0, i]
+                out, _ = lfilter([alpha], [1.0, alpha - 1.0], pos[:, i] - x0, zi=[0.0])
+                pos[:, i] = out + x0
+            return t, pos, speed, row
+
+        return trajectory.map(lag)

@@ -130,8 +130,11 @@ class TrunnionKinematics(Mechanism):
         ctx.notes["joint_feed_limit"] = v_joint
 
     def after(self, ctx: Context, trajectory: Trajectory) -> Trajectory:
-        q = self.joints(trajectory.pos, ctx)
-        table = {"t_ns": seconds_to_ns(trajectory.t_s)}
-        table.update({f"j{i}_pos": q[:, i] for i in range(5)})
-        ctx.notes["joints"] = pd.DataFrame(table)
+        def joints() -> pd.DataFrame:
+            q = self.joints(trajectory.pos, ctx)
+            table = {"t_ns": seconds_to_ns(trajectory.t_s)}
+            table.update({f"j{i}_pos": q[:, i] for i in range(5)})
+            return pd.DataFrame(table)
+
+        ctx.notes["joints"] = joints  # evaluated when SimResult.joints is read
         return trajectory

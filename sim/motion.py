@@ -104,39 +104,74 @@ def plan_speeds(pieces: Pieces, *, lookahead: int | None = None) -> Plan:
                 hold=pieces.hold_s.copy(), overlap_s=overlap_s)
 
 
-def _progress(plan: Plan, pieces: Pieces, idx: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Distance travelled and speed within piece idx at local time tau (clamped to the piece)."""
-    v0, vp, v1, a = plan.v0[idx], plan.vp[idx], plan.v1[idx], plan.acc[idx]
-    ta, tc, td = plan.t_acc[idx], plan.t_cru[idx], plan.t_dec[idx]
-    length = pieces.length[idx]
-    tau = np.clip(tau, 0.0, ta + tc + td)
+def _progress(v0, vp, a, ta, tc, td, length, tau) -> tuple[np.ndarray, np.ndarray]:
+    """Distance travelled and speed at local time tau of trapezoids given per sample."""
+    t_end = ta + tc + td
+    tau = np.minimum(np.maximum(tau, 0.0), t_end)
     t1 = np.minimum(tau, ta)
-    s = v0 * t1 + 0.5 * a * t1 ** 2
-    v = v0 + a * t1
-    t2 = np.clip(tau - ta, 0.0, tc)
-    s = s + vp * t2
-    v = np.where(tau > ta, vp, v)
-    t3 = np.clip(tau - ta - tc, 0.0, td)
-    s = s + vp * t3 - 0.5 * a * t3 ** 2
-    v = np.where(tau > ta + tc, vp - a * t3, v)
-    s = np.minimum(s, length)
-    return s, np.maximum(v, 0.0)
+    t2 = np.minimum(np.maximum(tau - ta, 0.0), tc)
+    t3 = np.maximum(tau - ta - tc, 0.0)
+    s = v0 * t1 + 0.5 * a * t1 * t1 + vp * (t2 + t3) - 0.5 * a * t3 * t3
+    v = np.where(tau > ta + tc, vp - a * t3, np.where(tau > ta, vp, v0 + a * t1))
+    return np.minimum(s, length), np.maximum(v, 0.0)
+
+
+def _grid_counts(start_s: np.ndarray, n: int, dt_s: float) -> np.ndarray:
+    """How many grid samples k * dt fall in [start[i], start[i + 1]) (the last piece takes the rest)."""
+    first = np.clip(np.ceil(start_s / dt_s - 1e-9).astype(np.int64), 0, n)
+    first = np.maximum.accumulate(first)
+    return np.diff(first, append=n)
+
+
+class _Repeat:
+    """Per-piece arrays expanded to per-sample arrays with np.repeat (contiguous runs, no gathers)."""
+
+    def __init__(self, counts: np.ndarray) -> None:
+        self.counts = counts
+
+    def __call__(self, values: np.ndarray) -> np.ndarray:
+        return np.repeat(values, self.counts, axis=0)
+
+
+def _positions(pieces: Pieces, rep: _Repeat, sigma: np.ndarray) -> np.ndarray:
+    pos = rep(pieces.p0) + rep(pieces.dir) * sigma[:, None]
+    curved = pieces.radius > 0
+    if curved.any():
+        mask = rep(curved)
+        idx_c = np.flatnonzero(curved)
+        sub_counts = rep.counts[idx_c]
+        omega = np.repeat(pieces.omega[idx_c], sub_counts)
+        radius = np.repeat(pieces.radius[idx_c], sub_counts)
+        e1 = np.repeat(pieces.e1[idx_c], sub_counts, axis=0)
+        e2 = np.repeat(pieces.e2[idx_c], sub_counts, axis=0)
+        ang = omega * sigma[mask]
+        pos[mask] += radius[:, None] * ((np.cos(ang) - 1.0)[:, None] * e1 + np.sin(ang)[:, None] * e2)
+    return pos
 
 
 def sample_plan(plan: Plan, pieces: Pieces, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Positions (len(t), k), path speed and piece index at times t (seconds)."""
-    if not len(pieces):
+    """Positions (len(t), k), path speed and piece index at the regular grid times t (seconds)."""
+    m = len(pieces)
+    if not m:
         return np.zeros((len(t), pieces.p0.shape[1])), np.zeros(len(t)), np.zeros(len(t), np.int64)
-    idx = np.clip(np.searchsorted(plan.t0, t, side="right") - 1, 0, len(pieces) - 1)
-    s, v = _progress(plan, pieces, idx, t - plan.t0[idx])
-    pos = pieces.position(idx, s)
+    dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
+    counts = _grid_counts(plan.t0, len(t), dt)
+    rep = _Repeat(counts)
+    idx = rep(np.arange(m))
+    tau = t - rep(plan.t0)
+    s, v = _progress(rep(plan.v0), rep(plan.vp), rep(plan.acc), rep(plan.t_acc), rep(plan.t_cru),
+                     rep(plan.t_dec), rep(pieces.length), tau)
+    pos = _positions(pieces, rep, s)
     if plan.overlap_s.any():  # the previous piece may still be finishing its parabolic blend
-        prev = np.maximum(idx - 1, 0)
-        tau_prev = t - plan.t0[prev]
-        active = (idx > 0) & (plan.overlap_s[prev] > 0) & (tau_prev < plan.duration[prev])
+        prev = np.concatenate(([0], np.arange(m - 1)))
+        has_prev = np.concatenate(([False], plan.overlap_s[:-1] > 0))
+        tau_prev = t - rep(plan.t0[prev])
+        active = rep(has_prev) & (tau_prev < rep(plan.duration[prev]))
         if active.any():
-            p = prev[active]
-            sp, vprev = _progress(plan, pieces, p, tau_prev[active])
-            pos[active] += pieces.position(p, sp) - pieces.position(p, pieces.length[p])
+            pp = pieces.take(prev)
+            sub = _Repeat(np.bincount(idx[active], minlength=m))
+            sp, vprev = _progress(sub(plan.v0[prev]), sub(plan.vp[prev]), sub(plan.acc[prev]), sub(plan.t_acc[prev]),
+                                  sub(plan.t_cru[prev]), sub(plan.t_dec[prev]), sub(pp.length), tau_prev[active])
+            pos[active] += _positions(pp, sub, sp) - _positions(pp, sub, sub(pp.length))
             v[active] += vprev
     return pos, v, idx

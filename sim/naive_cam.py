@@ -22,11 +22,18 @@ from feedlog.sim.mechanism import Mechanism
 from feedlog.sim.path import KIND_LINEAR, projected_limits
 
 
-def _distance_to_segment(points: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
-    m = end - start
-    mm = float(m @ m)
-    t = np.clip((points - start) @ m / mm, 0.0, 1.0) if mm > 0 else np.zeros(len(points))
-    return np.linalg.norm(points - (start + t[:, None] * m), axis=1)
+def _within(points: list[tuple[float, float, float]], start, end, tol: float) -> bool:
+    """Every point within tol of the segment start -> end (plain floats: chains are short)."""
+    mx, my, mz = end[0] - start[0], end[1] - start[1], end[2] - start[2]
+    mm = mx * mx + my * my + mz * mz
+    tol2 = tol * tol
+    for px, py, pz in points:
+        dx, dy, dz = px - start[0], py - start[1], pz - start[2]
+        t = 0.0 if mm <= 0 else min(max((dx * mx + dy * my + dz * mz) / mm, 0.0), 1.0)
+        ex, ey, ez = dx - t * mx, dy - t * my, dz - t * mz
+        if ex * ex + ey * ey + ez * ez > tol2:
+            return False
+    return True
 
 
 @dataclass
@@ -61,15 +68,16 @@ class NaiveCamMerge(Mechanism):
         keep = np.ones(n, bool)
         start_of = np.arange(n)       # for kept rows: the row whose start is the merged start
         idx = np.flatnonzero(cand) + 1  # rows that may join their predecessor
-        chain_start = None
+        need = np.unique(np.concatenate([idx, idx - 1]))
+        ends = dict(zip(need.tolist(), map(tuple, p1[need].tolist())))
+        starts = dict(zip(need.tolist(), p0[need].tolist()))
+        chain_start = -1
         chain: list[int] = []
         prev = -2
-        for i in idx:
-            if i != prev + 1 or chain_start is None:
+        for i in idx.tolist():
+            if i != prev + 1 or chain_start < 0:
                 chain_start, chain = i - 1, [i - 1]
-            start = p0[chain_start]
-            if len(chain) <= self.max_chain and \
-                    _distance_to_segment(p1[chain], start, p1[i]).max() <= tol[i]:
+            if len(chain) <= self.max_chain and _within([ends[c] for c in chain], starts[chain_start], ends[i], tol[i]):
                 keep[chain[-1]] = False
                 chain.append(i)
                 start_of[i] = chain_start

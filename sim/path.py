@@ -134,6 +134,13 @@ def block_table(program) -> pd.DataFrame:
     return table
 
 
+def _labels(column: pd.Series) -> np.ndarray:
+    """String labels of a (usually categorical) column as a numpy array, without a per-row cast."""
+    cat = column if isinstance(column.dtype, pd.CategoricalDtype) else column.astype("category")
+    names = np.asarray([str(c) for c in cat.cat.categories] + [""], dtype=object)
+    return names[cat.cat.codes.to_numpy()]
+
+
 def _column(table: pd.DataFrame, name: str, default: float) -> np.ndarray:
     if name not in table.columns:
         return np.full(len(table), default, dtype=np.float64)
@@ -153,8 +160,8 @@ def projected_limits(delta: np.ndarray, length: np.ndarray, vel: np.ndarray, acc
 def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     """Motion and dwell rows of the block table as `Blocks`, with axis-projected limits."""
     table = block_table(program)
-    kinds = table["kind"].astype(str).to_numpy()
-    code = np.array([_KIND_CODES.get(k, -1) for k in kinds], dtype=np.int8)
+    kinds = _labels(table["kind"])
+    code = pd.Series(kinds).map(_KIND_CODES).fillna(-1).to_numpy(np.int8)
     keep = code >= 0
     t = table.loc[keep]
     code = code[keep]
@@ -185,7 +192,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     radius = np.zeros(n)
     normal_axis = np.full(n, 2, dtype=np.int8)
     is_arc = code == KIND_ARC
-    ccw = np.array([k == schema.ARC_CCW for k in kinds[keep]])
+    ccw = kinds[keep] == schema.ARC_CCW
     length = np.where(lin_len > EPS_LEN, lin_len, rot_len)
     for i in np.flatnonzero(is_arc):  # arcs are rare; the per-arc work is a few scalar ops
         if plane[i] not in _PLANES or np.isnan(center[i]).any():
@@ -232,7 +239,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     v_limit = np.minimum(v_axis, v_path)
     a_max = np.where(np.isfinite(a_axis), a_axis, acc.min())
 
-    mode = t["path_mode"].astype(str).to_numpy()
+    mode = _labels(t["path_mode"])
     stop_after = (mode != schema.CONTINUOUS) | (code == KIND_DWELL)
     exact_path = (mode == schema.EXACT_PATH) & (code != KIND_DWELL)
     if n:

@@ -8,7 +8,6 @@ time, `series` mechanisms change the sampled motion. Deterministic: no randomnes
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -24,20 +23,38 @@ from feedlog.toolpath.schema import AXIS_UNITS
 from feedlog.units import seconds_to_ns
 
 
-@dataclass
 class SimResult:
-    """Simulated motion. `series`: t_ns, axis positions, feed_mm_min, block, line at the interpolation
-    period; `blocks`: block, line, t_start_ns, t_end_ns, duration_s per executed block."""
+    """Simulated motion.
 
-    series: pd.DataFrame
-    blocks: pd.DataFrame
-    cycle_time_s: float
-    cam_time_s: float
-    profile: MachineProfile
-    mechanisms: list[Mechanism]
-    trajectory: Trajectory
-    joints: pd.DataFrame | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
+    `series`: t_ns, axis positions, feed_mm_min, block, line at the interpolation period (sampled on
+    first access); `blocks`: block, line, t_start_ns, t_end_ns, duration_s per executed block;
+    `cycle_time_s` (first motion to end of motion), `cam_time_s` (sum of L / F), `joints` (machine
+    joints for five-axis kinematics, else None), `mechanisms` that ran with their parameters.
+    """
+
+    def __init__(self, *, ctx: Context, trajectory: Trajectory, mechanisms: list[Mechanism], cam_time_s: float):
+        self.profile = ctx.profile
+        self.mechanisms = mechanisms
+        self.trajectory = trajectory
+        self.cycle_time_s = trajectory.cycle_time_s
+        self.cam_time_s = cam_time_s
+        self.notes = ctx.notes
+        self._ctx_blocks = ctx.blocks
+        self.blocks = _block_table(ctx.blocks, trajectory)
+        self._series: pd.DataFrame | None = None
+
+    @property
+    def series(self) -> pd.DataFrame:
+        if self._series is None:
+            self._series = _series(self._ctx_blocks, self.trajectory)
+        return self._series
+
+    @property
+    def joints(self) -> pd.DataFrame | None:
+        joints = self.notes.get("joints")
+        if callable(joints):
+            joints = self.notes["joints"] = joints()
+        return joints if isinstance(joints, pd.DataFrame) else None
 
     @property
     def mechanism_params(self) -> dict[str, dict[str, Any]]:
@@ -49,7 +66,7 @@ class SimResult:
     def summary(self) -> dict[str, Any]:
         return {"profile": self.profile.name, "cycle_time_s": round(self.cycle_time_s, 6),
                 "cam_time_s": round(self.cam_time_s, 6), "blocks": int(len(self.blocks)),
-                "samples": int(len(self.series)), "mechanisms": self.mechanism_params}
+                "mechanisms": self.mechanism_params}
 
 
 def _profile(profile: MachineProfile | str | Path) -> MachineProfile:
@@ -84,24 +101,24 @@ def simulate(program, profile: MachineProfile | str | Path, *, mechanisms: Mecha
     trajectory = interpolator.run(ctx)
     for mech in chain:
         trajectory = mech.after(ctx, trajectory)
-    return _result(ctx, trajectory, chain, cam_time)
+    return SimResult(ctx=ctx, trajectory=trajectory, mechanisms=chain, cam_time_s=cam_time)
 
 
-def _result(ctx: Context, traj: Trajectory, chain: list[Mechanism], cam_time: float) -> SimResult:
-    blocks: Blocks = ctx.blocks
-    columns: dict[str, Any] = {"t_ns": seconds_to_ns(traj.t_s)}
+def _series(blocks: Blocks, traj: Trajectory) -> pd.DataFrame:
+    t, pos, speed, row = traj.samples
+    columns: dict[str, Any] = {"t_ns": seconds_to_ns(t)}
     for i, axis in enumerate(blocks.axes):
-        columns[f"{axis}_{AXIS_UNITS[axis]}"] = traj.pos[:, i]
-    columns["feed_mm_min"] = traj.speed * 60.0
-    columns["block"] = blocks.block[traj.row].astype(np.int64) if len(blocks) else np.zeros(len(traj.t_s), np.int64)
-    columns["line"] = blocks.line[traj.row].astype(np.int64) if len(blocks) else np.zeros(len(traj.t_s), np.int64)
-    series = pd.DataFrame(columns)
+        columns[f"{axis}_{AXIS_UNITS[axis]}"] = pos[:, i]
+    columns["feed_mm_min"] = speed * 60.0
+    empty = np.zeros(len(t), np.int64)
+    columns["block"] = blocks.block[row].astype(np.int64) if len(blocks) else empty
+    columns["line"] = blocks.line[row].astype(np.int64) if len(blocks) else empty
+    return pd.DataFrame(columns)
+
+
+def _block_table(blocks: Blocks, traj: Trajectory) -> pd.DataFrame:
     ran = ~np.isnan(traj.block_start_s)
     start_ns = seconds_to_ns(traj.block_start_s[ran])
     end_ns = seconds_to_ns(traj.block_end_s[ran])
-    table = pd.DataFrame({"block": blocks.block[ran].astype(np.int64), "line": blocks.line[ran].astype(np.int64),
-                          "t_start_ns": start_ns, "t_end_ns": end_ns, "duration_s": (end_ns - start_ns) / 1e9})
-    joints = ctx.notes.get("joints")
-    return SimResult(series=series, blocks=table, cycle_time_s=traj.cycle_time_s, cam_time_s=cam_time,
-                     profile=ctx.profile, mechanisms=chain, trajectory=traj,
-                     joints=joints if isinstance(joints, pd.DataFrame) else None)
+    return pd.DataFrame({"block": blocks.block[ran].astype(np.int64), "line": blocks.line[ran].astype(np.int64),
+                         "t_start_ns": start_ns, "t_end_ns": end_ns, "duration_s": (end_ns - start_ns) / 1e9})
