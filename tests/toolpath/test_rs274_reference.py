@@ -1,0 +1,128 @@
+"""Differential tests against LinuxCNC's own interpreter (`rs274`, the standalone RS274/NGC interpreter
+of linuxcnc-uspace): it prints the canonical motion calls (STRAIGHT_TRAVERSE, STRAIGHT_FEED, ARC_FEED)
+for a program; our block table must hold the same end points, arc centres, directions and turns.
+Skipped where LinuxCNC is not installed."""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from feedlog.toolpath import parse_program
+
+RS274 = shutil.which("rs274")
+pytestmark = pytest.mark.skipif(RS274 is None, reason="LinuxCNC's rs274 interpreter is not installed "
+                                                      "(apt-get install linuxcnc-uspace)")
+ROOT = Path(__file__).resolve().parents[2]
+SHARED = ROOT.parent / "shared" / "linuxcnc"
+_CALL = re.compile(r"(STRAIGHT_TRAVERSE|STRAIGHT_FEED|ARC_FEED|SELECT_PLANE)\(([^)]*)\)")
+# ARC_FEED(first_end, second_end, first_centre, second_centre, rotation, normal_end, a, b, c)
+_PLANE_AXES = {"CANON_PLANE_XY": (0, 1, 2), "CANON_PLANE_XZ": (2, 0, 1), "CANON_PLANE_YZ": (1, 2, 0)}
+
+
+def rs274_moves(path: Path) -> list[tuple[str, np.ndarray, np.ndarray | None, int]]:
+    """(kind, end x y z a b c, centre x y z or None, rotation) per canonical motion call."""
+    path = path.resolve()
+    out = subprocess.run([RS274, "-g", str(path)], capture_output=True, text=True, timeout=60,
+                         cwd=path.parent).stdout
+    moves, plane = [], _PLANE_AXES["CANON_PLANE_XY"]
+    for name, args in _CALL.findall(out):
+        if name == "SELECT_PLANE":
+            plane = _PLANE_AXES[args.strip()]
+            continue
+        vals = [float(v) for v in args.split(",")]
+        if name != "ARC_FEED":
+            moves.append(("rapid" if name == "STRAIGHT_TRAVERSE" else "linear", np.array(vals[:6]), None, 0))
+            continue
+        end = np.zeros(6)
+        centre = np.full(3, np.nan)
+        u, v, w = plane
+        end[u], end[v], end[w] = vals[0], vals[1], vals[5]
+        end[3:] = vals[6:9]
+        centre[u], centre[v] = vals[2], vals[3]
+        moves.append(("arc", end, centre, int(vals[4])))
+    return moves
+
+
+def assert_same_as_rs274(path: Path, tol: float = 2e-4) -> int:
+    ref = rs274_moves(path)
+    ours = parse_program(path).motion
+    assert len(ours) == len(ref), f"{len(ours)} motion blocks, rs274 has {len(ref)}"
+    ends = ours[["x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"]].to_numpy()
+    for k, (kind, end, centre, rotation) in enumerate(ref):
+        row = ours.iloc[k]
+        assert np.allclose(ends[k], end, atol=tol), (k, ends[k], end)
+        if kind == "arc":
+            sign = 1 if row.kind == "arc_ccw" else -1
+            assert sign * int(row.turns) == rotation, (k, row.kind, row.turns, rotation)
+            c = row[["cx_mm", "cy_mm", "cz_mm"]].to_numpy(dtype=float)
+            known = ~np.isnan(centre)
+            assert np.allclose(c[known], centre[known], atol=tol), (k, c, centre)
+        else:
+            assert row.kind == kind, (k, row.kind, kind)
+    return len(ref)
+
+
+@pytest.mark.parametrize("path", sorted(SHARED.glob("*.ngc")) + sorted((ROOT / "examples").glob("*.ngc")),
+                         ids=lambda p: p.name)
+def test_programs_match_linuxcnc_interpreter(path):
+    assert assert_same_as_rs274(path) > 0
+
+
+@st.composite
+def arc_mixes(draw):
+    """A few moves mixing planes, arc formats, distance modes and arc-centre modes (mm, 4 decimals)."""
+    lines = ["G21 G90 G91.1 G17 G94 F500", "G0 X0 Y0 Z0"]
+    pos = np.zeros(3)
+    absolute_ijk = False
+    for _ in range(draw(st.integers(1, 6))):
+        plane = draw(st.sampled_from([17, 18, 19]))
+        u, v, w = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}[plane]
+        r = draw(st.integers(1, 400)) / 10
+        a0 = draw(st.floats(0, 2 * math.pi))
+        a1 = draw(st.floats(0, 2 * math.pi))
+        centre = pos.copy()
+        centre[u] -= r * math.cos(a0)
+        centre[v] -= r * math.sin(a0)
+        end = pos.copy()
+        end[u] = round(centre[u] + r * math.cos(a1), 4)
+        end[v] = round(centre[v] + r * math.sin(a1), 4)
+        end[w] = round(pos[w] + draw(st.integers(-50, 50)) / 10, 4)
+        g = draw(st.sampled_from(["G2", "G3"]))
+        incremental = draw(st.booleans())
+        target = end - pos if incremental else end
+        words = [f"G{plane}", "G91" if incremental else "G90", g]
+        words += [f"{'XYZ'[i]}{target[i]:.4f}" for i in range(3)]
+        chord = math.hypot(end[u] - pos[u], end[v] - pos[v])
+        if draw(st.booleans()) and chord > 0.5 and chord < 2 * r - 0.01:
+            # radius format: the same circle; sign picks the side
+            sweep = ((a1 - a0) if g == "G3" else (a0 - a1)) % (2 * math.pi)
+            words.append(f"R{r if sweep <= math.pi else -r:.4f}")
+        else:
+            absolute_ijk = draw(st.booleans())
+            words.insert(0, "G90.1" if absolute_ijk else "G91.1")
+            c = centre if absolute_ijk else centre - pos
+            words += [f"{'IJK'[u]}{c[u]:.4f}", f"{'IJK'[v]}{c[v]:.4f}"]
+        lines.append(" ".join(words))
+        pos = end
+        if draw(st.booleans()):
+            lines.append(f"G90 G1 X{pos[0] + 1:.4f}")
+            pos[0] += 1
+    return "\n".join(lines + ["M2"]) + "\n"
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(arc_mixes())
+def test_random_arc_programs_match_linuxcnc_interpreter(tmp_path, text):
+    path = tmp_path / "random.ngc"
+    path.write_text(text)
+    # rs274 prints 4 decimals; R arcs' centres are computed, so allow a little more there
+    assert_same_as_rs274(path, tol=2e-3)
