@@ -3,7 +3,7 @@
 Each signal goes to the stream named by the DBC attribute `FeedlogStream` (on the signal, else on its
 message, else the message name in lower_snake_case); its column is the signal name with the unit
 appended unless already there. A stream fed by several messages (feedlog's `axes`: XY, ZA, BC frames)
-takes its times from the message with most frames and joins the others by their sample counter
+takes its times from its lowest frame id and joins the others by their sample counter
 `seq` and nearest time (`pandas.merge_asof`). The `seq` signals also count lost samples.
 """
 
@@ -105,14 +105,18 @@ def assemble_streams(decoded: Decoded, layout: DbcLayout) -> tuple[dict[str, pd.
             members.setdefault(stream, []).append(message)
     streams: dict[str, pd.DataFrame] = {}
     for stream, messages in members.items():
+        messages = sorted(messages, key=lambda m: m.frame_id)  # the lowest id with frames gives the times
         tables = [t for m in messages if (t := _message_table(m, decoded, stream)) is not None]
         if not tables:
             continue
-        tables.sort(key=len, reverse=True)
         merged = tables[0]
         for other in tables[1:]:
             merged = _join(merged, other)
-        streams[stream] = merged.drop(columns=["_seq"], errors="ignore")
+        columns = ["t_ns"] + [s.column for m in messages for s in m.signals if s.stream == stream and s.name != SEQ_SIGNAL]
+        for column in columns:
+            if column not in merged:  # a member message sent nothing in this batch
+                merged[column] = np.nan
+        streams[stream] = merged[columns]
     return streams, max(lost_counts(decoded).values(), default=0)
 
 

@@ -13,13 +13,13 @@ import json
 from pathlib import Path
 
 import numpy as np
-from mcap.exceptions import McapError
 from mcap.reader import make_reader
+from mcap.records import Channel, Message
 
 from feedlog.errors import IngestError
 from feedlog.ingest import mcap_format as fmt
 from feedlog.ingest.mapping import ColumnMap, build_streams, parse_map, resolve_target, time_to_ns
-from feedlog.ingest.reader import _DAMAGE, read_recording
+from feedlog.ingest.reader import _DAMAGE, RecordScan, read_recording
 from feedlog.ingest.recording import Recording
 
 
@@ -77,33 +77,37 @@ def read_json_mcap(path: Path, mapping: dict[str, str], *, strict: bool = True, 
     bad = 0
     first_bad = ""
     count: dict[str, int] = {t: 0 for t in topics}
-    try:
-        with open(path, "rb") as f:
-            reader = make_reader(f)
-            for schema, channel, message in reader.iter_messages(topics=topics, log_time_order=True):
-                topic = channel.topic
-                count[topic] += 1
-                if channel.message_encoding != "json":
-                    raise IngestError(f"topic {topic!r} is {channel.message_encoding!r}, not json; this reader takes "
-                                      "JSON messages", file=str(path), position=f"{topic} message {count[topic]}")
-                try:
-                    obj = json.loads(message.data)
-                    row = {target: float(_get(obj, fpath)) for target, (t2, fpath) in fields.items() if t2 == topic}
-                    stamp = (float(_get(obj, time_field[1])) if time_field and time_field[0] == topic
-                             else message.log_time)
-                except (ValueError, KeyError, IndexError, TypeError) as exc:
-                    bad += 1
-                    where = f"{topic} message {count[topic]} (log_time {message.log_time})"
-                    if strict:
-                        raise IngestError(f"cannot read mapped fields: {type(exc).__name__}: {exc}", file=str(path),
-                                          position=where) from None
-                    first_bad = first_bad or where
-                    continue
-                times[topic].append(stamp)
-                for target, value in row.items():
-                    values[target].append(value)
-    except _DAMAGE + (McapError,) as exc:
-        raise IngestError(f"damaged MCAP file ({type(exc).__name__}: {exc})", file=str(path)) from None
+    channels: dict[int, Channel] = {}
+    scan = RecordScan(path, recover=bool(options and options.recover))
+    for _, record in scan:
+        if isinstance(record, Channel):
+            channels[record.id] = record
+            continue
+        if not isinstance(record, Message) or record.channel_id not in channels:
+            continue
+        channel = channels[record.channel_id]
+        topic = channel.topic
+        if topic not in count:
+            continue
+        count[topic] += 1
+        if channel.message_encoding != "json":
+            raise IngestError(f"topic {topic!r} is {channel.message_encoding!r}, not json; this reader takes "
+                              "JSON messages", file=str(path), position=f"{topic} message {count[topic]}")
+        try:
+            obj = json.loads(record.data)
+            row = {target: float(_get(obj, fpath)) for target, (t2, fpath) in fields.items() if t2 == topic}
+            stamp = float(_get(obj, time_field[1])) if time_field and time_field[0] == topic else record.log_time
+        except (ValueError, KeyError, IndexError, TypeError) as exc:
+            bad += 1
+            where = f"{topic} message {count[topic]} (log_time {record.log_time})"
+            if strict:
+                raise IngestError(f"cannot read mapped fields: {type(exc).__name__}: {exc}", file=str(path),
+                                  position=where) from None
+            first_bad = first_bad or where
+            continue
+        times[topic].append(stamp)
+        for target, value in row.items():
+            values[target].append(value)
     streams = {}
     for stream, topic in by_stream.items():
         if time_field and time_field[0] == topic:
@@ -116,6 +120,8 @@ def read_json_mcap(path: Path, mapping: dict[str, str], *, strict: bool = True, 
                 if tp == topic and resolve_target(target)[0] == stream}
         streams.update(build_streams(t_ns[order], cols, cmap))
     metadata = {"source": path.name, "mapping": ",".join(f"{k}={v}" for k, v in mapping.items())}
+    if scan.recovered:
+        metadata["recovered"] = scan.recovered
     if bad:
         metadata["bad_records"] = f"{bad} messages without the mapped fields; first: {first_bad}"
     return Recording(streams=streams, metadata=metadata, source=str(path))

@@ -106,52 +106,69 @@ def check_version(meta: dict[str, str], source: str) -> None:
                           f"(it reads versions 1..{fmt.FORMAT_VERSION}); upgrade feedlog", file=source)
 
 
+class RecordScan:
+    """Every record of an MCAP file front to back, chunks opened, each with its chunk's byte offset.
+
+    Strict: damage raises `IngestError` naming the file and byte. With `recover`, iteration stops at the
+    damage and `recovered` says what and where.
+    """
+
+    def __init__(self, path: str | os.PathLike, *, recover: bool = False) -> None:
+        self.path = Path(path)
+        self.source = str(path)
+        self.recover = recover
+        self.recovered: str | None = None
+        if not self.path.is_file():
+            raise IngestError("no such file", file=self.source)
+
+    def _damaged(self, problem: str, position: int) -> None:
+        if position == 0:
+            raise IngestError(f"not an MCAP file ({problem})", file=self.source, position="byte 0")
+        if not self.recover:
+            raise IngestError(f"{problem}; read it with recover=True (feedlog info/import --recover) to keep "
+                              "the complete records before this point", file=self.source, position=f"byte {position}")
+        self.recovered = f"{problem} at byte {position}"
+
+    def __iter__(self):
+        size = self.path.stat().st_size
+        with open(self.path, "rb") as f:
+            records = StreamReader(f, emit_chunks=True, validate_crcs=True).records
+            position = 0
+            while True:
+                try:
+                    record = next(records)
+                except StopIteration:
+                    return
+                except _DAMAGE as exc:
+                    self._damaged(_describe(exc, position, size), position)
+                    return
+                if isinstance(record, Chunk):
+                    try:
+                        inner = breakup_chunk(record, validate_crc=True)
+                    except _DAMAGE as exc:
+                        self._damaged(f"corrupt chunk ({exc})", position)
+                        return
+                    for item in inner:
+                        yield position, item
+                else:
+                    yield position, record
+                if isinstance(record, Footer):
+                    return
+                position = f.tell()
+
+
 def read_recording(path: str | os.PathLike, *, recover: bool = False) -> Recording:
     """Read a feedlog recording. Strict unless `recover`: then a cut-off file yields what it holds."""
     source = str(path)
     if not Path(path).is_file():
         raise IngestError("no such recording file", file=source)
     collector = _Collector(source)
-    complete = False
-    with open(path, "rb") as f:
-        reader = StreamReader(f, emit_chunks=True, validate_crcs=True)
-        position = 0
-        records = reader.records
-        while True:
-            try:
-                record = next(records)
-            except StopIteration:
-                complete = True
-                break
-            except _DAMAGE as exc:
-                problem = _describe(exc, position, os.path.getsize(path))
-                if position == 0:
-                    raise IngestError(f"not an MCAP file ({problem})", file=source, position="byte 0") from None
-                if not recover:
-                    raise IngestError(f"{problem}; read it with recover=True (feedlog info/import --recover) "
-                                      "to keep the complete records before this point", file=source,
-                                      position=f"byte {position}") from None
-                collector.metadata.setdefault(fmt.META_SESSION, {})["recovered"] = f"{problem} at byte {position}"
-                break
-            if isinstance(record, Chunk):
-                try:
-                    inner = breakup_chunk(record, validate_crc=True)
-                except _DAMAGE as exc:
-                    if not recover:
-                        raise IngestError(f"corrupt chunk ({exc})", file=source, position=f"byte {position}") from None
-                    collector.metadata.setdefault(fmt.META_SESSION, {})["recovered"] = f"corrupt chunk at byte {position}"
-                    break
-                for item in inner:
-                    collector.add(item, position)
-            else:
-                collector.add(record, position)
-            if isinstance(record, Footer):
-                complete = True
-            position = f.tell() if not isinstance(record, Footer) else position
-    recording = collector.recording()
-    if not complete and not recover:  # pragma: no cover - the loop raises first
-        raise IngestError("file ends early", file=source)
-    return recording
+    scan = RecordScan(path, recover=recover)
+    for position, record in scan:
+        collector.add(record, position)
+    if scan.recovered:
+        collector.metadata.setdefault(fmt.META_SESSION, {})["recovered"] = scan.recovered
+    return collector.recording()
 
 
 def _describe(exc: Exception, position: int, size: int) -> str:

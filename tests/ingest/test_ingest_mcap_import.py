@@ -78,3 +78,16 @@ def test_feedlog_recording_through_the_registry_and_recover(tmp_path):
     junk.write_bytes(b"not an mcap at all")
     with pytest.raises(IngestError, match=r"junk\.mcap \(byte 0\): not an MCAP"):
         read_source(junk)
+
+
+def test_truncated_generic_mcap_names_byte_and_recovers(tmp_path):
+    path = tmp_path / "other.mcap"
+    write_json_mcap(path, 5000)
+    data = path.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: int(len(data) * 0.99)])
+    mapping = "x=/machine/axes:pos.x"
+    with pytest.raises(IngestError, match=r"cut\.mcap \(byte \d+\): file is truncated"):
+        read_source(cut, ImportOptions(mapping=mapping))
+    rec = read_source(cut, ImportOptions(mapping=mapping, recover=True))
+    assert len(rec.streams["axes"]) == 5000 and "truncated" in rec.metadata["recovered"]
