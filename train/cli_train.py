@@ -57,5 +57,7 @@ def run(args: argparse.Namespace) -> int:
               f"max {info['max_abs_err_pct']:.2f} % -> {info['checkpoint']}")
         for note in info.get("notes", []):
             print(f"  note: {note}")
+    for name, why in results.attrs.get("not_evaluated", {}).items():
+        print(f"{name}: not evaluated: {why}")
     print(f"results: {args.outdir}/results.csv, results.md; per-block predictions in {args.outdir}/predictions/")
     return 0

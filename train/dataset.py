@@ -22,7 +22,7 @@ SPLITS = ("train", "test")
 TARGET = "duration_s"
 
 
-@dataclass
+@dataclass(eq=False)
 class ProgramTable:
     name: str
     blocks: pd.DataFrame

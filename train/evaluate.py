@@ -61,6 +61,14 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
         raise ModelError("no training recordings (split = 'train')")
     if not test:
         raise ModelError("no held-out test recordings (split = 'test'); name some with --test or the manifest")
+    # a held-out recording of a machine no training recording ran on is not a fair test: list it, skip it
+    machines = {t.profile.name for t in train if t.profile is not None}
+    unseen = [t for t in test if machines and t.profile is not None and t.profile.name not in machines]
+    for t in unseen:
+        log(f"{t.name}: not evaluated: machine {t.profile.name} has no training recording")
+    test = [t for t in test if t not in unseen]
+    if not test:
+        raise ModelError(f"no held-out recording runs on a trained machine ({', '.join(sorted(machines))})")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     sim_train = sim_test = None
@@ -106,6 +114,7 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
         log(f"{name}: trained in {train_s:.1f} s, mean |error| {np.mean(errs):.2f} % on {len(rows)} test recording(s)")
     results = pd.DataFrame(rows)
     results.attrs["summary"] = summary
+    results.attrs["not_evaluated"] = {t.name: f"machine {t.profile.name} has no training recording" for t in unseen}
     _write(results, block_preds, out, overwrite=overwrite)
     return results
 

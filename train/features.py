@@ -8,6 +8,7 @@ Models read align's block tables, whose feature columns are `feedlog.toolpath.sc
 - `tol_eff_mm`: `tol_mm` with "no tolerance" (NaN, G64 without P) as -1 so the net can tell it apart.
 - `ori_tol_deg`, `xo_mm`, `yo_mm`, `zo_mm`: machine constants from the profile (Chien Table 1:
   epsilon_ORI and the workpiece offset [Xo, Yo, Zo]); profile defaults when no profile is given.
+- `log_length_mm`, `log_nominal_time_s`: log(L + 1 um), log(L/F + 0.1 ms).
 - `<col>_prev` / `<col>_next`: the value at block n-1 / n+1 of the same program (0 beyond its ends,
   where the machine is at rest), for Sun Table 1's n-1, n, n+1 context.
 """
@@ -31,14 +32,18 @@ NO_TOLERANCE_MM = -1.0
 DERIVED: dict[str, tuple[str, ...]] = {
     "feed_eff_mm_min": ("feed_mm_min", "length_mm", "nominal_time_s"),
     "tol_eff_mm": ("tol_mm",),
+    "log_length_mm": ("length_mm",),
+    "log_nominal_time_s": ("nominal_time_s",),
     **{c: () for c in PROFILE_COLUMNS},
 }
 
 # Chien Table 1 (F, L, theta_TCP,k, theta_TCP,k+1, eps_TCP, theta_k, theta_ORI,k, theta_ORI,k+1,
-# eps_ORI, sin(A), [Xo, Yo, Zo]) plus the CAM time L/F of the block.
+# eps_ORI, sin(A), [Xo, Yo, Zo]) plus the CAM time L/F of the block and the logarithms of L and L/F
+# (block lengths and times span four decades: 0.01 mm segments next to 100 mm lines).
 CHIEN_INPUTS = ("feed_eff_mm_min", "length_mm", "corner_start_deg", "corner_end_deg", "tol_eff_mm",
                 "ori_arc_deg", "ori_corner_start_deg", "ori_corner_end_deg", "ori_tol_deg", "sin_rot",
-                "xo_mm", "yo_mm", "zo_mm", "nominal_time_s")
+                "xo_mm", "yo_mm", "zo_mm", "nominal_time_s", "log_length_mm", "log_nominal_time_s")
+LOG_FLOOR = {"log_length_mm": 1e-3, "log_nominal_time_s": 1e-4}  # added before the log (mm, s)
 
 
 def sun_inputs(axis: str) -> tuple[str, ...]:
@@ -124,6 +129,9 @@ def _base_column(table: pd.DataFrame, name: str, constants: dict[str, float]) ->
         return np.full(n, constants.get(name, 0.0))
     if name == "feed_eff_mm_min":
         return effective_feed(table)
+    if name in LOG_FLOOR:
+        raw = table[DERIVED[name][0]].to_numpy(np.float64)
+        return np.log(np.maximum(raw, 0.0) + LOG_FLOOR[name])
     if name == "tol_eff_mm":
         tol = table["tol_mm"].to_numpy(np.float64)
         return np.where(np.isnan(tol), NO_TOLERANCE_MM, tol)

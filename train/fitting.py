@@ -12,16 +12,18 @@ import torch
 from torch import nn
 from tqdm.auto import tqdm
 
-MAX_THREADS = 2
+MAX_THREADS = 2    # the machine is shared: never more than two
+TRAIN_THREADS = 1  # the nets are small; one thread trains them fastest on a busy machine
 
 # loss_fn(net, idx, split) -> scalar loss; idx indexes the split's examples (None = all of them)
 LossFn = Callable[[nn.Module, "torch.Tensor | None", str], torch.Tensor]
 
 
-def setup_torch(seed: int | None = None) -> None:
-    """At most two threads (the machine is shared), deterministic kernels, and all RNGs seeded."""
-    if torch.get_num_threads() > MAX_THREADS:
-        torch.set_num_threads(MAX_THREADS)
+def setup_torch(seed: int | None = None, *, threads: int = MAX_THREADS) -> None:
+    """At most `threads` (<= MAX_THREADS) torch threads, and all RNGs seeded when `seed` is given."""
+    threads = max(1, min(threads, MAX_THREADS))
+    if torch.get_num_threads() != threads:
+        torch.set_num_threads(threads)
     if seed is not None:
         random.seed(seed)
         np.random.seed(seed % 2**32)
@@ -34,7 +36,7 @@ def train_net(net: nn.Module, loss_fn: LossFn, *, n_train: int, n_val: int, seed
 
     Without validation examples the training loss decides instead. Returns a small report.
     """
-    setup_torch()
+    setup_torch(threads=TRAIN_THREADS)
     optimiser = torch.optim.Adam(net.parameters(), lr=lr)
     generator = torch.Generator().manual_seed(seed)
     best, best_state, best_epoch, stale = float("inf"), copy.deepcopy(net.state_dict()), 0, 0

@@ -42,8 +42,8 @@ class FinalConfig(ModelConfig):
     epochs: int = 150
     patience: int = 20
 
-    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8, "crops": 160,
-                                                              "hidden": 32}}
+    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 20, "patience": 6, "crops": 64,
+                                                              "hidden": 16}}
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -28,6 +28,7 @@ SIM_COLUMN = "sim_duration_s"
 @dataclass(frozen=True)
 class HybridConfig(SeqConfig):
     inputs: tuple[str, ...] = CHIEN_INPUTS + (SIM_COLUMN,)
+    log_target: bool = False  # the residual can be negative
 
     presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8}}
 
@@ -58,12 +59,14 @@ def attach_sim(table: ProgramTable, *, program: Any = None) -> ProgramTable:
     sim = result.blocks[["block", "duration_s"]].rename(columns={"duration_s": SIM_COLUMN})
     sim = sim.groupby("block", as_index=False)[SIM_COLUMN].sum()
     blocks = table.blocks.merge(sim, on="block", how="left")
-    missing = blocks[SIM_COLUMN].isna()
-    if missing.any():
-        raise ModelError(f"{table.name}: the simulation has no time for block(s) "
-                         f"{', '.join(map(str, blocks.loc[missing, 'block'].head(5)))}")
+    # blocks the simulation merged into a neighbour or skipped (zero length) take no time of their own
+    missing = int(blocks[SIM_COLUMN].isna().sum())
+    blocks[SIM_COLUMN] = blocks[SIM_COLUMN].fillna(0.0)
+    metadata = dict(table.metadata)
+    if missing:
+        metadata["sim_blocks_without_time"] = str(missing)
     return ProgramTable(table.name, blocks, program=table.program, split=table.split, points=table.points,
-                        profile=table.profile, program_text=table.program_text, metadata=dict(table.metadata))
+                        profile=table.profile, program_text=table.program_text, metadata=metadata)
 
 
 @register_model

@@ -35,6 +35,8 @@ class MLPConfig(ModelConfig):
     epochs: int = 300
     patience: int = 30
     min_feed_ratio: float = 0.02  # predicted resultant feed floored at this fraction of the nominal one
+    # beyond Sun Table 1: the path tolerance, fixed in Sun's trials but varied across our recordings
+    extra_inputs: tuple[str, ...] = ("tol_eff_mm",)
 
     presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 80, "patience": 15}}
 
@@ -62,16 +64,19 @@ class PerAxisMLP(Model):
     description = "per-axis MLP on Sun Table 1 features; resultant feed (Eq. 9), cycle time (Eq. 10)"
     config: MLPConfig
 
+    def axis_inputs(self, axis: str) -> tuple[str, ...]:
+        return sun_inputs(axis) + tuple(self.config.extra_inputs)
+
     @property
     def inputs(self) -> tuple[str, ...]:
         out: list[str] = []
         for a in self.config.axes:
-            out += [c for c in sun_inputs(a) if c not in out]
-        return tuple(out) + ("nominal_time_s",)
+            out += [c for c in self.axis_inputs(a) if c not in out]
+        return tuple(out) + tuple(c for c in ("nominal_time_s",) if c not in out)
 
     def build_nets(self) -> None:
         setup_torch(self.config.seed)
-        self.nets = {a: AxisMLP(len(sun_inputs(a)), self.config.hidden) for a in self.config.axes}
+        self.nets = {a: AxisMLP(len(self.axis_inputs(a)), self.config.hidden) for a in self.config.axes}
 
     def fit(self, tables: Sequence[ProgramTable], *, progress: bool = True) -> None:
         cfg = self.config
@@ -86,7 +91,7 @@ class PerAxisMLP(Model):
             val[tail_split(len(d), cfg.val_fraction):] = True
             is_val.append(val[keep])
             for i, a in enumerate(cfg.axes):
-                xs[a].append(build_inputs(t.blocks, sun_inputs(a), what="mlp", source=t.name)[keep])
+                xs[a].append(build_inputs(t.blocks, self.axis_inputs(a), what="mlp", source=t.name)[keep])
                 ys[a].append((v[:, i] * nominal / np.where(d > 0, d, 1.0))[keep])
         val_mask = np.concatenate(is_val)
         if (~val_mask).sum() < 2:
@@ -119,7 +124,7 @@ class PerAxisMLP(Model):
         out = []
         with torch.no_grad():
             for a in self.config.axes:
-                x = build_inputs(table.blocks, sun_inputs(a), what="mlp", source=table.name)
+                x = build_inputs(table.blocks, self.axis_inputs(a), what="mlp", source=table.name)
                 pred = self.nets[a](torch.from_numpy(self.norms[f"x_{a}"].apply(x))).numpy()
                 out.append(self.norms[f"y_{a}"].invert(pred[:, None])[:, 0])
         return np.column_stack(out)

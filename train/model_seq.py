@@ -23,6 +23,7 @@ from feedlog.train.nets import BiLSTMR, BiLSTMSeq
 from feedlog.train.registry import Model, ModelConfig, TablePrediction, register_model
 
 PREDICT_BATCH = 4096  # windows per forward pass at prediction time
+LOG_FLOOR_S = 1e-3    # added to block times before the log target
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,7 @@ class SeqConfig(ModelConfig):
     batch_size: int = 16
     epochs: int = 150
     patience: int = 20
+    log_target: bool = True  # learn log(target + log_floor): block times span four decades
 
     presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8}}
 
@@ -66,6 +68,12 @@ class SeqModel(Model):
         """Per-block predicted target -> per-block time."""
         return np.maximum(values, 0.0)
 
+    def _encode(self, y: np.ndarray) -> np.ndarray:
+        return np.log(np.maximum(y, 0.0) + LOG_FLOOR_S) if self.config.log_target else y
+
+    def _decode(self, y: np.ndarray) -> np.ndarray:
+        return np.exp(y) - LOG_FLOOR_S if self.config.log_target else y
+
     def _matrix(self, table: ProgramTable) -> np.ndarray:
         constants = profile_constants(table.profile) if table.profile is not None else self.constants
         return build_inputs(table.blocks, self.inputs, constants=constants, what=self.name, source=table.name)
@@ -76,7 +84,7 @@ class SeqModel(Model):
             raise ModelError(f"{self.name}: no training tables")
         self.constants = profile_constants(tables[0].profile)
         xs = [self._matrix(t) for t in tables]
-        ys = [self.target(t) for t in tables]
+        ys = [self._encode(self.target(t)) for t in tables]
         heads = [tail_split(len(y), cfg.val_fraction) for y in ys]
         self.norms["x"] = Normaliser.fit(np.concatenate([x[:h] for x, h in zip(xs, heads)]))
         self.norms["y"] = Normaliser.fit(np.concatenate([y[:h] for y, h in zip(ys, heads)]))
@@ -115,7 +123,7 @@ class SeqModel(Model):
             out = np.concatenate([net(torch.from_numpy(xw[i:i + PREDICT_BATCH])).numpy()
                                   for i in range(0, len(xw), PREDICT_BATCH)])
         per_row = stitch_windows(out, len(x), length=cfg.window, stride=cfg.stride)
-        return self.norms["y"].invert(per_row[:, None])[:, 0]
+        return self._decode(self.norms["y"].invert(per_row[:, None])[:, 0])
 
     def predict(self, table: ProgramTable) -> TablePrediction:
         durations = self.to_durations(table, self.predict_values(table))

@@ -156,5 +156,8 @@ def model_names() -> list[str]:
 
 
 def _load_builtins() -> None:
-    # the built-in models register themselves on import
-    from feedlog.train import model_final, model_hybrid, model_mlp, model_seq  # noqa: F401
+    # the built-in models register themselves on import, in this order
+    import feedlog.train.model_mlp  # noqa: F401
+    import feedlog.train.model_seq  # noqa: F401
+    import feedlog.train.model_final  # noqa: F401
+    import feedlog.train.model_hybrid  # noqa: F401

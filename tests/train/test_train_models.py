@@ -1,0 +1,124 @@
+"""One suite over every registered model: train, predict, checkpoint round trip, determinism, refusals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from feedlog.errors import ModelError
+from feedlog.train import (ProgramTable, load_checkpoint, make_config, make_model, model_names, save_checkpoint,
+                           train_and_evaluate)
+from feedlog.train.dataset import fingerprint
+from feedlog.train.model_final import FinalBiLSTM
+from feedlog.train.synthetic import synthetic_set
+
+TINY = {"mlp": {"epochs": 8}, "bilstm-block": {"epochs": 4, "hidden": 8, "window": 32, "stride": 16},
+        "bilstm-final": {"epochs": 3, "hidden": 8, "crops": 24, "crop_blocks": 40},
+        "bilstm-r": {"epochs": 3, "hidden": 8, "window": 32, "stride": 16},
+        "hybrid": {"epochs": 4, "hidden": 8, "window": 32, "stride": 16}}
+
+
+@pytest.fixture(scope="module")
+def data() -> list[ProgramTable]:
+    return synthetic_set(n_train=2, n_test=1, n_blocks=120, seed=7)
+
+
+def _fit(name: str, tables: list[ProgramTable]):
+    model = make_model(name, **TINY[name])
+    train = [t for t in tables if t.split == "train"]
+    model.fit(train, progress=False)
+    model.fingerprint = fingerprint(train, model.required_columns + ["duration_s"])
+    return model
+
+
+def test_registry_lists_every_model():
+    assert set(model_names()) >= {"mlp", "bilstm-block", "bilstm-final", "bilstm-r", "hybrid"}
+    with pytest.raises(ModelError, match="unknown model .lstm.; known: .*mlp"):
+        make_model("lstm")
+    with pytest.raises(ModelError, match="unknown config field.*hiden"):
+        make_config("bilstm-block", hiden=3)
+    with pytest.raises(ModelError, match="stride <= window"):
+        make_config("bilstm-block", window=8, stride=9)
+    with pytest.raises(ModelError, match="unknown preset"):
+        make_config("mlp", preset="fast")
+    assert make_config("bilstm-block", preset="quick").epochs < make_config("bilstm-block").epochs
+
+
+@pytest.mark.parametrize("name", sorted(TINY))
+def test_model_trains_predicts_round_trips_and_is_deterministic(name, data, tmp_path):
+    test = next(t for t in data if t.split == "test")
+    a = _fit(name, data)
+    pred = a.predict(test)
+    assert np.isfinite(pred.cycle_time_s) and pred.cycle_time_s > 0
+    if pred.durations_s is not None:
+        assert pred.durations_s.shape == (len(test.blocks),) and np.all(pred.durations_s >= 0)
+        assert pred.cycle_time_s == pytest.approx(pred.durations_s.sum())
+
+    path = save_checkpoint(a, tmp_path / f"{name}.pt")
+    with pytest.raises(ModelError, match="refusing to overwrite"):
+        save_checkpoint(a, path)
+    b = load_checkpoint(path)
+    assert (b.name, b.fingerprint, b.inputs, b.config) == (a.name, a.fingerprint, a.inputs, a.config)
+    assert b.predict(test).cycle_time_s == pytest.approx(pred.cycle_time_s, rel=1e-6)
+
+    again = _fit(name, data)  # same seed, same data -> same weights
+    for key, net in a.nets.items():
+        for (k, p), q in zip(net.state_dict().items(), again.nets[key].state_dict().values()):
+            assert torch.equal(p, q), f"{name}.{key}.{k} differs between two seeded runs"
+
+    needed = a.required_columns[0]
+    lacking = ProgramTable(test.name, test.blocks.drop(columns=[needed]))
+    with pytest.raises(ModelError, match=f"lacks column.*{needed}"):
+        b.predict(lacking)
+
+
+def test_untrained_and_broken_checkpoints(tmp_path):
+    model = make_model("mlp")
+    with pytest.raises(ModelError, match="not trained"):
+        save_checkpoint(model, tmp_path / "m.pt")
+    junk = tmp_path / "junk.pt"
+    junk.write_bytes(b"not a checkpoint")
+    with pytest.raises(ModelError, match="junk.pt: not a feedlog model checkpoint"):
+        load_checkpoint(junk)
+    with pytest.raises(ModelError, match="checkpoint not found"):
+        load_checkpoint(tmp_path / "absent.pt")
+
+
+def test_newer_checkpoint_format_is_refused(data, tmp_path):
+    path = save_checkpoint(_fit("mlp", data), tmp_path / "m.pt")
+    raw = torch.load(path, weights_only=True)
+    raw["format_version"] = 99
+    torch.save(raw, path)
+    with pytest.raises(ModelError, match="format version 99 is not supported"):
+        load_checkpoint(path)
+
+
+def test_final_model_chunks_long_programs(data):
+    model = _fit("bilstm-final", data)
+    assert model.params["crop_blocks"] == 40 and model.params["min_blocks"] == 38
+    parts = model.chunks(205)
+    assert len(parts) == 5 and sum(len(p) for p in parts) == 205
+    short = ProgramTable("short", data[0].blocks.iloc[:10].reset_index(drop=True))
+    assert any("outside the trained length range" in n for n in model.predict(short).notes)
+
+
+def test_final_model_takes_its_crop_length_from_the_targets(data):
+    model = FinalBiLSTM(make_config("bilstm-final", **{**TINY["bilstm-final"], "crop_blocks": 0}),
+                        target_lengths=[50, 60, 70])
+    model.fit([t for t in data if t.split == "train"], progress=False)
+    assert model.params["crop_blocks"] == 60
+
+
+def test_learning_beats_cam_on_held_out_programs(tmp_path):
+    """On programs whose block times follow a known kinematic law, the learners beat L/F (CAM)."""
+    tables = synthetic_set(n_train=4, n_test=2, n_blocks=300, seed=1, noise=0.002, feeds=(3000.0, 6000.0))
+    results = train_and_evaluate(tables, out_dir=tmp_path, models=["bilstm-block", "hybrid"], preset="quick",
+                                 progress=False, log=lambda m: None)
+    cam = np.abs(results["cam_err_pct"]).mean()
+    assert cam > 5.0  # the law is far from L/F ...
+    assert np.abs(results["bilstm-block_err_pct"]).mean() < cam / 2  # ... and learnable
+    # the hybrid corrects a simulation whose acceleration is 50 % too high
+    assert np.abs(results["hybrid_err_pct"]).mean() < np.abs(results["sim_err_pct"]).mean()
+    assert (tmp_path / "results.md").read_text().count("|") > 10
+    assert (tmp_path / "predictions" / "test-4.parquet").is_file()
