@@ -112,10 +112,8 @@ def assemble_streams(decoded: Decoded, layout: DbcLayout) -> tuple[dict[str, pd.
         merged = tables[0]
         for other in tables[1:]:
             merged = _join(merged, other)
-        columns = ["t_ns"] + [s.column for m in messages for s in m.signals if s.stream == stream and s.name != SEQ_SIGNAL]
-        for column in columns:
-            if column not in merged:  # a member message sent nothing in this batch
-                merged[column] = np.nan
+        columns = ["t_ns"] + [s.column for m in messages for s in m.signals
+                              if s.stream == stream and s.name != SEQ_SIGNAL and s.column in merged]
         streams[stream] = merged[columns]
     return streams, max(lost_counts(decoded).values(), default=0)
 

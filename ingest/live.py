@@ -115,6 +115,7 @@ class _Decoder:
         self.pending = CanFrames.concat([])
         self.last_seq: dict[int, int] = {}
         self.last_t: dict[str, int] = {}
+        self.columns: dict[str, list[str]] = {}
 
     def feed(self, frames: CanFrames, stats: CaptureStats, *, final: bool) -> dict:
         frames = CanFrames.concat([self.pending, frames])
@@ -138,6 +139,9 @@ class _Decoder:
         streams, _ = assemble_streams(decoded, self.layout)
         out = {}
         for name, table in streams.items():
+            known = self.columns.setdefault(name, list(table.columns))
+            if list(table.columns) != known:  # a member message missing in this batch: keep the stream's columns
+                table = table.reindex(columns=known)
             last = self.last_t.get(name)
             if last is not None:
                 late = table["t_ns"].to_numpy() < last

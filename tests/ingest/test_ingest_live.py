@@ -221,3 +221,39 @@ def test_short_load_run_at_30k_frames_per_second_drops_nothing(tmp_path, capsys)
     print(f"load: {summary['frames_per_s']:.0f} frames/s achieved, {summary['dropped_frames']} dropped",
           file=sys.stderr)
     assert len(read_recording(out).streams["axes"]) == summary["sim_samples"]
+
+
+def test_can_source_cli_records_a_virtual_bus_for_a_duration(tmp_path, capsys):
+    frames = sim_frames(series(500, rate_hz=500.0), DbcLayout(), t0_ns=time.time_ns() // 10**6 * 10**6)
+    out = tmp_path / "can.mcap"
+
+    def delayed():
+        time.sleep(0.3)  # the logger's bus must exist before frames are sent
+        thread = send_frames("cli-can", frames)
+        thread.start()
+        thread.join()
+
+    threading.Thread(target=delayed, daemon=True).start()
+    assert main(["record", "--source", "can", "--interface", "virtual", "--channel", "cli-can", "--duration-s", "2.5",
+                 "-o", str(out), "--json", "--quiet"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["stopped_by"] == "duration" and summary["frames"] == 1500 and summary["dropped_frames"] == 0
+    rec = read_recording(out)
+    assert len(rec.streams["axes"]) == 500 and rec.metadata["source"] == "can virtual:cli-can"
+    assert main(["record", "--source", "can", "--interface", "nosuchbus", "--channel", "x", "-o",
+                 str(tmp_path / "x.mcap")]) == 1
+    assert "cannot open CAN bus" in capsys.readouterr().err
+
+
+def test_stream_columns_follow_dbc_order_whatever_message_is_missing():
+    from feedlog.ingest.can_streams import assemble_streams, decode_frames
+
+    layout = DbcLayout()
+    frames = sim_frames(series(10), layout)
+    only_za = frames.can_id != 0x100
+    part = type(frames)(frames.t_ns[only_za], frames.can_id[only_za], frames.data[only_za])
+    streams, _ = assemble_streams(decode_frames(part, layout), layout)
+    axes = streams["axes"]
+    assert list(axes.columns) == ["t_ns", "z_mm", "a_deg"] and (axes["z_mm"] == -2.0).all()
+    both = assemble_streams(decode_frames(frames, layout), layout)[0]["axes"]
+    assert list(both.columns) == ["t_ns", "x_mm", "y_mm", "z_mm", "a_deg"]
