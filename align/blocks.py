@@ -4,7 +4,8 @@ Two sources (Chien et al. 2024 train on per-CL-line "block cycle times"):
 - **Line stream** (ground truth when the controller exports it, e.g. LinuxCNC `motion.program-line`):
   a block starts at the first sample showing its line and ends at the first sample showing another
   line after its last run. Times are clipped to the motion span, so that a line shown while the queue
-  fills, or held after the end, does not count as motion. Blocks whose line never shows (segments
+  fills, or held after the end, does not count as motion; the first seen block starts at motion start
+  and the last ends at motion end, so block times add up to the cycle time. Blocks whose line never shows (segments
   shorter than one servo period, merged segments) get zero duration at their neighbour's boundary and
   `seen = False`.
 - **Geometry** (when there is no line stream): block k ends when the tool arrives at its end point (the
@@ -108,12 +109,17 @@ def blocks_from_lines(t_ns: np.ndarray, line: np.ndarray, motion_blocks: pd.Data
     runs = runs[runs["line"].isin(lines)]
     first = runs.groupby("line")["t_start_ns"].min()
     last = runs.groupby("line")["t_end_ns"].max()
-    start = pd.Series(lines).map(first).to_numpy(dtype=np.float64)
-    end = pd.Series(lines).map(last).to_numpy(dtype=np.float64)
+    start = pd.Series(lines).map(first).to_numpy(dtype=np.float64, copy=True)
+    end = pd.Series(lines).map(last).to_numpy(dtype=np.float64, copy=True)
     seen = np.isfinite(start)
     if not seen.any():
         raise AlignmentError("the line stream never shows a line of the program's motion blocks "
                              f"(it shows {sorted(set(np.asarray(line).tolist()))[:10]}...); wrong program?")
+    if span is not None:
+        # motion before the first line shows (or after the last one ends) can only be theirs
+        first, last = np.flatnonzero(seen)[[0, -1]]
+        start[first] = span.t_start_ns
+        end[last] = span.t_end_ns
     # unseen blocks: zero length at the next seen block's start (or the previous end at the tail)
     nxt = pd.Series(np.where(seen, start, np.nan)).bfill().to_numpy()
     prv = pd.Series(np.where(seen, end, np.nan)).ffill().to_numpy()

@@ -1,0 +1,158 @@
+"""Accuracy on the bundled LinuxCNC recordings (recordings/, 1 kHz, axes + line + feed streams).
+
+The line stream (`motion.program-line`) is ground truth for block times; the manifest's cycle time is
+LinuxCNC's own motion time (servo periods with in-position false)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from feedlog.align import align_recording, estimate_offset, feed_from_positions
+from feedlog.align.blocks import compare_blocks
+from feedlog.ingest import Recording, read_recording
+
+ROOT = Path(__file__).resolve().parents[2] / "recordings"
+SERVO_S = 0.001
+# recordings whose segments LinuxCNC runs one by one (no G64 Q merging); 3-axis and five-axis
+UNMERGED = ["corners_f3000_p001", "corners_f3000_g61", "circle_f3000_p001", "test_p001", "5ax_p001", "5ax_g61",
+            "pocket_f3000_p001"]
+# all families, merged ones included (their blocks compared per merged group)
+ALL = UNMERGED + ["dense002q0", "circle_f1000_p01", "test_p01", "corners_f1000_p01"]
+# exact stop: feedlog.sim models the first and last move well enough to place them inside a 5 Hz interval
+EXACT_STOP = ["corners_f3000_g61", "test_g61", "pocket_f1000_g61", "5ax_g61", "circle_b_f3000_g61"]
+
+
+def _load(name: str) -> Recording:
+    path = ROOT / f"{name}.mcap"
+    if not path.exists():
+        pytest.skip(f"{path} not present")
+    return read_recording(path)
+
+
+@pytest.fixture(scope="module")
+def aligned():
+    cache: dict[str, tuple[Recording, object]] = {}
+
+    def get(name: str):
+        if name not in cache:
+            rec = _load(name)
+            cache[name] = (rec, align_recording(rec))
+        return cache[name]
+    return get
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_cycle_time_equals_linuxcnc_motion_time(aligned, name):
+    rec, a = aligned(name)
+    assert a.cycle_time_s == pytest.approx(float(rec.metadata["linuxcnc_motion_time_s"]), abs=SERVO_S)
+    assert a.report["match"]["matched"] == a.report["match"]["cl_points"]
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_geometry_block_durations_match_the_line_stream(aligned, name):
+    rec, a = aligned(name)
+    cmp = compare_blocks(a.line_blocks, a.geometry_blocks, servo_period_s=SERVO_S)
+    assert cmp["duration_err_median_s"] <= SERVO_S + 1e-9, cmp
+    if name not in UNMERGED:
+        return  # merged groups: only their durations are comparable (docs/align.md)
+    if not name.startswith("5ax") or "g61" in name:
+        assert cmp["end_err_median_s"] <= 3 * SERVO_S, cmp
+    else:
+        # five-axis continuous mode blends parabolically: LinuxCNC shows the next line only when the
+        # overlap ends, a constant 35 ms after the tool leaves the block's path; durations still agree
+        assert abs(cmp["end_bias_s"] + 0.035) <= 2 * SERVO_S, cmp
+
+
+@pytest.mark.parametrize("name", UNMERGED)
+def test_block_table_is_complete_and_consistent(aligned, name):
+    rec, a = aligned(name)
+    b = a.blocks
+    for col in ("block", "line", "t_start_ns", "t_end_ns", "duration_s", "length_mm", "corner_start_deg",
+                "nominal_time_s", "feed_mm_min"):
+        assert col in b.columns
+    assert (b["duration_s"] >= 0).all()
+    assert np.all(np.diff(b["t_start_ns"].to_numpy()) >= 0)
+    # consecutive blocks tile the motion: the sum of block times is the cycle time
+    assert b["duration_s"].sum() == pytest.approx(a.cycle_time_s, abs=1e-9)
+
+
+def test_points_carry_measured_feed_and_features(aligned):
+    rec, a = aligned("corners_f3000_p001")
+    p = a.points
+    assert {"feed_meas_mm_min", "vx_meas_mm_min", "vy_meas_mm_min", "dist_mm", "t_ns", "corner_end_deg",
+            "vx_nom_mm_min"} <= set(p.columns)
+    assert (p["dist_mm"] <= 0.05 + 0.01 + 0.05).all()
+    # the corners program slows at every corner: CL points at corners get less than the programmed feed
+    g1 = p[(p["kind"] == "linear") & (p["corner_end_deg"] > 20)]
+    assert len(g1) > 10 and (g1["feed_meas_mm_min"] < 0.9 * g1["programmed_feed_mm_min"]).all()
+    # the stream feed and the feed from positions agree at the CL points
+    f = feed_from_positions(rec.stream("axes")["t_ns"].to_numpy(), rec.stream("axes"))
+    at = np.interp(p["t_ns"].to_numpy(dtype=float), f["t_ns"].to_numpy(dtype=float), f["feed_mm_min"].to_numpy())
+    np.testing.assert_allclose(at[1:], p["feed_meas_mm_min"].to_numpy()[1:], atol=60.0)
+
+
+def _pad(axes: pd.DataFrame, seconds: float = 0.5) -> pd.DataFrame:
+    """A logger keeps logging: hold the first and last pose for `seconds` (1 kHz) around the recording."""
+    n = int(seconds * 1000)
+    t = axes["t_ns"].to_numpy()
+    head = axes.iloc[[0] * n].copy()
+    head["t_ns"] = t[0] - np.arange(n, 0, -1) * 1_000_000
+    tail = axes.iloc[[-1] * n].copy()
+    tail["t_ns"] = t[-1] + np.arange(1, n + 1) * 1_000_000
+    return pd.concat([head, axes, tail], ignore_index=True)
+
+
+def _at_5hz(rec: Recording, phase_ms: int) -> Recording:
+    axes = _pad(rec.stream("axes")).iloc[phase_ms::200].reset_index(drop=True)
+    return Recording(streams={"axes": axes}, metadata=dict(rec.metadata), attachments=dict(rec.attachments),
+                     source=f"{rec.source}@5Hz")
+
+
+@pytest.mark.parametrize("name", EXACT_STOP)
+@pytest.mark.parametrize("phase_ms", [0, 74, 148])
+def test_5hz_cycle_time_within_half_percent(name, phase_ms):
+    rec = _load(name)
+    a = align_recording(_at_5hz(rec, phase_ms))
+    assert a.report["boundary"] == "pass" and a.report["motion"]["sub_sample_model"]
+    assert a.cycle_time_s == pytest.approx(float(rec.metadata["linuxcnc_motion_time_s"]), rel=0.005)
+
+
+@pytest.mark.parametrize("name", ["corners_f3000_p001", "test_p001", "circle_f3000_p001"])
+def test_5hz_continuous_mode_within_one_and_a_half_percent(name):
+    """Continuous mode: LinuxCNC decelerates the final G0 at half acceleration, which feedlog.sim does not
+    model yet; the end of motion inside the last 5 Hz interval is off by up to ~60 ms (docs/align.md)."""
+    rec = _load(name)
+    ref = float(rec.metadata["linuxcnc_motion_time_s"])
+    for phase in (0, 111):
+        a = align_recording(_at_5hz(rec, phase))
+        assert a.cycle_time_s == pytest.approx(ref, rel=0.015)
+
+
+def test_synthetic_clock_offset_of_the_line_stream_is_recovered(aligned):
+    rec, a = aligned("test_p001")
+    base = a.report["line_stream"]["offset_vs_geometry"]["offset_ns"]
+    shift = 37_000_000
+    line = rec.stream("line").copy()
+    line["t_ns"] = line["t_ns"] + shift  # the controller's export runs 37 ms ahead
+    moved = Recording(streams={**rec.streams, "line": line}, metadata=rec.metadata, attachments=rec.attachments,
+                      source=rec.source)
+    b = align_recording(moved, sync_lines=True)
+    est = b.report["line_stream"]["offset_vs_geometry"]["offset_ns"]
+    assert abs(est - base - shift) <= 1_000_000  # within one sample
+    cmp = compare_blocks(a.line_blocks, b.line_blocks)
+    assert cmp["duration_err_median_s"] <= SERVO_S and cmp["end_err_median_s"] <= 2 * SERVO_S
+
+
+def test_feed_stream_clock_offset_by_cross_correlation():
+    rec = _load("circle_f3000_p001")
+    axes, feed = rec.stream("axes"), rec.stream("feed")
+    f = feed_from_positions(axes["t_ns"].to_numpy(), axes)
+    shift = -23_000_000
+    est = estimate_offset(f["t_ns"].to_numpy(), f["feed_mm_min"].to_numpy(), feed["t_ns"].to_numpy() + shift,
+                          feed["feed_mm_min"].to_numpy(), max_offset_ns=200_000_000)
+    assert abs(est.offset_ns - shift) <= 1_000_000
+    assert est.confidence > 0.9
