@@ -141,6 +141,13 @@ def _labels(column: pd.Series) -> np.ndarray:
     return names[cat.cat.codes.to_numpy()]
 
 
+def _codes(column: pd.Series, mapping: dict[str, int]) -> np.ndarray:
+    """Integer codes of a (usually categorical) label column via its categories (-1: not mapped)."""
+    cat = column if isinstance(column.dtype, pd.CategoricalDtype) else column.astype("category")
+    lookup = np.array([mapping.get(str(c), -1) for c in cat.cat.categories] + [-1], dtype=np.int8)
+    return lookup[cat.cat.codes.to_numpy()]
+
+
 def _column(table: pd.DataFrame, name: str, default: float) -> np.ndarray:
     if name not in table.columns:
         return np.full(len(table), default, dtype=np.float64)
@@ -161,7 +168,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     """Motion and dwell rows of the block table as `Blocks`, with axis-projected limits."""
     table = block_table(program)
     kinds = _labels(table["kind"])
-    code = pd.Series(kinds).map(_KIND_CODES).fillna(-1).to_numpy(np.int8)
+    code = _codes(table["kind"], _KIND_CODES)
     keep = code >= 0
     t = table.loc[keep]
     code = code[keep]
