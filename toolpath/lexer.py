@@ -32,14 +32,18 @@ _BLANKS = b" \t\r\v\f"
 _MAX_DIGITS = 15  # exact integer mantissa in float64; longer numbers take the slow path
 _MAX_WIDTH = 20
 _NUMBER = re.compile(r"[-+]?([0-9]+\.?[0-9]*|\.[0-9]+)")
-# byte classes
-_OTHER, _LETTER, _DIGIT, _DOTC, _SIGN, _END = 0, 1, 2, 3, 4, 5
-_CLASS = np.zeros(256, dtype=np.uint8)
+# byte classes; number characters are the classes <= _SIGN, special characters >= _PCT_C
+_DIGIT, _DOTC, _SIGN, _LETTER, _NEWLINE, _PCT_C, _SLASH_C, _OTHER, _END = 1, 2, 3, 4, 5, 6, 7, 8, 9
+_CLASS = np.full(256, _OTHER, dtype=np.uint8)
+_CLASS[_LF] = _NEWLINE
+_CLASS[_PERCENT] = _PCT_C
+_CLASS[_SLASH] = _SLASH_C
 _CLASS[_A:_Z + 1] = _LETTER
 _CLASS[_D0:_D0 + 10] = _DIGIT
 _CLASS[_DOT] = _DOTC
 _CLASS[[_PLUS, _MINUS]] = _SIGN
 _POW10 = 10.0 ** np.arange(64)
+_UPPER = bytes.maketrans(bytes(range(ord("a"), ord("z") + 1)), bytes(range(_A, _Z + 1)))
 _WHY = {"#": "parameters (#)", "[": "expressions ([...])", "]": "expressions ([...])",
         "<": "named O-words", "=": "parameter assignment", "(": "unbalanced or nested comment",
         ")": "unbalanced or nested comment"}
@@ -74,93 +78,83 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
     def fail(i: int, message: str, code: str | None = None) -> ProgramError:
         return ProgramError(message, file=file, line=int(i) + 1, code=code or line_text(i)[:40])
 
-    # -- comments (per comment, only on the lines that hold one): blank them out, keep their text --
-    comments: dict[int, str] = {}
-    if b"(" in data or b";" in data or b")" in data:
-        src = np.frombuffer(data, dtype=np.uint8)
-        nl_src = np.flatnonzero(src == _LF)
-        marks = np.flatnonzero((src == _OPEN) | (src == _SEMI) | (src == _CLOSE))
-        line_ends = np.r_[nl_src, len(src)]
-        blanked = bytearray(data)
-        for i in np.unique(np.searchsorted(nl_src, marks)).tolist():
-            lo = int(nl_src[i - 1]) + 1 if i else 0
-            for m in _COMMENT.finditer(data, lo, int(line_ends[i])):
-                raw = m.group(1) if m.group(1) is not None else m.group(2)
-                piece = raw.decode("utf-8", "replace").strip()
-                comments[i] = f"{comments[i]} {piece}" if i in comments else piece
-                blanked[m.start():m.end()] = b" " * (m.end() - m.start())
-        data = bytes(blanked)
+    data, comments = _strip_comments(data)
 
     # -- code: upper case, no blanks; lines keep their newline ------------------------------------
-    b = np.frombuffer(data.upper().translate(None, _BLANKS), dtype=np.uint8)
+    b = np.frombuffer(data.translate(_UPPER, _BLANKS), dtype=np.uint8)
     nl = np.flatnonzero(b == _LF)
     n_lines = len(nl) + 1
     line_start = np.r_[0, nl + 1]
     code_len = np.r_[nl, len(b)] - line_start
-    cb = b[b != _LF] if len(nl) else b
-    cl = np.repeat(np.arange(n_lines, dtype=np.int32), code_len)
     has_code = code_len > 0
     if comments:
         has_code[list(comments)] = True
     rows = np.flatnonzero(has_code)
-
-    # `%` lines, and `/` (block delete) at the start of a line
-    pct = cb == _PERCENT
-    pct_lines = np.unique(cl[pct])
-    if len(pct_lines) and (code_len[pct_lines] != 1).any():
-        raise fail(pct_lines[code_len[pct_lines] != 1][0], "'%' must stand alone on its line", "%")
-    starts_code = line_start - np.arange(n_lines)  # index of each line's first byte in cb
-    bd_lines = np.flatnonzero((code_len > 0) & (cb[np.minimum(starts_code, len(cb) - 1)] == _SLASH)
-                              if len(cb) else np.zeros(0, bool))
-    if len(pct_lines) or len(bd_lines):
-        drop = pct.copy()
-        drop[starts_code[bd_lines]] = True
-        cb, cl = cb[~drop], cl[~drop]
-
-    cls = _CLASS[cb]
+    # number characters: + - . 0-9 (bytes 43..57 except , and /)
+    is_num = (b - np.uint8(_PLUS) <= _D0 + 9 - _PLUS) & (b != ord(",")) & (b != _SLASH)
+    bnd = np.flatnonzero(~is_num)      # letters, newlines and special characters end a number
+    bcls = _CLASS[b[bnd]]
     unsupported: list[tuple[int, str, str]] = []
-    other = cls == _OTHER
-    if other.any():
-        skip = []
-        for i in np.unique(cl[other]):
-            char = chr(cb[other & (cl == i)][0]) if cb[other & (cl == i)][0] < 128 else "non-ASCII"
+    skip: list[int] = []
+
+    # rare characters: `%` lines, `/` (block delete) at the start of a line, anything else
+    special = bnd[bcls >= _PCT_C]
+    pct_lines = bd_lines = np.zeros(0, dtype=np.int64)
+    if len(special):
+        s_line = np.searchsorted(nl, special)
+        s_cls = _CLASS[b[special]]
+        pct_lines = np.unique(s_line[s_cls == _PCT_C])
+        if (code_len[pct_lines] != 1).any():
+            raise fail(pct_lines[code_len[pct_lines] != 1][0], "'%' must stand alone on its line", "%")
+        slash = s_cls == _SLASH_C
+        at_start = special == line_start[s_line]
+        bd_lines = s_line[slash & at_start]
+        other = (s_cls == _OTHER) | (slash & ~at_start)
+        for i in np.unique(s_line[other]).tolist():
+            code = b[special[other & (s_line == i)][0]]
+            char = chr(code) if code < 128 else "non-ASCII"
             why = _WHY.get(char, f"character {char!r}")
             if char in "()" or not lenient:
                 raise fail(i, f"unsupported syntax: {why}" if char not in "()" else why)
-            unsupported.append((int(i), line_text(i)[:40], f"unsupported syntax: {why}"))
-            skip.append(int(i))
-        keep = ~np.isin(cl, skip)
-        cb, cl, cls = cb[keep], cl[keep], cls[keep]
+            unsupported.append((i, line_text(i)[:40], f"unsupported syntax: {why}"))
+            skip.append(i)
 
-    # -- words: every letter starts one; its number runs to the next letter on the same line -----
-    # -- words: every letter starts one; its number runs to the next letter ----------------------
-    # (every line's code starts with a letter, so a number never runs into the next line)
-    first = np.r_[0, np.flatnonzero(cl[1:] != cl[:-1]) + 1] if len(cl) else cl
-    orphan = cls[first] != _LETTER
-    if orphan.any():
-        raise fail(cl[first[orphan][0]], "number without a word letter")
-    wstart = np.flatnonzero(cls == _LETTER)
-    wline = cl[wstart]
-    wletter = (cb[wstart] - _A).astype(np.uint8)
-    values = _numbers(cb, cls, wstart)
+    # -- words: every letter starts one; its number is the run of number characters after it ----
+    k_letter = np.flatnonzero(bcls == _LETTER)
+    wstart = bnd[k_letter]
+    wend = np.r_[bnd, len(b)][k_letter + 1]
+    length = wend - wstart - 1
+    if length.sum() != len(b) - len(bnd):  # number characters that follow no letter
+        starts = np.r_[-1, bnd]
+        runs = np.r_[bnd, len(b)] - starts - 1
+        lonely = np.ones(len(starts), dtype=bool)
+        lonely[k_letter + 1] = False
+        lines = np.setdiff1d(np.searchsorted(nl, starts[lonely & (runs > 0)] + 1), skip)
+        if len(lines):
+            raise fail(lines[0], "number without a word letter")
+    is_nl = bcls == _NEWLINE
+    wline = (np.cumsum(is_nl) - is_nl)[k_letter]  # newlines before each letter
+    wletter = (b[wstart] - _A).astype(np.uint8)
+    values = _numbers(b[is_num], length, b, wstart)
     bad_value = np.isnan(values)
 
+    flow = np.zeros(0, dtype=np.int64)
     if bad_value.any():
         # O-word control flow (o100 sub, o100 if ...) shows up as letters without numbers
         o_lines = np.unique(wline[wletter == ord("O") - _A])
-        flow = np.intersect1d(o_lines, wline[bad_value])
-        for i in flow:
+        flow = np.setdiff1d(np.intersect1d(o_lines, wline[bad_value]), skip)
+        for i in flow.tolist():
             if not lenient:
                 raise fail(i, "unsupported O-word control flow")
-            unsupported.append((int(i), line_text(i)[:40], "unsupported O-word control flow"))
-        bad_lines = np.setdiff1d(np.unique(wline[bad_value]), flow)
+            unsupported.append((i, line_text(i)[:40], "unsupported O-word control flow"))
+        bad_lines = np.setdiff1d(np.unique(wline[bad_value]), np.r_[flow, skip])
         if len(bad_lines):
             i = bad_lines[0]
             k = np.flatnonzero(bad_value & (wline == i))[0]
-            end = wstart[k + 1] if k + 1 < len(wstart) else len(cb)
-            word = bytes(cb[wstart[k]:end]).decode("ascii", "replace")
+            word = bytes(b[wstart[k]:wend[k]]).decode("ascii", "replace")
             raise fail(i, "malformed word (a letter needs a decimal number)", word)
-        keep = ~np.isin(wline, flow)
+    if len(flow) or skip:
+        keep = ~np.isin(wline, np.r_[flow, skip])
         wline, wletter, values = wline[keep], wletter[keep], values[keep]
 
     return Tokens(n_lines=n_lines, rows=rows, line=wline.astype(np.int64), letter=wletter,
@@ -168,28 +162,57 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
                   block_delete=bd_lines.astype(np.int64), unsupported=unsupported)
 
 
-def _numbers(cb: np.ndarray, cls: np.ndarray, wstart: np.ndarray) -> np.ndarray:
+def _numbers(digits: np.ndarray, length: np.ndarray, b: np.ndarray, wstart: np.ndarray) -> np.ndarray:
     """The number after each word letter as float64 (NaN where malformed).
 
-    Fast path: the number characters already lie between the letters, so dropping the letters gives
-    an Arrow string array without copying per word, and Arrow's C++ cast parses them all. It refuses
-    the whole array if one is malformed; then the numpy path below finds which.
+    Fast path: `digits` holds all number characters in order, word after word (`length` each), so
+    it is an Arrow string array without copying per word, and Arrow's C++ cast parses them all. It
+    refuses the whole array if one is malformed; then the numpy path below finds which.
     """
     n_words = len(wstart)
     if not n_words:
         return np.zeros(0)
-    length = np.r_[wstart[1:], len(cb)] - wstart - 1
     offsets = np.zeros(n_words + 1, dtype=np.int32)
     np.cumsum(length, out=offsets[1:])
-    digits = np.ascontiguousarray(cb[cls != _LETTER])
-    arr = pa.StringArray.from_buffers(n_words, pa.py_buffer(offsets), pa.py_buffer(digits))
+    arr = pa.StringArray.from_buffers(n_words, pa.py_buffer(offsets), pa.py_buffer(np.ascontiguousarray(digits)))
     try:
         return pc.cast(arr, pa.float64()).to_numpy(zero_copy_only=False)
     except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
-        return _parse_numbers(cb, cls, wstart)
+        return _parse_numbers(b, _CLASS[b], wstart, length)
 
 
-def _parse_numbers(cb: np.ndarray, cls: np.ndarray, wstart: np.ndarray) -> np.ndarray:
+def _strip_comments(data: bytes) -> tuple[bytes, dict[int, str]]:
+    """Blank out comments (same length, so positions and lines stay); line index -> comment text.
+    Only the lines holding `(`, `)` or `;` are looked at (bytes.find, no pass in Python per line)."""
+    marks = (b"(", b";", b")")
+    nxt = [data.find(m) for m in marks]
+    if max(nxt) < 0:
+        return data, {}
+    comments: dict[int, str] = {}
+    pieces: list[bytes] = []
+    cursor = line_no = counted_to = 0
+    while True:
+        live = [p for p in nxt if p >= 0]
+        if not live:
+            break
+        pos = min(live)
+        lo = data.rfind(b"\n", 0, pos) + 1
+        hi = data.find(b"\n", pos)
+        hi = len(data) if hi < 0 else hi
+        line_no += data.count(b"\n", counted_to, lo)
+        counted_to = lo
+        for m in _COMMENT.finditer(data, lo, hi):
+            raw = m.group(1) if m.group(1) is not None else m.group(2)
+            piece = raw.decode("utf-8", "replace").strip()
+            comments[line_no] = f"{comments[line_no]} {piece}" if line_no in comments else piece
+            pieces += [data[cursor:m.start()], b" " * (m.end() - m.start())]
+            cursor = m.end()
+        nxt = [p if p < 0 or p >= hi else data.find(mark, hi) for p, mark in zip(nxt, marks)]
+    pieces.append(data[cursor:])
+    return b"".join(pieces), comments
+
+
+def _parse_numbers(cb: np.ndarray, cls: np.ndarray, wstart: np.ndarray, length: np.ndarray) -> np.ndarray:
     """The number after each word letter, `[+-]digits[.digits]`, as float64; NaN where malformed.
 
     Horner's scheme over the words' character columns gives an exact integer mantissa and the count
@@ -200,8 +223,7 @@ def _parse_numbers(cb: np.ndarray, cls: np.ndarray, wstart: np.ndarray) -> np.nd
     out = np.full(nw, np.nan)
     if not nw:
         return out
-    length = np.r_[wstart[1:], n] - wstart - 1
-    width = int(min(length.max(), _MAX_WIDTH))
+    width = int(min(max(length.max(), 1), _MAX_WIDTH))
     mant = np.zeros(nw, dtype=np.int64)
     frac = np.zeros(nw, dtype=np.int64)
     n_digit = np.zeros(nw, dtype=np.int64)
