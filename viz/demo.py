@@ -35,6 +35,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the cycle-time table as JSON rows only")
     parser.add_argument("--no-train", action="store_true", help="skip training and prediction")
     parser.add_argument("--models", help="comma-separated model names to train (default: the demo set)")
+    parser.add_argument("--detail-plots", type=int, default=DETAIL_PLOTS, metavar="N",
+                        help=f"recordings that get all four plots, the rest get the feed plot (default {DETAIL_PLOTS})")
 
 
 def default_recordings() -> Path:
@@ -175,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
     config = DemoConfig(recordings=recordings, out=args.out, train=not args.no_train, models=models, log=log)
     prepare_out(args.out)
     result = run_demo(config)
-    written = write_outputs(result, args.out, log=log)
+    written = write_outputs(result, args.out, log=log, detail=args.detail_plots)
     if args.json:
         print(table_json(written["table"]))
         return 0

@@ -19,7 +19,7 @@ import pandas as pd  # noqa: E402
 from feedlog.viz.colors import source_color  # noqa: E402
 from feedlog.viz.prepare import ViewData  # noqa: E402
 
-DPI = 110
+DPI = 100
 
 
 def _c(name: str, index: int = 0) -> tuple[float, float, float]:
@@ -35,8 +35,8 @@ def _save(fig, path: Path) -> Path:
 
 def plot_feed(data: ViewData, path: str | Path) -> Path:
     """Path feed over time: measured, commanded F, simulated, learned; the residual below."""
-    fig, (ax, res) = plt.subplots(2, 1, figsize=(10, 6), sharex=True, height_ratios=[3, 1],
-                                  layout="constrained")
+    fig, (ax, res) = plt.subplots(2, 1, figsize=(10, 6), sharex=True, height_ratios=[3, 1])
+    fig.subplots_adjust(left=0.09, right=0.98, top=0.94, bottom=0.09, hspace=0.08)
     m = data.measured
     t = m["t_rel_ns"].to_numpy() / 1e9
     ax.plot(t, m["feed_mm_min"], color=_c("measured"), lw=1.2, label="measured")
@@ -64,14 +64,15 @@ def plot_feed(data: ViewData, path: str | Path) -> Path:
 
 def plot_axes(data: ViewData, path: str | Path) -> Path:
     """Per-axis feeds, measured vs simulated, one panel per axis."""
-    fig, axs = plt.subplots(len(data.axes), 1, figsize=(10, 1.8 * len(data.axes) + 1), sharex=True,
-                            layout="constrained", squeeze=False)
+    fig, axs = plt.subplots(len(data.axes), 1, figsize=(10, 1.8 * len(data.axes) + 1), sharex=True, squeeze=False)
+    fig.subplots_adjust(left=0.1, right=0.98, top=0.94, bottom=0.08, hspace=0.1)
     m = data.measured
     for ax, a in zip(axs[:, 0], data.axes, strict=True):
         ax.plot(m["t_rel_ns"] / 1e9, m[f"v{a}"], color=_c("measured"), lw=1, label="measured")
         if data.sim is not None and f"v{a}" in data.sim.columns:
             ax.plot(data.sim["t_rel_ns"] / 1e9, data.sim[f"v{a}"], color=_c("sim"), lw=1, label="simulated")
         ax.set_ylabel(f"{a} ({'deg' if a in 'abc' else 'mm'}/min)")
+        ax.ticklabel_format(axis="y", useOffset=False)
         ax.grid(alpha=0.3)
     axs[0, 0].legend(loc="upper right", fontsize=8)
     axs[0, 0].set_title(f"{data.name}: axis feeds")
@@ -81,7 +82,8 @@ def plot_axes(data: ViewData, path: str | Path) -> Path:
 
 def plot_path(data: ViewData, path: str | Path) -> Path:
     """Top view (XY) of the programmed path and the measured path coloured by measured feed."""
-    fig, ax = plt.subplots(figsize=(7, 6), layout="constrained")
+    fig, ax = plt.subplots(figsize=(7, 6))
+    fig.subplots_adjust(left=0.11, right=0.98, top=0.94, bottom=0.09)
     if data.programmed_path is not None and len(data.programmed_path):
         ax.plot(data.programmed_path["x_mm"], data.programmed_path["y_mm"], color=_c("programmed"), lw=2,
                 label="programmed", zorder=1)
@@ -101,7 +103,8 @@ def plot_path(data: ViewData, path: str | Path) -> Path:
 
 def plot_block_times(data: ViewData, path: str | Path) -> Path:
     """Measured vs predicted block times: predicted over measured, with the identity line."""
-    fig, ax = plt.subplots(figsize=(6, 6), layout="constrained")
+    fig, ax = plt.subplots(figsize=(6, 6))
+    fig.subplots_adjust(left=0.13, right=0.97, top=0.94, bottom=0.09)
     b = data.blocks
     predicted = [c for c in b.columns if c.endswith("_s") and c != "measured_s"]
     top = 0.0
@@ -124,7 +127,8 @@ def plot_block_times(data: ViewData, path: str | Path) -> Path:
 def plot_cycle_times(table: pd.DataFrame, path: str | Path) -> Path:
     """Grouped bars: cycle time per program for every source present in the table (seconds)."""
     sources = [c for c in table.columns if c.endswith("_s") and table[c].notna().any()]
-    fig, ax = plt.subplots(figsize=(max(6, 1.2 * len(table) + 3), 4.5), layout="constrained")
+    fig, ax = plt.subplots(figsize=(max(6, 0.5 * len(table) + 3), 5))
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.93, bottom=0.3)
     x = np.arange(len(table))
     width = 0.8 / max(len(sources), 1)
     for i, col in enumerate(sources):

@@ -88,10 +88,14 @@ def test_demo_writes_an_rrd_per_readable_recording(demo_run):
 def test_demo_json_prints_only_the_table_and_reruns_into_its_own_folder(demo_run, recordings_dir, capsys):
     _, out = demo_run
     capsys.readouterr()
-    assert main(["demo", "--recordings", str(recordings_dir), "--out", str(out), "--no-train", "--json"]) == 0
+    assert main(["demo", "--recordings", str(recordings_dir), "--out", str(out), "--no-train", "--json",
+                 "--detail-plots", "0"]) == 0
     rows = json.loads(capsys.readouterr().out)
     assert {"program", "measured_s", "cam_s", "sim_s"} <= set(rows[0])
     assert len(rows) == 3
+    # the rerun replaced the earlier outputs: only feed plots now
+    assert sorted(p.name for p in (out / "plots").iterdir()) == [
+        "cycle_times.png", "square_a_feed.png", "square_b_feed.png"]
 
 
 def test_demo_refuses_a_folder_it_did_not_write(recordings_dir, tmp_path, capsys):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+import pytest
 import synthetic as syn
 from matplotlib import image
 
@@ -30,8 +31,10 @@ def test_plot_view_writes_four_pngs(tmp_path):
 
 
 def test_plots_without_predictions_still_render(tmp_path):
-    paths = plot_view(prepare_view(ViewInputs(syn.recording(), name="bare")), tmp_path)
-    assert all(_is_png(p) for p in paths.values())
+    paths = plot_view(prepare_view(ViewInputs(syn.recording(), name="bare")), tmp_path, kinds=("feed", "blocks"))
+    assert sorted(paths) == ["blocks", "feed"] and all(_is_png(p) for p in paths.values())
+    with pytest.raises(ValueError, match="unknown plot kinds"):
+        plot_view(prepare_view(ViewInputs(syn.recording(), name="bare")), tmp_path, kinds=("feeds",))
 
 
 def test_cycle_time_bars(tmp_path):

@@ -55,7 +55,8 @@ def test_view_of_a_five_axis_recording(tmp_path):
 def test_demo_on_a_few_bundled_recordings(tmp_path, capsys):
     names = ["test_p001", "5ax_p001", "corners_f3000_p001"]
     folder = _subset_dir(tmp_path, names)
-    assert main(["demo", "--recordings", str(folder), "--out", str(tmp_path / "out"), "--no-train", "--json"]) == 0
+    assert main(["demo", "--recordings", str(folder), "--out", str(tmp_path / "out"), "--no-train", "--json",
+                 "--detail-plots", "1"]) == 0
     rows = {r["recording"]: r for r in json.loads(capsys.readouterr().out)}
     assert set(rows) == set(names)
     for name in names:
