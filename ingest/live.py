@@ -109,8 +109,9 @@ class Progress:
 class _Decoder:
     """Decodes frame batches, keeping the last few ms back so one sample's frames stay together."""
 
-    def __init__(self, layout: DbcLayout, hold_ns: int) -> None:
+    def __init__(self, layout: DbcLayout, hold_ns: int, drop_columns: frozenset[str] = frozenset()) -> None:
         self.layout = layout
+        self.drop_columns = drop_columns
         self.hold_ns = hold_ns
         self.pending = CanFrames.concat([])
         self.last_seq: dict[int, int] = {}
@@ -139,6 +140,8 @@ class _Decoder:
         streams, _ = assemble_streams(decoded, self.layout)
         out = {}
         for name, table in streams.items():
+            if self.drop_columns & set(table.columns):
+                table = table.drop(columns=sorted(self.drop_columns & set(table.columns)))
             known = self.columns.setdefault(name, list(table.columns))
             if list(table.columns) != known:  # a member message missing in this batch: keep the stream's columns
                 table = table.reindex(columns=known)
@@ -161,11 +164,13 @@ def _select(frames: CanFrames, mask: np.ndarray) -> CanFrames:
 def capture(bus: can.BusABC, layout: DbcLayout, writer: RecordingWriter, *, stop: threading.Event,
             finished: Callable[[], bool] | None = None, duration_s: float | None = None,
             max_buffer_frames: int = 500_000, tick_s: float = 0.1, hold_ns: int = 5_000_000,
-            progress: TextIO | None = sys.stderr) -> CaptureStats:
-    """Record `bus` into `writer` until stopped; returns the statistics (the writer stays open)."""
+            drop_columns: frozenset[str] = frozenset(), progress: TextIO | None = sys.stderr) -> CaptureStats:
+    """Record `bus` into `writer` until stopped; returns the statistics (the writer stays open).
+
+    `drop_columns` are decoded but not stored (e.g. the A and B angles of an XYZC machine)."""
     buffer = FrameBuffer(max_buffer_frames)
     notifier = can.Notifier(bus, [buffer], timeout=0.05)
-    decoder = _Decoder(layout, hold_ns)
+    decoder = _Decoder(layout, hold_ns, frozenset(drop_columns))
     stats = CaptureStats()
     show = Progress(progress)
     start = time.monotonic()
@@ -218,7 +223,8 @@ def record_bus(bus: can.BusABC, out, *, dbc: str | None = None, metadata: dict[s
                attachments: dict[str, bytes] | None = None, overwrite: bool = False,
                stop: threading.Event | None = None, finished: Callable[[], bool] | None = None,
                duration_s: float | None = None, flush_interval_s: float = 1.0,
-               max_buffer_frames: int = 500_000, progress: TextIO | None = sys.stderr) -> dict:
+               max_buffer_frames: int = 500_000, drop_columns: frozenset[str] = frozenset(),
+               progress: TextIO | None = sys.stderr) -> dict:
     """Record a live bus into a new recording `out`; returns a summary (frames, samples, drops, ...)."""
     layout = DbcLayout(dbc)
     attachments = {**(attachments or {}), layout.path.name: layout.source_text()}
@@ -228,7 +234,8 @@ def record_bus(bus: can.BusABC, out, *, dbc: str | None = None, metadata: dict[s
                              flush_interval_s=flush_interval_s)
     try:
         stats = capture(bus, layout, writer, stop=stop or threading.Event(), finished=finished,
-                        duration_s=duration_s, max_buffer_frames=max_buffer_frames, progress=progress)
+                        duration_s=duration_s, max_buffer_frames=max_buffer_frames, drop_columns=drop_columns,
+                        progress=progress)
     finally:
         try:
             writer.close()

@@ -149,6 +149,8 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
     from feedlog.toolpath import parse_program
 
     series = simulate(parse_program(args.program), args.profile, dt_s=1.0 / args.rate_hz).series
+    # the DBC pairs axes in frames (ZA, BC): keep only the axes the simulated machine has
+    unused = frozenset(f"{axis}_deg" for axis in "abc" if f"{axis}_deg" not in series)
     if series.empty:
         raise IngestError("the simulation produced no samples", file=args.program)
     layout = DbcLayout(args.dbc)
@@ -165,7 +167,7 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
     try:
         player.start()
         summary = record_bus(rx, args.out, dbc=args.dbc, metadata=metadata, attachments=attachments,
-                             overwrite=args.overwrite, stop=stop, finished=_drained(player, rx),
+                             overwrite=args.overwrite, stop=stop, finished=_drained(player, rx), drop_columns=unused,
                              duration_s=args.duration_s, progress=None if args.quiet else sys.stderr)
     finally:
         stop.set()

@@ -122,6 +122,7 @@ def test_sim_source_records_the_simulated_program(tmp_path, capsys):
     assert summary["dropped_frames"] == 0 and summary["frames"] == 3 * len(expected)
     rec = read_recording(out)
     axes = rec.streams["axes"]
+    assert list(axes.columns) == ["t_ns", "x_mm", "y_mm", "z_mm"]  # no A angle on a three-axis machine
     assert len(axes) == len(expected)
     np.testing.assert_array_equal(np.diff(axes["t_ns"].to_numpy()), np.diff(expected["t_ns"].to_numpy()))
     np.testing.assert_allclose(axes["x_mm"], expected["x_mm"], atol=1e-4)
