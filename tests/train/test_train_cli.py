@@ -1,0 +1,83 @@
+"""`feedlog train` on align-shaped tables with a manifest, then `feedlog predict` on a real program."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from feedlog.align.tables import FORMAT_VERSION, META_KEY
+from feedlog.cli import main
+from feedlog.errors import ModelError
+from feedlog.train import load_many, predict_program
+from feedlog.train.synthetic import synthetic_set
+
+
+def _write_aligned(root: Path) -> Path:
+    """OUT/<recording>/blocks.parquet as feedlog align writes them, and a recordings manifest."""
+    tables = synthetic_set(n_train=2, n_test=1, n_blocks=80, seed=5, sim_acc_factor=None)
+    entries = []
+    for t in tables:
+        folder = root / "aligned" / t.name
+        folder.mkdir(parents=True)
+        arrow = pa.Table.from_pandas(t.blocks, preserve_index=False)
+        meta = {"format_version": FORMAT_VERSION, "table": "blocks", "recording": str(root / f"{t.name}.mcap"),
+                "program": "program.ngc", "cycle_time_s": t.measured_cycle_time_s}
+        pq.write_table(arrow.replace_schema_metadata({META_KEY: json.dumps(meta).encode()}), folder / "blocks.parquet")
+        entries.append(f'[[recording]]\nname = "{t.name}"\nsplit = "{t.split}"\nprofile = "linuxcnc-xyz"\n'
+                       f'family = "fam-{t.name}"\n')
+    (root / "manifest.toml").write_text("\n".join(entries))
+    return root / "aligned"
+
+
+def test_load_many_reads_split_and_profile_from_the_manifest(tmp_path):
+    aligned = _write_aligned(tmp_path)
+    tables = load_many([aligned])
+    assert [(t.name, t.split) for t in tables] == [("test-2", "test"), ("train-0", "train"), ("train-1", "train")]
+    assert tables[0].profile.name == "linuxcnc-xyz" and tables[0].program == "fam-test-2"
+    assert [t.split for t in load_many([aligned], test=["train-0"])] == ["test", "test", "train"]
+    with pytest.raises(ModelError, match="--test names no loaded recording: nope"):
+        load_many([aligned], test=["nope"])
+    with pytest.raises(ModelError, match="no aligned recordings"):
+        load_many([tmp_path])
+
+
+def test_train_then_predict(tmp_path, capsys, examples_dir):
+    aligned = _write_aligned(tmp_path)
+    out = tmp_path / "models"
+    argv = ["train", str(aligned), "-o", str(out), "--models", "mlp,bilstm-block", "--epochs", "3", "-q"]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "test-2" in printed and "mlp s (err)" in printed and "mean |error|" in printed
+    results = pd.read_csv(out / "results.csv")
+    assert list(results["recording"]) == ["test-2"]
+    assert {"measured_s", "cam_s", "cam_err_pct", "mlp_s", "mlp_err_pct", "bilstm-block_err_pct"} <= set(results)
+    assert results["measured_s"].iloc[0] == pytest.approx(load_many([aligned])[0].measured_cycle_time_s)
+    assert main(argv) == 1  # outputs exist: refused without --overwrite
+    assert "refusing to overwrite" in capsys.readouterr().err
+
+    program = tmp_path / "pocket.ngc"
+    program.write_text((examples_dir / "pocket.ngc").read_text())
+    assert main(["predict", str(program), "--model", str(out / "bilstm-block.pt"), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    blocks = pd.read_parquet(doc["blocks_file"])
+    assert doc["model"] == "bilstm-block" and doc["profile"] == "linuxcnc-xyz"
+    from feedlog.toolpath import parse_program
+
+    dwell = float(parse_program(program).blocks["dwell_s"].sum())
+    assert doc["cycle_time_s"] == pytest.approx(blocks["duration_s"].sum() + dwell, rel=1e-6)
+    assert dwell == 0 or any("dwell" in n for n in doc["notes"])
+    assert doc["cycle_time_s"] > 0 and len(blocks) > 0
+
+    pred = predict_program(program, out / "mlp.pt")
+    again = predict_program(out / "mlp.pt", program)  # either argument order
+    assert pred.cycle_time_s == pytest.approx(again.cycle_time_s) and pred.cycle_time_s > 0
+
+    assert main(["train", str(aligned), "-o", str(tmp_path / "x"), "--models", "gpt"]) == 1
+    assert "unknown model(s) gpt" in capsys.readouterr().err
+    assert main(["predict", str(program), "--model", str(tmp_path / "none.pt")]) == 1
+    assert "checkpoint not found" in capsys.readouterr().err
