@@ -18,6 +18,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help=f"file to convert ({', '.join(SUFFIXES)}); prefix can: for a python-can CSV log")
     parser.add_argument("-o", "--out", help="recording to write (.mcap)")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    parser.add_argument("--compression", choices=["lz4", "zstd", "none"], default="lz4",
+                        help="MCAP chunk compression (default lz4; zstd is smaller, none reads fastest)")
     mapping = parser.add_mutually_exclusive_group()
     mapping.add_argument("--preset", help="named column mapping (see --list-presets)")
     mapping.add_argument("--map", dest="mapping", metavar="T=COL,...",
@@ -54,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
                             dbc=args.dbc, strict=not args.lenient, recover=args.recover)
     recording = read_source(args.source, options)
     attach_session(recording, program=args.program, profile=args.profile, machine=args.machine, notes=args.notes)
-    write_recording(args.out, recording, overwrite=args.overwrite)
+    write_recording(args.out, recording, overwrite=args.overwrite, compression=args.compression)
     recording.source = args.out
     print(format_summary(summarize(recording)))
     for key in ("bad_rows", "bad_records", "unknown_ids", "recovered"):

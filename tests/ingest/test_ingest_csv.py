@@ -110,7 +110,8 @@ def test_import_cli_writes_recording_with_program_and_profile(tmp_path, capsys):
     assert rec.metadata["machine"] == "linuxcnc-xyz" and len(rec.streams["axes"]) == 6
     assert main(argv) == 1  # refuses to overwrite
     assert "exists" in capsys.readouterr().err
-    assert main(argv + ["--overwrite"]) == 0
+    assert main(argv + ["--overwrite", "--compression", "zstd"]) == 0
+    assert len(read_recording(out).streams["axes"]) == 6
     assert main(["import", str(FIX / "bad_rows.csv"), "--preset", "servo-trace-1khz", "-o", str(tmp_path / "b.mcap")]) == 1
     assert "bad_rows.csv:4" in capsys.readouterr().err
     assert not (tmp_path / "b.mcap").exists()
