@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from feedlog.profile import MachineProfile
-from feedlog.sim.motion import Plan, sample_plan
+from feedlog.sim.motion import Plan, grid_counts, sample_plan
 from feedlog.sim.path import Blocks, Pieces
 
 # (t_s, pos, speed, row): sample times, (N, k) axis positions, path speed, Blocks row index
@@ -101,13 +101,21 @@ def block_times(row_of_piece: np.ndarray, start: np.ndarray, end: np.ndarray, n_
 
 
 def trajectory_from_plan(plan: Plan, pieces: Pieces, blocks: Blocks, dt_s: float) -> Trajectory:
+    # during a parabolic blend both pieces move; the executing block changes halfway through the
+    # overlap (LinuxCNC reports whichever segment is faster, which swaps at the middle)
+    half = 0.5 * plan.overlap_s
+    switch = plan.t0 + np.concatenate(([0.0], half[:-1])) if len(plan.t0) else plan.t0
+
     def sample() -> Samples:
         t = time_grid(plan.total_s, dt_s)
-        pos, speed, idx = sample_plan(plan, pieces, t)
-        row = pieces.block[idx] if len(pieces) else np.zeros(len(t), np.int64)
+        pos, speed, _ = sample_plan(plan, pieces, t)
+        if not len(pieces):
+            return t, pos, speed, np.zeros(len(t), np.int64)
+        counts = grid_counts(switch, len(t), dt_s)
+        row = np.repeat(pieces.block, counts)
         return t, pos, speed, row
 
-    b_start, b_end = block_times(pieces.block, plan.t0, plan.t_end + plan.hold, len(blocks))
+    b_start, b_end = block_times(pieces.block, switch, plan.t_end + plan.hold - half, len(blocks))
     moving = pieces.length > 0
     if moving.any():
         m_start = float(plan.t0[moving].min())

@@ -116,7 +116,7 @@ def _progress(v0, vp, a, ta, tc, td, length, tau) -> tuple[np.ndarray, np.ndarra
     return np.minimum(s, length), np.maximum(v, 0.0)
 
 
-def _grid_counts(start_s: np.ndarray, n: int, dt_s: float) -> np.ndarray:
+def grid_counts(start_s: np.ndarray, n: int, dt_s: float) -> np.ndarray:
     """How many grid samples k * dt fall in [start[i], start[i + 1]) (the last piece takes the rest)."""
     first = np.clip(np.ceil(start_s / dt_s - 1e-9).astype(np.int64), 0, n)
     first = np.maximum.accumulate(first)
@@ -155,7 +155,7 @@ def sample_plan(plan: Plan, pieces: Pieces, t: np.ndarray) -> tuple[np.ndarray, 
     if not m:
         return np.zeros((len(t), pieces.p0.shape[1])), np.zeros(len(t)), np.zeros(len(t), np.int64)
     dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
-    counts = _grid_counts(plan.t0, len(t), dt)
+    counts = grid_counts(plan.t0, len(t), dt)
     rep = _Repeat(counts)
     idx = rep(np.arange(m))
     tau = t - rep(plan.t0)

@@ -54,3 +54,38 @@ def test_recorded_sessions_cycle_times():
     assert abs(errors[worst]) < 0.025, (worst, errors[worst])
     assert sum(abs(e) < 0.02 for e in errors.values()) >= len(errors) - 1, errors
     assert sorted(abs(e) for e in errors.values())[len(errors) // 2] < 0.015
+
+
+def _line_times_ms(rec) -> "pd.Series":
+    import numpy as np
+    import pandas as pd
+
+    ln = rec.stream("line")
+    t, lines = ln["t_ns"].to_numpy(), ln["line"].to_numpy()
+    t0, t1 = int(rec.metadata["motion_start_ns"]), int(rec.metadata["motion_end_ns"])
+    inside = (t >= t0) & (t <= t1)
+    t, lines = t[inside], lines[inside]
+    change = np.flatnonzero(np.diff(lines)) + 1
+    starts, ends = np.concatenate([[0], change]), np.concatenate([change, [len(t) - 1]])
+    return pd.Series((t[ends] - t[starts]) / 1e6, index=lines[starts]).groupby(level=0).sum()
+
+
+@pytest.mark.skipif(not MANIFEST.is_file(), reason="recordings/manifest.toml not present")
+@pytest.mark.parametrize("name", ["test_p001", "5ax_p001", "pocket_f1000_g61"])
+def test_time_per_program_line_matches_the_recording(name):
+    """Not just the total: the time LinuxCNC spends on each line (motion.program-line) within a few ms,
+    including the parabolic blends of five-axis G64 and the tangent arcs of G61."""
+    import numpy as np
+
+    from feedlog.ingest import read_recording
+
+    rec_info = next((r for r in _recordings() if r["name"] == name), None)
+    if rec_info is None:
+        pytest.skip(f"{name} not in the manifest")
+    rec = read_recording(MANIFEST.parent / rec_info["file"])
+    res = simulate(parse_program(MANIFEST.parent / rec_info["program"], lenient=True), rec_info["profile"])
+    measured = _line_times_ms(rec)
+    simulated = res.blocks.groupby("line")["duration_s"].sum() * 1e3
+    both = measured.index.intersection(simulated.index)
+    assert len(both) >= 0.8 * len(measured)
+    assert float(np.mean(np.abs(measured[both] - simulated[both]))) < 5.0
