@@ -1,8 +1,9 @@
 """`feedlog record --source NAME [PROGRAM] [--profile P] -o REC.mcap`: record a live session.
 
 Sources are modules registered below by name; each provides `add_arguments(group)` for its own
-options and `record(args) -> dict` (a summary). SIGINT and SIGTERM stop a recording cleanly: the
-handler sets `args.stop_event`, the source finishes its file and returns.
+options and `record(args) -> dict` (a summary). A source that sets `STOPS_ON_EVENT = True` gets
+`args.stop_event`: SIGINT and SIGTERM set it and the source finishes its file and returns. Other
+sources keep Python's default signal handling.
 """
 
 from __future__ import annotations
@@ -82,8 +83,9 @@ def run(args: argparse.Namespace) -> int:
     def on_signal(signum, frame) -> None:
         args.stop_event.set()
 
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        previous[signum] = signal.signal(signum, on_signal)
+    if getattr(module, "STOPS_ON_EVENT", False):
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            previous[signum] = signal.signal(signum, on_signal)
     try:
         summary = module.record(args)
     finally:

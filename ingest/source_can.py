@@ -15,6 +15,9 @@ from feedlog.errors import IngestError
 from feedlog.ingest.live import record_bus
 
 
+STOPS_ON_EVENT = True  # cli_record: SIGINT/SIGTERM set args.stop_event
+
+
 def add_arguments(group: argparse._ArgumentGroup) -> None:
     group.add_argument("--interface", default="socketcan", help="python-can interface (socketcan, pcan, virtual, ...)")
     group.add_argument("--channel", help="bus channel (can0, PCAN_USBBUS1, a virtual channel name, ...)")

@@ -32,6 +32,9 @@ from feedlog.ingest.live import record_bus
 MAX_BUS_QUEUE = 200_000  # frames waiting on the virtual bus before the player counts an overrun
 
 
+STOPS_ON_EVENT = True  # cli_record: SIGINT/SIGTERM set args.stop_event
+
+
 def add_arguments(group: argparse._ArgumentGroup) -> None:
     group.add_argument("--rate-hz", type=float, default=1000.0, help="samples per second on the bus (default 1000)")
     group.add_argument("--speedup", type=float, default=1.0, help="play K times faster than real time (default 1)")
