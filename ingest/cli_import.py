@@ -84,5 +84,23 @@ def attach_session(recording, *, program: str | None = None, profile: str | None
         recording.metadata["machine"] = machine
     if notes:
         recording.metadata["notes"] = notes
+    fill_session_defaults(recording)
+
+
+def fill_session_defaults(recording) -> None:
+    """Nominal rate (median spacing of the densest stream) and start time (if t_ns is wall-clock time)
+    where the reader left them out; every standard metadata key present."""
+    import numpy as np
+    import pandas as pd
+
+    tables = [t for t in recording.streams.values() if len(t) > 1]
+    densest = max(tables, key=len) if tables else None
+    if densest is not None and not recording.metadata.get("nominal_rate_hz"):
+        step = float(np.median(np.diff(densest["t_ns"].to_numpy())))
+        if step > 0:
+            recording.metadata["nominal_rate_hz"] = f"{1e9 / step:.6g}"
+    t0 = recording.t_range_ns[0]
+    if not recording.metadata.get("start_time") and t0 > 10**18:  # after 2001: an epoch time, not a relative one
+        recording.metadata["start_time"] = pd.Timestamp(t0, tz="UTC").isoformat()
     for key in ("machine", "controller", "units", "nominal_rate_hz", "start_time", "notes"):
         recording.metadata.setdefault(key, "")

@@ -136,3 +136,16 @@ def test_missing_dbc_is_an_ingest_error(tmp_path):
     bad.write_text("BO_ nonsense")
     with pytest.raises(IngestError, match="cannot parse DBC"):
         DbcLayout(bad)
+
+
+def test_import_cli_fills_rate_and_start_time_for_can_logs(tmp_path, capsys):
+    from feedlog.cli import main
+    from feedlog.ingest import read_recording
+
+    out = tmp_path / "can.mcap"
+    assert main(["import", str(FIX / "axes.blf"), "-o", str(out)]) == 0
+    assert "unknown_ids" in capsys.readouterr().out
+    rec = read_recording(out)
+    assert rec.metadata["nominal_rate_hz"] == "1000"
+    assert rec.metadata["start_time"].startswith("2023-11-14T22:13:20")
+    assert rec.dropped_frames == 3
