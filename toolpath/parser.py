@@ -71,10 +71,9 @@ RADIUS_TOL_MM, RADIUS_TOL_REL = 0.002, 0.001  # start vs end radius mismatch all
 
 def _ffill(values: np.ndarray, present: np.ndarray, initial) -> np.ndarray:
     """Forward-fill `values` from rows where `present`; `initial` before the first one."""
-    idx = np.where(present, np.arange(len(values)), -1)
-    np.maximum.accumulate(idx, out=idx)
-    out = values[np.maximum(idx, 0)]
-    return np.where(idx >= 0, out, initial)
+    at = np.flatnonzero(present)
+    held = np.r_[np.asarray(initial, dtype=np.result_type(values, np.asarray(initial))), values[at]]
+    return np.repeat(held, np.diff(np.r_[0, at, len(values)]))
 
 
 def _strings(n: int, rows=None, values=None, *, fill: str = "") -> pd.api.extensions.ExtensionArray:
@@ -110,7 +109,9 @@ class _Rows:
         self.tok, self.file, self.lenient = tok, file, lenient
         self.rows = tok.rows
         self.n = len(tok.rows)
-        self.row_of = np.searchsorted(tok.rows, tok.line)
+        row_of_line = np.full(tok.n_lines, -1, dtype=np.int64)
+        row_of_line[tok.rows] = np.arange(self.n)
+        self.row_of = row_of_line[tok.line]
         self.unsupported: list[Unsupported] = [Unsupported(i + 1, c, r) for i, c, r in tok.unsupported]
         self.dirty_rows = np.zeros(self.n, dtype=bool)  # rows with a skipped code (lenient)
 
@@ -200,8 +201,8 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
 
     # -- other words: one per letter and line ------------------------------------------------------
     other = ~is_g & ~is_m
-    W = np.full((n, 26), np.nan)
-    W[row_of[other], letter[other]] = value[other]
+    W = np.full((26, n), np.nan)  # letter-major: one contiguous row per letter
+    W[letter[other], row_of[other]] = value[other]
     has = ~np.isnan(W)
     if np.count_nonzero(has) < np.count_nonzero(other):  # a letter twice on one line
         counts = np.bincount(row_of[other] * 26 + letter[other], minlength=n * 26)
@@ -214,8 +215,8 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     motion_mode = np.where(modal["motion"] == 800, -1, modal["motion"])
     is_dwell = groups["dwell"] == 40
     axis_cols = [L[c] for c in AXIS_LETTERS]
-    has_axis = has[:, axis_cols].any(axis=1)
-    has_ijk = has[:, [L["I"], L["J"], L["K"]]].any(axis=1)
+    has_axis = has[axis_cols].any(axis=0)
+    has_ijk = has[[L["I"], L["J"], L["K"]]].any(axis=0)
     linear_mode = (motion_mode == 0) | (motion_mode == 10)
     arc_mode = (motion_mode == 20) | (motion_mode == 30)
     orient = has_ijk & linear_mode & ~is_dwell
@@ -224,7 +225,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     def first(mask: np.ndarray, message: str, letters: str) -> None:
         if mask.any():
             r = int(np.flatnonzero(mask)[0])
-            code = next((c for c in letters if c in L and has[r, L[c]]), letters)
+            code = next((c for c in letters if c in L and has[L[c], r]), letters)
             raise R.error(r, message, code)
 
     first(has_axis & is_dwell, "axis words with G4 dwell", AXIS_LETTERS)
@@ -232,8 +233,8 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
           AXIS_LETTERS)
     first(arc_mode & has_ijk & ~has_axis & ~is_dwell, "arc without an end point (no axis words)", "IJK")
     first(has_ijk & ~(is_motion & (arc_mode | orient)), "I/J/K without an arc or a five-axis move", "IJK")
-    first(has[:, L["R"]] & ~(is_motion & arc_mode), "R word without an arc", "R")
-    first(is_dwell & ~has[:, L["P"]], "G4 dwell needs a P word (seconds)", "G4")
+    first(has[L["R"]] & ~(is_motion & arc_mode), "R word without an arc", "R")
+    first(is_dwell & ~has[L["P"]], "G4 dwell needs a P word (seconds)", "G4")
 
     kind_code = np.full(n, KINDS.index(NONE), dtype=np.int8)
     for mode, kind in KIND_OF_MOTION.items():
@@ -243,40 +244,48 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
 
     # -- positions ---------------------------------------------------------------------------------
     incremental = modal["distance"] == 910
-    end = np.empty((n, 6))
+    any_incremental = bool(incremental.any())
+    end = np.zeros((6, n))  # axis-major while computing: contiguous rows
     for j, ch in enumerate(AXIS_LETTERS):
-        v = W[:, L[ch]] * (unit if j < 3 else 1.0)
-        set_here = has[:, L[ch]] & is_motion
+        if not has[L[ch]].any():
+            continue
+        v = W[L[ch]] * unit if j < 3 else W[L[ch]]
+        set_here = has[L[ch]] & is_motion
+        if not any_incremental:
+            end[j] = _ffill(v, set_here, 0.0)
+            continue
         delta = np.where(set_here & incremental, v, 0.0)
         cs = np.cumsum(delta)
         absolute = set_here & ~incremental
-        offset = _ffill(np.where(absolute, v - cs, 0.0), absolute, 0.0)
-        end[:, j] = cs + offset
-    start = np.vstack([np.zeros((1, 6)), end[:-1]])[:n]
+        end[j] = cs + _ffill(np.where(absolute, v - cs, 0.0), absolute, 0.0)
+    start = np.zeros((6, n))
+    start[:, 1:] = end[:, :-1]
 
     # -- arcs --------------------------------------------------------------------------------------
-    centre = np.full((n, 3), np.nan)
+    centre = np.full((3, n), np.nan)
     radius = np.full(n, np.nan)
     sweep_deg = np.full(n, np.nan)
     turns = np.zeros(n, dtype=np.int16)
-    length = np.hypot(np.hypot(end[:, 0] - start[:, 0], end[:, 1] - start[:, 1]), end[:, 2] - start[:, 2])
+    d = end[:3] - start[:3]
+    length = np.sqrt(np.einsum("ij,ij->j", d, d))
     plane = modal["plane"] // 10
     if is_arc.any():
         a = np.flatnonzero(is_arc)
-        p_turns = W[a, L["P"]]
+        p_turns = W[L["P"], a]
         bad = ~np.isnan(p_turns) & ((p_turns < 1) | (p_turns != np.rint(p_turns)))
         if bad.any():
             raise R.error(a[bad][0], "arc P (turns) must be a positive integer", f"P{p_turns[bad][0]:g}")
         turns[a] = np.where(np.isnan(p_turns), 1, p_turns).astype(np.int16)
         idx = arcs.plane_index(plane[a])
-        s_uvw = arcs.to_plane(start[a, :3], idx)
-        e_uvw = arcs.to_plane(end[a, :3], idx)
-        ijk = np.nan_to_num(W[a][:, [L["I"], L["J"], L["K"]]]) * unit[a, None]
-        ijk_has = has[a][:, [L["I"], L["J"], L["K"]]]
+        s_uvw = arcs.to_plane(start[:3, a].T, idx)
+        e_uvw = arcs.to_plane(end[:3, a].T, idx)
+        ijk_rows = [L["I"], L["J"], L["K"]]
+        ijk = np.nan_to_num(W[np.ix_(ijk_rows, a)].T) * unit[a, None]
+        ijk_has = has[np.ix_(ijk_rows, a)].T
         off_uvw = arcs.to_plane(ijk, idx)
         has_uvw = arcs.to_plane(ijk_has, idx)
         ccw = motion_mode[a] == 30
-        use_r = has[a, L["R"]]
+        use_r = has[L["R"], a]
         if (use_r & has_uvw[:, :2].any(axis=1)).any():
             raise R.error(a[use_r & has_uvw[:, :2].any(axis=1)][0], "arc with both R and I/J/K", "R")
         if has_uvw[:, 2].any():
@@ -287,12 +296,12 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
             raise R.error(a[~use_r & ~has_uvw[:, :2].any(axis=1)][0], "arc needs R or centre words", "G2/G3")
         c_uv = np.where((modal["arc_distance"][a] == 901)[:, None], off_uvw[:, :2], s_uvw[:, :2] + off_uvw[:, :2])
         if use_r.any():
-            rr = W[a[use_r], L["R"]] * unit[a[use_r]]
+            rr = W[L["R"], a[use_r]] * unit[a[use_r]]
             c_r, ok = arcs.centre_from_radius(s_uvw[use_r, :2], e_uvw[use_r, :2], rr, ccw[use_r])
             if not ok.all():
                 k = a[use_r][~ok][0]
                 raise R.error(k, "arc radius is shorter than half the chord (or start equals end)",
-                              f"R{W[k, L['R']]:g}")
+                              f"R{W[L['R'], k]:g}")
             c_uv[use_r] = c_r
         r0 = np.hypot(*(s_uvw[:, :2] - c_uv).T)
         r1 = np.hypot(*(e_uvw[:, :2] - c_uv).T)
@@ -305,14 +314,14 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
             raise R.error(a[r0 <= 0][0], "arc of zero radius", "G2/G3")
         swept = arcs.sweep(s_uvw[:, :2], e_uvw[:, :2], c_uv, ccw, turns[a])
         length[a] = arcs.arc_length(r0, r1, swept, e_uvw[:, 2] - s_uvw[:, 2])
-        centre[a] = arcs.from_plane(np.column_stack([c_uv, s_uvw[:, 2]]), idx)
+        centre[:, a] = arcs.from_plane(np.column_stack([c_uv, s_uvw[:, 2]]), idx).T
         radius[a] = r0
         sweep_deg[a] = np.degrees(swept)
 
     # -- orientation vectors (five-axis CL data) ---------------------------------------------------
     ori = np.full((n, 3), np.nan)
     if orient.any():
-        o = np.nan_to_num(W[orient][:, [L["I"], L["J"], L["K"]]])
+        o = np.nan_to_num(W[[L["I"], L["J"], L["K"]]][:, orient].T)
         norm = np.linalg.norm(o, axis=1)
         if (norm <= 1e-12).any():
             raise R.error(np.flatnonzero(orient)[norm <= 1e-12][0], "tool orientation vector of length 0", "IJK")
@@ -322,15 +331,16 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
             ori[:, j] = _ffill(given[:, j], orient, np.nan)
 
     # -- feed ---------------------------------------------------------------------------------------
-    f_here = has[:, L["F"]]
+    f_here = has[L["F"]]
     inverse_time = modal["feed_mode"] == 930
-    f_mm = W[:, L["F"]] * unit
+    f_mm = W[L["F"]] * unit
     modal_feed = _ffill(f_mm, f_here & ~inverse_time, np.nan)
     feed_move = is_motion & (motion_mode != 0)
     lin_len = length
-    rot_len = np.linalg.norm(end[:, 3:] - start[:, 3:], axis=1)
+    rot_len = np.sqrt(((end[3:] - start[3:]) ** 2).sum(axis=0)) if has[[L[c] for c in "ABC"]].any() \
+        else np.zeros(n)
     time_len = np.where(lin_len > 1e-12, lin_len, rot_len)  # LinuxCNC: F applies to XYZ, else to ABC
-    feed = np.where(inverse_time, time_len * W[:, L["F"]], modal_feed)
+    feed = np.where(inverse_time, time_len * W[L["F"]], modal_feed)
     feed = np.where(feed_move, feed, np.nan)
     warnings: list[str] = []
     missing_it = feed_move & inverse_time & ~f_here
@@ -345,18 +355,18 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
 
     # -- path control, dwell, spindle, M codes, comments -----------------------------------------
     path_here = groups["path"] >= 0
-    p_val = W[:, L["P"]] * unit
-    q_val = W[:, L["Q"]] * unit
+    p_val = W[L["P"]] * unit
+    q_val = W[L["Q"]] * unit
     g64 = groups["path"] == 640
     tol_here = np.where(g64, p_val, 0.0)
-    merge_here = np.where(g64, np.where(has[:, L["Q"]], q_val, p_val), np.nan)
+    merge_here = np.where(g64, np.where(has[L["Q"]], q_val, p_val), np.nan)
     tol = _ffill(tol_here, path_here, np.nan)
     merge = _ffill(merge_here, path_here, np.nan)
     path_code = np.select([modal["path"] == 610, modal["path"] == 611], [0, 1], 2).astype(np.int8)
-    dwell = np.where(is_dwell, W[:, L["P"]], 0.0)
+    dwell = np.where(is_dwell, W[L["P"]], 0.0)
     if (dwell < 0).any():
         raise R.error(int(np.flatnonzero(dwell < 0)[0]), "negative dwell time", "P")
-    spindle = _ffill(W[:, L["S"]], has[:, L["S"]], 0.0)
+    spindle = _ffill(W[L["S"]], has[L["S"]], 0.0)
     mcodes = _strings(n)
     stop = np.zeros(n, dtype=bool)
     if is_m.any():
@@ -373,10 +383,10 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         "line": (tok.rows + 1).astype(np.int32),
         "block": np.arange(n, dtype=np.int32),
         "kind": pd.Categorical.from_codes(kind_code, categories=list(KINDS)),
-        **{c: start[:, j] for j, c in enumerate(START_COLUMNS)},
-        **{c: end[:, j] for j, c in enumerate(END_COLUMNS)},
+        **{c: start[j] for j, c in enumerate(START_COLUMNS)},
+        **{c: end[j] for j, c in enumerate(END_COLUMNS)},
         "plane": plane.astype(np.int8),
-        "cx_mm": centre[:, 0], "cy_mm": centre[:, 1], "cz_mm": centre[:, 2],
+        "cx_mm": centre[0], "cy_mm": centre[1], "cz_mm": centre[2],
         "turns": turns,
         "feed_mm_min": feed,
         "inverse_time": inverse_time,
@@ -393,7 +403,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         "length_mm": np.where(is_motion, length, 0.0),
         "radius_mm": radius,
         "sweep_deg": sweep_deg,
-        "n_word": np.where(has[:, L["N"]], W[:, L["N"]], -1).astype(np.int64),
+        "n_word": np.where(has[L["N"]], W[L["N"]], -1).astype(np.int64),
         "stop": stop,
     })
     assert list(blocks.columns[:len(BLOCK_COLUMNS)]) == list(BLOCK_COLUMNS)
@@ -407,9 +417,9 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
 def _metadata(tok: Tokens, W, has, m_codes, m_rows, is_motion, R: _Rows, file: str,
               warnings: list[str]) -> dict:
     meta: dict = {"file": file, "lines": tok.n_lines, "percent_lines": (tok.percent + 1).tolist()}
-    o_rows = np.flatnonzero(has[:, L["O"]])
+    o_rows = np.flatnonzero(has[L["O"]])
     if len(o_rows):
-        meta["program_number"] = int(W[o_rows[0], L["O"]])
+        meta["program_number"] = int(W[L["O"], o_rows[0]])
     if tok.comments:
         meta["title"] = tok.comments[min(tok.comments)]
     ends = m_rows[np.isin(m_codes, PROGRAM_END)]
