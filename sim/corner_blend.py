@@ -245,7 +245,16 @@ class BlendArcCorner(Mechanism):
         lines = Pieces(block=pc.block, length=length, p0=p0, dir=pc.dir, e1=pc.e1, e2=pc.e2, radius=pc.radius,
                        omega=pc.omega, v_max=v_max, a_max=a_max, v_end=v_end, hold_s=pc.hold_s, blend=pc.blend,
                        overlap=overlap, clamp_len=clamp)
-        key = np.concatenate([2 * np.arange(m), 2 * ja + 1])
-        order = np.argsort(key, kind="stable")
-        merged = {f: np.concatenate([getattr(lines, f), getattr(arcp, f)])[order] for f in Pieces.__dataclass_fields__}
+        # each arc goes right after its line: line i moves down by the number of arcs before it
+        has_arc = np.zeros(m, np.int64)
+        has_arc[ja] = 1
+        line_pos = np.arange(m) + np.concatenate(([0], np.cumsum(has_arc)[:-1]))
+        arc_pos = line_pos[ja] + 1
+        merged = {}
+        for f in Pieces.__dataclass_fields__:
+            a, b = getattr(lines, f), getattr(arcp, f)
+            out = np.empty((m + na,) + a.shape[1:], dtype=np.result_type(a, b))
+            out[line_pos] = a
+            out[arc_pos] = b
+            merged[f] = out
         return Pieces(**merged)
