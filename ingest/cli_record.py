@@ -96,6 +96,6 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(", ".join(f"{k}: {v}" for k, v in summary.items() if k != "streams"))
     if summary.get("error"):
-        raise IngestError(f"recording stopped: {summary['error']}; the frames recorded before are kept "
-                          "(read them with feedlog info --recover)")
+        raise IngestError(f"recording stopped: {summary['error']}; the samples flushed before are kept "
+                          f"in {args.out}")
     return 0

@@ -87,11 +87,14 @@ class _Collector:
         for cid, channel in self.channels.items():
             streams[channel.topic] = fmt.batch_to_frame(self.batches[cid], self.arrow[cid])
         stats = self.metadata.get(fmt.META_STATS, {})
+        session = dict(self.metadata.get(fmt.META_SESSION, {}))
+        if stats.get("closed") == "false" and "ended" in stats:
+            session["incomplete"] = stats["ended"]
         try:
             dropped = int(stats.get("dropped_frames", 0))
         except ValueError:
             raise IngestError(f"bad dropped_frames {stats.get('dropped_frames')!r}", file=self.source) from None
-        return Recording(streams=streams, metadata=dict(self.metadata.get(fmt.META_SESSION, {})),
+        return Recording(streams=streams, metadata=session,
                          attachments=self.attachments, dropped_frames=dropped, source=self.source)
 
 

@@ -3,8 +3,8 @@
 `RecordingWriter` keeps each stream's appended rows in memory only until a message is full
 (`rows_per_message`) or `flush_interval_s` has passed; then it closes the MCAP chunk and flushes the
 file, so a process killed with SIGKILL loses at most that interval. A failed write (disk full, file
-size limit) truncates the file back to the last complete chunk and raises `IngestError`: everything
-written before stays readable (`read_recording(path, recover=True)`).
+size limit) cuts the file back to the last complete flush, ends it there (footer without summary) and
+raises `IngestError`: everything written before stays readable, and the file says why it ended.
 """
 
 from __future__ import annotations
@@ -16,7 +16,9 @@ from typing import BinaryIO
 
 import pandas as pd
 import pyarrow as pa
-from mcap.writer import CompressionType, IndexType, Writer
+from mcap.records import DataEnd, Footer, Metadata
+from mcap.data_stream import RecordBuilder
+from mcap.writer import MCAP0_MAGIC, CompressionType, IndexType, Writer
 
 from feedlog.errors import IngestError
 from feedlog.ingest import mcap_format as fmt
@@ -191,13 +193,30 @@ class RecordingWriter:
             action(*args)
         except OSError as exc:
             self._failed = IngestError(f"write failed ({exc.strerror or exc}); the recording keeps the data "
-                                       f"up to byte {self._good_offset}", file=str(self.path),
+                                       f"flushed before byte {self._good_offset}", file=str(self.path),
                                        position=f"byte {self._good_offset}")
+            self._seal(f"write failed: {exc.strerror or exc}")
+            raise self._failed from None
+
+    def _seal(self, reason: str) -> None:
+        """After a failed write: cut the file back to its last complete flush and end it there (stats,
+        data end, footer without summary, magic) so it reads as a complete, shorter recording. If even
+        that does not fit, the file stays cut back (readable with recover=True)."""
+        try:
+            self._file.truncate(self._good_offset)
+            self._file.seek(self._good_offset)
+            builder = RecordBuilder()
+            Metadata(name=fmt.META_STATS, metadata={"dropped_frames": str(int(self.dropped_frames)),
+                                                    "closed": "false", "ended": reason}).write(builder)
+            DataEnd(0).write(builder)
+            Footer(0, 0, 0).write(builder)
+            self._file.write(builder.end() + MCAP0_MAGIC)
+            self._file.flush()
+        except OSError:
             try:
                 self._file.truncate(self._good_offset)
             except OSError:
                 pass
-            raise self._failed from None
 
     def _check_open(self) -> None:
         if self._failed is not None:

@@ -203,3 +203,53 @@ def test_info_on_damaged_file_is_one_line_error(tmp_path, capsys):
     assert main(["info", str(path)]) == 1
     err = capsys.readouterr().err
     assert "bad.mcap" in err and "byte" in err and "Traceback" not in err
+
+
+class _FailingFile:
+    """A file whose writes raise ENOSPC `failures` times once armed (then work again)."""
+
+    def __init__(self, inner, failures: int) -> None:
+        self.inner, self.failures, self.armed = inner, failures, False
+
+    def write(self, data):
+        if self.armed and self.failures > 0:
+            self.failures -= 1
+            self.inner.write(data[: len(data) // 2])  # a partial write reaches the disk first
+            raise OSError(28, "No space left on device")
+        return self.inner.write(data)
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+
+@pytest.mark.parametrize("failures", [1, 100])
+def test_failed_write_keeps_flushed_data_and_ends_the_file_when_it_can(tmp_path, monkeypatch, failures):
+    import feedlog.ingest.writer as writer_module
+
+    opened = []
+
+    def failing_open(path, mode):
+        opened.append(_FailingFile(open(path, mode), failures))
+        return opened[-1]
+
+    monkeypatch.setattr(writer_module, "open", failing_open, raising=False)
+    path = tmp_path / "full.mcap"
+    w = RecordingWriter(path, rows_per_message=1000)
+    t = np.arange(5000, dtype=np.int64) * 1000
+    w.write("feed", {"t_ns": t, "feed_mm_min": t / 1e3})
+    w.flush()
+    opened[0].armed = True
+    with pytest.raises(IngestError, match=r"full\.mcap \(byte \d+\): write failed \(No space left on device\)"):
+        w.write("feed", {"t_ns": t + 10**9, "feed_mm_min": t / 1e3})
+        w.flush()
+    with pytest.raises(IngestError, match="write failed"):
+        w.write("feed", {"t_ns": t + 2 * 10**9, "feed_mm_min": t / 1e3})
+    w.close()
+    if failures == 1:  # the seal fitted: a complete, shorter file that says why it ended
+        rec = read_recording(path)
+        assert "No space left" in rec.metadata["incomplete"]
+    else:  # nothing more could be written: the file is cut back to its last flush
+        with pytest.raises(IngestError, match="truncated"):
+            read_recording(path)
+        rec = read_recording(path, recover=True)
+    np.testing.assert_array_equal(rec.streams["feed"]["t_ns"].to_numpy(), t)

@@ -206,7 +206,8 @@ def test_full_disk_stops_cleanly_and_keeps_what_was_written(tmp_path):
     assert "recording stopped" in stderr and "Traceback" not in stderr
     assert json.loads(stdout)["stopped_by"] == "write error"
     assert out.stat().st_size <= 60_000
-    rec = read_recording(out, recover=True)
+    rec = read_recording(out)  # strict: the writer ended the file at its last complete flush
+    assert "write failed" in rec.metadata["incomplete"]
     t = rec.streams["axes"]["t_ns"].to_numpy()
     assert len(t) > 100 and np.all(np.diff(t) == 5_000_000)
 
