@@ -18,7 +18,7 @@ from feedlog.profile import MachineProfile, load_profile
 from feedlog.sim.cam import cam_block_times
 from feedlog.sim.context import Context, Trajectory
 from feedlog.sim.mechanism import Mechanism, MechanismSpec, resolve_mechanisms
-from feedlog.sim.path import Blocks, build_pieces
+from feedlog.sim.path import Blocks, build_pieces, prepare_blocks
 from feedlog.toolpath.schema import AXIS_UNITS
 from feedlog.units import seconds_to_ns
 
@@ -83,8 +83,6 @@ def simulate(program, profile: MachineProfile | str | Path, *, mechanisms: Mecha
     """
     profile = _profile(profile)
     chain = resolve_mechanisms(profile, mechanisms)
-    from feedlog.sim.path import prepare_blocks  # noqa: PLC0415 (kept local: path imports toolpath)
-
     blocks = prepare_blocks(program, profile)
     cam_time = float(cam_block_times(blocks).sum())
     ctx = Context(profile=profile, blocks=blocks, dt_s=dt_s or profile.interpolator.interpolation_period_s)
