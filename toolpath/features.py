@@ -46,27 +46,30 @@ _NEEDED = ("block", "line", "kind", *START_COLUMNS, *END_COLUMNS, "plane", "cx_m
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    norm = np.linalg.norm(v, axis=1)
+    """Rows of v scaled to unit length; NaN rows (and ok False) where the length is ~0."""
+    norm = np.sqrt(np.einsum("ij,ij->i", v, v))
     ok = norm > EPS
-    out = np.full_like(v, np.nan)
-    out[ok] = v[ok] / norm[ok, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = v / norm[:, None]
+    if not ok.all():
+        out[~ok] = np.nan
     return out, ok
 
 
-def _tangents(m: pd.DataFrame, p0: np.ndarray, p1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _tangents(m: dict[str, np.ndarray], kind: np.ndarray, p0: np.ndarray,
+              p1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit TCP direction (n, 3) at the start and at the end of each block (NaN without TCP motion)."""
     t0, _ = _unit(p1 - p0)
     t1 = t0.copy()
-    kind = kind_codes(m["kind"])
     arc = (kind == K_ARC_CW) | (kind == K_ARC_CCW)
     if arc.any():
         a = np.flatnonzero(arc)
-        idx = arcs.plane_index(m["plane"].to_numpy()[a])
+        idx = arcs.plane_index(m["plane"][a])
         s = arcs.to_plane(p0[a], idx)
         e = arcs.to_plane(p1[a], idx)
-        c = arcs.to_plane(m[["cx_mm", "cy_mm", "cz_mm"]].to_numpy()[a], idx)
+        c = arcs.to_plane(np.column_stack([m["cx_mm"][a], m["cy_mm"][a], m["cz_mm"][a]]), idx)
         sgn = np.where(kind[a] == K_ARC_CCW, 1.0, -1.0)
-        swept = np.radians(m["sweep_deg"].to_numpy()[a])
+        swept = np.radians(m["sweep_deg"][a])
         r0 = np.hypot(s[:, 0] - c[:, 0], s[:, 1] - c[:, 1])
         r1 = np.hypot(e[:, 0] - c[:, 0], e[:, 1] - c[:, 1])
         rise = (e[:, 2] - s[:, 2]) / swept
@@ -100,20 +103,20 @@ def _corners(t0: np.ndarray, t1: np.ndarray, moving: np.ndarray, stop_before: np
     return start, end
 
 
-def _orientation(table: pd.DataFrame, cols: list[str], kin: str) -> np.ndarray:
-    """Unit tool orientation (n, 3) from rotary positions (Chien Eq. 7) for the given columns."""
-    a, b, c = (np.radians(table[col].to_numpy()) for col in cols)
+def _orientation(m: dict[str, np.ndarray], prefix: str, kin: str) -> np.ndarray:
+    """Unit tool orientation (n, 3) from rotary positions (Chien Eq. 7); prefix "" (end) or "0" (start)."""
+    a, b, c = (np.radians(m[f"{ax}{prefix}_deg"]) for ax in "abc")
     if kin == "ac":
         return np.column_stack([np.sin(a) * np.sin(c), np.sin(a) * np.cos(c), np.cos(a)])
     if kin == "bc":
         return np.column_stack([np.sin(b) * np.cos(c), np.sin(b) * np.sin(c), np.cos(b)])
-    return np.tile([0.0, 0.0, 1.0], (len(table), 1))
+    return np.tile([0.0, 0.0, 1.0], (len(a), 1))
 
 
 def _kinematics(table: pd.DataFrame, profile: MachineProfile | None) -> str:
     if profile is not None and profile.kinematics.type != "xyz":
         return {"xyzac-trt": "ac", "xyzbc-trt": "bc"}[profile.kinematics.type]
-    moved = {ax: bool((table[f"{ax}_deg"] != 0).any() or (table[f"{ax}0_deg"] != 0).any()) for ax in "abc"}
+    moved = {ax: bool((table[f"{ax}_deg"].to_numpy() != 0).any()) for ax in "abc"}
     return "ac" if moved["a"] else "bc" if moved["b"] else "none"
 
 
@@ -141,61 +144,64 @@ def block_features(program, profile: MachineProfile | str | None = None) -> pd.D
         if len(with_m):
             rest_row[with_m] |= pd.Series(mc[with_m]).str.contains(_STOP_RE, regex=True).to_numpy()
     rest_count = np.cumsum(rest_row)
-    m = table.loc[is_motion, [c for c in _NEEDED if c in table.columns]]
-    n = len(m)
-    rc = rest_count[is_motion]
+    mi = np.flatnonzero(is_motion)
+    m = {c: table[c].to_numpy()[mi] for c in _NEEDED if c in table.columns}
+    n = len(mi)
+    rc = rest_count[mi]
     stop_before = np.r_[True, rc[1:] != rc[:-1]] if n else np.zeros(0, bool)
     # a program stop on the block's own line happens after its motion
-    own_stop = rest_row[is_motion] & (kind_all[is_motion] != K_DWELL)
+    own_stop = rest_row[mi] & (kind_all[mi] != K_DWELL)
     stop_before[1:] |= own_stop[:-1]
 
-    p0 = m[list(START_COLUMNS[:3])].to_numpy()
-    p1 = m[list(END_COLUMNS[:3])].to_numpy()
-    length = m["length_mm"].to_numpy()
-    kind = kind_all[is_motion]
-    t0, t1 = _tangents(m, p0, p1)
+    p0 = np.column_stack([m[c] for c in START_COLUMNS[:3]])
+    p1 = np.column_stack([m[c] for c in END_COLUMNS[:3]])
+    length = m["length_mm"]
+    kind = kind_all[mi]
+    t0, t1 = _tangents(m, kind, p0, p1)
     tcp_moving = length > EPS
     corner_start, corner_end = _corners(t0, t1, tcp_moving, stop_before)
 
     # tool orientation: I J K where given, else rotary positions (Chien Eq. 7), else +Z
     kin = _kinematics(table, kin_profile)
-    o1 = _orientation(m, ["a_deg", "b_deg", "c_deg"], kin)
-    o0 = _orientation(m, ["a0_deg", "b0_deg", "c0_deg"], kin)
-    given = m[["ori_i", "ori_j", "ori_k"]].to_numpy()
+    given = np.column_stack([m["ori_i"], m["ori_j"], m["ori_k"]])
     has_given = ~np.isnan(given).any(axis=1)
-    if has_given.any():
-        o1 = np.where(has_given[:, None], given, o1)
-        prev_given = np.vstack([given[:1], given[:-1]])
-        o0 = np.where(has_given[:, None], np.where(np.isnan(prev_given), given, prev_given), o0)
-    cos_arc = np.clip(np.einsum("ij,ij->i", o0, o1), -1.0, 1.0)
-    ori_arc = np.degrees(np.arccos(cos_arc))
-    g0, ok0 = _unit(o1 - cos_arc[:, None] * o0)   # great-circle direction leaving O_{k-1}
-    g1, _ = _unit(cos_arc[:, None] * o1 - o0)     # ... arriving at O_k
-    ori_moving = ok0 & (ori_arc > 1e-9)
-    ori_start, ori_end = _corners(g0, g1, ori_moving, stop_before)
+    if kin == "none" and not has_given.any():  # three-axis: the tool never turns
+        ori_arc = ori_start = ori_end = np.zeros(n)
+    else:
+        o1 = _orientation(m, "", kin)
+        o0 = _orientation(m, "0", kin)
+        if has_given.any():
+            o1 = np.where(has_given[:, None], given, o1)
+            prev_given = np.vstack([given[:1], given[:-1]])
+            o0 = np.where(has_given[:, None], np.where(np.isnan(prev_given), given, prev_given), o0)
+        cos_arc = np.clip(np.einsum("ij,ij->i", o0, o1), -1.0, 1.0)
+        ori_arc = np.degrees(np.arccos(cos_arc))
+        g0, ok0 = _unit(o1 - cos_arc[:, None] * o0)   # great-circle direction leaving O_{k-1}
+        g1, _ = _unit(cos_arc[:, None] * o1 - o0)     # ... arriving at O_k
+        ori_moving = ok0 & (ori_arc > 1e-9)
+        ori_start, ori_end = _corners(g0, g1, ori_moving, stop_before)
 
     if kin == "ac":
-        sin_rot = np.sin(np.radians(m["a_deg"].to_numpy()))
+        sin_rot = np.sin(np.radians(m["a_deg"]))
     elif kin == "bc":
-        sin_rot = np.sin(np.radians(m["b_deg"].to_numpy()))
+        sin_rot = np.sin(np.radians(m["b_deg"]))
     else:
         sin_rot = np.zeros(n)
     if has_given.any() and kin == "none":
         sin_rot = np.where(has_given, np.hypot(given[:, 0], given[:, 1]), sin_rot)
 
     # nominal time and Sun's nominal axis feeds / accelerations
-    feed = m["feed_mm_min"].to_numpy()
-    rot = m[list(END_COLUMNS[3:])].to_numpy() - m[list(START_COLUMNS[3:])].to_numpy()
-    rot_len = np.linalg.norm(rot, axis=1)
-    time_len = np.where(tcp_moving, length, rot_len)
+    feed = m["feed_mm_min"]
     with np.errstate(divide="ignore", invalid="ignore"):
-        t_feed = time_len / feed * 60.0
         t_rapid = length / prof.rapid_mm_min * 60.0
-        for j, ax in enumerate("abc"):
-            if ax in prof.axes:
-                t_rapid = np.maximum(t_rapid, np.abs(rot[:, j]) / prof.axes[ax].vel_max)
-            else:
-                t_rapid = np.maximum(t_rapid, np.abs(rot[:, j]) / prof.rapid_mm_min * 60.0)
+        time_len = length
+        if any((m[f"{ax}_deg"] != 0).any() or (m[f"{ax}0_deg"] != 0).any() for ax in "abc"):
+            rot = np.column_stack([m[f"{ax}_deg"] - m[f"{ax}0_deg"] for ax in "abc"])
+            time_len = np.where(tcp_moving, length, np.sqrt(np.einsum("ij,ij->i", rot, rot)))
+            for j, ax in enumerate("abc"):
+                vmax = prof.axes[ax].vel_max if ax in prof.axes else prof.rapid_mm_min / 60.0
+                t_rapid = np.maximum(t_rapid, np.abs(rot[:, j]) / vmax)
+        t_feed = time_len / feed * 60.0
     t = np.where(kind == K_RAPID, t_rapid, t_feed)
     t = np.where(time_len > EPS, t, 0.0)
     dt = np.where(t > 0, t, np.inf)
@@ -205,17 +211,17 @@ def block_features(program, profile: MachineProfile | str | None = None) -> pd.D
     acc = (v - v_prev) / 60.0 / dt[:, None]
 
     out = pd.DataFrame({
-        "block": m["block"].to_numpy(), "line": m["line"].to_numpy(), "kind": kind_column(kind),
+        "block": m["block"], "line": m["line"], "kind": kind_column(kind),
         "length_mm": length,
         "ori_arc_deg": ori_arc,
         "corner_start_deg": corner_start, "corner_end_deg": corner_end,
         "ori_corner_start_deg": ori_start, "ori_corner_end_deg": ori_end,
         "sin_rot": sin_rot,
-        "feed_mm_min": feed, "tol_mm": m["tol_mm"].to_numpy(),
+        "feed_mm_min": feed, "tol_mm": m["tol_mm"],
         "nominal_time_s": t,
         "vx_nom_mm_min": v[:, 0], "vy_nom_mm_min": v[:, 1], "vz_nom_mm_min": v[:, 2],
         "ax_nom_mm_s2": acc[:, 0], "ay_nom_mm_s2": acc[:, 1], "az_nom_mm_s2": acc[:, 2],
         "corner_cos_end": -np.cos(np.radians(corner_end)),
     })
     assert tuple(out.columns[:len(FEATURE_COLUMNS)]) == FEATURE_COLUMNS
-    return out.reset_index(drop=True)
+    return out

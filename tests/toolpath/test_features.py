@@ -85,6 +85,8 @@ def test_nominal_time_for_rapids_inverse_time_and_rotary_only_moves():
     f = feats("G0 X100\nG93 G1 X110 F30\nG94 G1 A90 F900\n", prof)
     assert f["nominal_time_s"].tolist() == pytest.approx([100 / prof.rapid_mm_min * 60, 2.0, 6.0])
     assert f["feed_mm_min"][1] == pytest.approx(300)
+    c_only = feats("G1 C180 F3600\nG0 C0\n", prof)  # no A/B: no orientation, but C takes time
+    assert c_only["nominal_time_s"].tolist() == pytest.approx([3.0, 180 / prof.rapid_mm_min * 60])
 
 
 def test_cl_points_on_a_helical_circle_stay_within_the_chord_tolerance():
