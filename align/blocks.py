@@ -138,11 +138,12 @@ NO_TIME = np.iinfo(np.int64).min
 
 
 def leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndarray, seg_end: np.ndarray,
-                end_index: np.ndarray, *, on_path_mm: float = 1e-4) -> np.ndarray:
+                end_index: np.ndarray, *, on_path_mm: float = 1e-4, search_s: float = 0.5) -> np.ndarray:
     """Per straight block k (segment seg_start[k] -> seg_end[k], NaN rows skipped): the time of the
     first sample off the segment (farther than `on_path_mm`) after the last sample on it, among the
-    samples up to the block's end match `end_index[k]` (fractional sample index, non-decreasing).
-    NO_TIME where the block has no sample on its segment. This is where a corner blend begins."""
+    samples after the previous block's end match and up to this block's end match `end_index[k]`
+    (fractional sample index, non-decreasing), at most `search_s` before it. NO_TIME where no such
+    sample is on the segment. This is where a corner blend begins."""
     t = np.asarray(t_ns, dtype=np.int64)
     p = np.asarray(positions, dtype=np.float64)[:, :3]
     a = np.asarray(seg_start, dtype=np.float64)
@@ -152,26 +153,28 @@ def leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndarray, 
     ok = np.isfinite(end_index) & np.isfinite(a).all(axis=1) & np.isfinite(d).all(axis=1)
     if not ok.any() or n < 2:
         return out
-    hi = np.where(ok, np.ceil(np.nan_to_num(end_index, nan=-1.0)), -1).astype(np.int64)
-    hi = np.maximum.accumulate(hi)
-    first = 0
-    idx = np.arange(first, min(int(hi.max()) + 1, n))
-    owner = np.searchsorted(hi, idx, side="left")  # the first block whose end match is at or after i
-    inside = owner < k
-    idx, owner = idx[inside], owner[inside]
-    valid = ok[owner]
-    idx, owner = idx[valid], owner[valid]
-    w = p[idx] - a[owner]
-    dd = (d[owner] ** 2).sum(axis=1)
-    u = np.clip(np.where(dd > 0, (w * d[owner]).sum(axis=1) / np.where(dd > 0, dd, 1.0), 0.0), 0.0, 1.0)
-    dist = np.sqrt(((w - u[:, None] * d[owner]) ** 2).sum(axis=1))
-    on = dist <= on_path_mm
-    if not on.any():
+    hi = np.maximum.accumulate(np.where(np.isfinite(end_index), np.ceil(np.nan_to_num(end_index, nan=0.0)), 0))
+    hi = np.minimum(hi.astype(np.int64), n - 1)
+    dt = np.diff(t)
+    period = float(np.median(dt[dt > 0])) if (dt > 0).any() else 1.0
+    lo = np.concatenate([[0], hi[:-1] + 1])
+    lo = np.maximum(lo, hi - int(np.ceil(search_s * 1e9 / period)) + 1)
+    rows = np.flatnonzero(ok & (hi >= lo))
+    if not len(rows):
         return out
-    last_on = pd.Series(idx[on]).groupby(owner[on]).max()
-    blocks = last_on.index.to_numpy()
-    off = np.minimum(last_on.to_numpy() + 1, n - 1)
-    out[blocks] = t[off]
+    width = int((hi[rows] - lo[rows]).max()) + 1
+    for part in np.array_split(rows, max(1, len(rows) * width // 2_000_000 + 1)):
+        idx = lo[part, None] + np.arange(width)[None, :]
+        valid = idx <= hi[part, None]
+        idx = np.minimum(idx, n - 1)
+        w = p[idx] - a[part, None, :]
+        dv = d[part, None, :]
+        dd = (dv * dv).sum(axis=2)
+        u = np.clip(np.where(dd > 0, (w * dv).sum(axis=2) / np.where(dd > 0, dd, 1.0), 0.0), 0.0, 1.0)
+        dist = np.sqrt(((w - u[..., None] * dv) ** 2).sum(axis=2))
+        last_on = np.where(valid & (dist <= on_path_mm), idx, -1).max(axis=1)
+        found = last_on >= 0
+        out[part[found]] = t[np.minimum(last_on[found] + 1, n - 1)]
     return out
 
 

@@ -13,9 +13,10 @@ constrained to progress along the program:
 2. The first CL point that the tool reaches fixes the start: the *earliest* passage within `tol_mm`.
 3. CL points are then processed in order, in chunks (`chunk_points`, `chunk_mm`). The anchor is the last
    well-matched point of the previous chunk. CL point k, ds = s_k - s_anchor of program ahead of it, may
-   only match measured segments whose length coordinate S lies in
-   [S_anchor - W, S_anchor + (1 + drift) ds + W] (W = `window_mm`): the measured path can be much shorter
-   than the program (sampled chords across wiggles, corner blends) but not much longer. A pass that
+   only match measured segments whose length coordinate S lies in a window: for sparse data (sampling
+   period > `sparse_ns`) [S_anchor - W, S_anchor + (1 + drift) ds + W] (W = `window_mm`), since sampled
+   chords across wiggles can make the measured path much shorter than the program but not much longer;
+   for dense data S_pred +- (W + drift ds), since the path follows the program up to blends. A pass that
    comes back to the same place later lies beyond the window. Inside it the candidate with the least
    distance + progress_weight x |S - S_pred| wins, S_pred = S_anchor + r ds with r the measured/programmed
    length ratio of the last chunk; this separates a line retraced right after a reversal (equally close,
@@ -44,11 +45,15 @@ from feedlog.errors import AlignmentError
 @dataclass(frozen=True)
 class MatchConfig:
     tol_mm: float = 0.1            # largest allowed CL-point-to-measured-path distance
-    window_mm: float | None = None  # base half-window in path length; None: max(2 mm, 3 x sample spacing)
-    drift: float = 0.2             # extra window per mm of program since the anchor
+    window_mm: float | None = None  # base half-window in path length; None: max(0.5 mm dense / 2 mm
+                                    # sparse, 3 x sample spacing, 4 x tolerance)
+    drift: float | None = None     # extra window per mm of program since the anchor; None: 0.2 sparse,
+                                   # 0.05 dense
     progress_weight: float = 0.25  # mm of score per mm of distance from the predicted progress
     chunk_points: int = 256        # CL points per chunk
-    chunk_mm: float = 50.0         # program length per chunk (at least one point)
+    chunk_mm: float | None = None  # program length per chunk (at least one point); None: 10 mm dense,
+                                   # 50 mm sparse
+    sparse_ns: int = 5_000_000     # sampling period above which the data count as sparse
     resolution_mm: float = 1e-3    # vertex spacing of the reduced measured path
     still_mm: float = 1e-6         # path length below which the tool has not left a point (departure)
     chord_allowance: float = 0.5   # tolerance += this x the matched sampled chord (a chord cuts corners)
@@ -58,11 +63,11 @@ class MatchConfig:
             raise AlignmentError(f"tol_mm must be > 0, got {self.tol_mm}")
         if self.window_mm is not None and not self.window_mm > 0:
             raise AlignmentError(f"window_mm must be > 0, got {self.window_mm}")
-        if not 0 <= self.drift < 1:
+        if self.drift is not None and not 0 <= self.drift < 1:
             raise AlignmentError(f"drift must be in [0, 1), got {self.drift}")
         if not 0 <= self.progress_weight < 1:
             raise AlignmentError(f"progress_weight must be in [0, 1), got {self.progress_weight}")
-        if self.chunk_points < 1 or not self.chunk_mm > 0:
+        if self.chunk_points < 1 or not (self.chunk_mm is None or self.chunk_mm > 0):
             raise AlignmentError(f"chunk_points >= 1 and chunk_mm > 0 needed, got {self.chunk_points}, {self.chunk_mm}")
         if not self.chord_allowance >= 0:
             raise AlignmentError(f"chord_allowance must be >= 0, got {self.chord_allowance}")
@@ -154,7 +159,13 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     dd = (d * d).sum(axis=1)
     nseg = len(p0)
     spacing = float(np.median(np.diff(sv))) if nseg else 0.0
-    w0 = cfg.window_mm if cfg.window_mm is not None else max(2.0, 3.0 * spacing, 4.0 * float(tol.max()))
+    dt_all = np.diff(t)
+    period = int(np.median(dt_all[dt_all > 0])) if (dt_all > 0).any() else 0
+    sparse = period > cfg.sparse_ns
+    w_min = 2.0 if sparse else 0.5
+    w0 = cfg.window_mm if cfg.window_mm is not None else max(w_min, 3.0 * spacing, 4.0 * float(tol.max()))
+    chunk_mm = cfg.chunk_mm if cfg.chunk_mm is not None else (50.0 if sparse else 10.0)
+    drift = cfg.drift if cfg.drift is not None else (0.2 if sparse else 0.05)
 
     seg_of = np.full(k_all, -1, dtype=np.int64)
     u_of = np.full(k_all, np.nan)
@@ -195,7 +206,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     seg_len = np.sqrt(dd)
     while i < len(rest):
         hi_i = min(i + cfg.chunk_points, len(rest))
-        limit = s_prog[rest[i]] + cfg.chunk_mm
+        limit = s_prog[rest[i]] + chunk_mm
         cut = int(np.searchsorted(s_prog[rest[i:hi_i]], limit, side="right"))
         hi_i = i + max(1, cut)
         ks = rest[i:hi_i]
@@ -203,9 +214,14 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         pred = anchor_S + ratio * ds
         # the measured path may be much shorter than the program (chords over wiggles, blends) but not
         # much longer: search from just behind the anchor to (1 + drift) x the programmed distance ahead
-        lo = np.clip(np.searchsorted(sv, anchor_S - w0, side="right") - 1, 0, max(nseg - 1, 0))
-        lo = np.full(len(ks), lo)
-        hi = np.clip(np.searchsorted(sv, anchor_S + (1 + cfg.drift) * ds + w0, side="left"), 0, max(nseg - 1, 0))
+        if sparse:
+            lo_s = np.full(len(ks), anchor_S - w0)
+            hi_s = anchor_S + (1 + drift) * ds + w0
+        else:  # dense samples follow the program closely: a window around the prediction
+            lo_s = pred - w0 - drift * ds
+            hi_s = pred + w0 + drift * ds
+        lo = np.clip(np.searchsorted(sv, lo_s, side="right") - 1, 0, max(nseg - 1, 0))
+        hi = np.clip(np.searchsorted(sv, hi_s, side="left"), 0, max(nseg - 1, 0))
         band = int((hi - lo).max()) + 1
         idx = lo[:, None] + np.arange(band)[None, :]
         valid = idx <= hi[:, None]
@@ -232,7 +248,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
             a = good[-1]
             new_s, new_S = s_prog[a], sv[seg_of[a]] + u_of[a] * seg_len[seg_of[a]]
             if new_s - anchor_s > w0:  # local ratio of measured to programmed length, for the prediction
-                ratio = float(np.clip((new_S - anchor_S) / (new_s - anchor_s), 0.05, 1.0 + cfg.drift))
+                ratio = float(np.clip((new_S - anchor_S) / (new_s - anchor_s), 0.05, 1.0 + drift))
             anchor_s, anchor_S = new_s, new_S
         i = hi_i
 

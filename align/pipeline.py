@@ -6,8 +6,9 @@ Steps (each one a module of its own):
 3. CL points of the program (`toolpath.cl_points`) matched to the measured path under progress and
    distance constraints (`match`); the tolerance per point is `tol_mm` plus the block's own G64 P
    blending tolerance, since the controller may legitimately cut a corner by that much;
-4. feed at every CL point: the recording's own path feed (`feed` stream) when it has one, else the
-   feed from positions (`feed`), interpolated at the matched time; per-axis feeds from positions;
+4. feed at every CL point: the recording's own path feed (`feed` stream) when it has one, interpolated
+   at the matched time, else the feed from positions (`feed.feed_at`, centred on the matched time);
+   per-axis feeds always from positions;
 5. block boundaries from the line stream (ground truth) when there is one, and from geometry always;
    both are compared in the report (`blocks`); the line stream's clock offset against geometry is
    estimated from the block changes (`clock.event_offset`) and removed when `sync_lines` is set;
@@ -26,7 +27,7 @@ import pandas as pd
 from feedlog.align.blocks import (NO_TIME, MotionSpan, blocks_from_geometry, blocks_from_lines, compare_blocks,
                                   leave_times, motion_span, split_merged)
 from feedlog.align.clock import event_offset, shift_stream
-from feedlog.align.feed import LINEAR, ROTARY, FeedSmoothing, feed_from_positions
+from feedlog.align.feed import LINEAR, ROTARY, FeedSmoothing, feed_at
 from feedlog.align.match import MatchConfig, match_cl_points
 from feedlog.align.subsample import refine_span
 from feedlog.align.timing import stream_timing
@@ -187,9 +188,11 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
                        "rapid_dist_max_mm": float(np.nanmax(np.where(kind == RAPID, match.dist_mm, np.nan)))
                        if (kind == RAPID).any() and np.isfinite(match.dist_mm[kind == RAPID]).any() else None}
 
-    # --- feeds --------------------------------------------------------------------------------------
-    feeds = feed_from_positions(t, axes[cols], smoothing=cfg.smoothing)
-    path_feed, feed_from = _path_feed(recording, cfg, feeds)
+    # --- feeds (at the matched times only) ---------------------------------------------------------------
+    ok = match.matched
+    tq = np.where(ok, match.t_ns, t[0])
+    feeds = feed_at(t, axes[cols], tq, smoothing=cfg.smoothing)
+    path_feed, feed_from = _path_feed(recording, cfg, feeds, tq)
     report["feed_source"] = feed_from
     points = _points_table(cl, match, feeds, path_feed, span)
 
@@ -246,18 +249,22 @@ def _config_dict(cfg: AlignConfig) -> dict[str, Any]:
     return d
 
 
-def _path_feed(recording: Recording, cfg: AlignConfig, feeds: pd.DataFrame) -> tuple[pd.DataFrame, str]:
+def _path_feed(recording: Recording, cfg: AlignConfig, feeds: pd.DataFrame, tq: np.ndarray) -> tuple[np.ndarray, str]:
+    """Path feed at the query times: the recording's own feed stream (interpolated) or from positions."""
     stream = recording.streams.get(cfg.feed_stream)
     has = stream is not None and "feed_mm_min" in stream.columns and len(stream) >= 2
     if cfg.feed_source == "stream" and not has:
         raise AlignmentError(f"{recording.source or 'recording'}: feed_source='stream' but there is no "
                              f"{cfg.feed_stream!r} stream with feed_mm_min")
     if has and cfg.feed_source in ("auto", "stream"):
-        return stream[["t_ns", "feed_mm_min"]], f"stream:{cfg.feed_stream}"
-    return feeds[["t_ns", "feed_mm_min"]], "positions"
+        ft = stream["t_ns"].to_numpy(dtype=np.int64)
+        v = np.interp((tq - ft[0]).astype(np.float64), (ft - ft[0]).astype(np.float64),
+                      stream["feed_mm_min"].to_numpy(dtype=np.float64))
+        return v, f"stream:{cfg.feed_stream}"
+    return feeds["feed_mm_min"].to_numpy(), "positions"
 
 
-def _points_table(cl: pd.DataFrame, match, feeds: pd.DataFrame, path_feed: pd.DataFrame,
+def _points_table(cl: pd.DataFrame, match, feeds: pd.DataFrame, path_feed: np.ndarray,
                   span: MotionSpan) -> pd.DataFrame:
     out = cl.rename(columns={"feed_mm_min": "programmed_feed_mm_min"}).copy()
     out.insert(0, "point", np.arange(len(cl), dtype=np.int64))
@@ -267,19 +274,11 @@ def _points_table(cl: pd.DataFrame, match, feeds: pd.DataFrame, path_feed: pd.Da
     out["t_rel_s"] = np.where(ok, (tm - span.t_start_ns) / 1e9, np.nan)
     out["dist_mm"] = match.dist_mm
     out["sample"] = match.nearest
-    ft = path_feed["t_ns"].to_numpy(dtype=np.int64)
-    base = ft[0]
-    q = (tm - base).astype(np.float64)
-    out["feed_meas_mm_min"] = np.where(ok, np.interp(q, (ft - base).astype(np.float64),
-                                                     path_feed["feed_mm_min"].to_numpy(dtype=np.float64)), np.nan)
-    pt = feeds["t_ns"].to_numpy(dtype=np.int64)
-    qp = (tm - pt[0]).astype(np.float64)
-    tp = (pt - pt[0]).astype(np.float64)
+    out["feed_meas_mm_min"] = np.where(ok, path_feed, np.nan)
     for c in feeds.columns:
-        if c.startswith("v"):
-            name = c.replace("_min", "").replace("v", "v", 1)
-            axis, unit = name[1:].split("_", 1)
-            out[f"v{axis}_meas_{unit}_min"] = np.where(ok, np.interp(qp, tp, feeds[c].to_numpy()), np.nan)
+        if c.startswith("v"):  # vx_mm_min -> vx_meas_mm_min
+            axis, rest = c.split("_", 1)
+            out[f"{axis}_meas_{rest}"] = np.where(ok, feeds[c].to_numpy(), np.nan)
     return out
 
 

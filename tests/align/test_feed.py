@@ -3,7 +3,7 @@ import pandas as pd
 import pytest
 
 from align_synth import Motion, zigzag
-from feedlog.align.feed import FeedSmoothing, feed_from_positions, moving_average, path_length
+from feedlog.align.feed import FeedSmoothing, feed_at, feed_from_positions, moving_average, path_length
 from feedlog.errors import AlignmentError
 
 
@@ -69,3 +69,26 @@ def test_bad_input():
         feed_from_positions(t, np.array([[0, 0, 0], [1, 0, 0], [np.nan, 0, 0], [3, 0, 0], [4, 0, 0]], float))
     with pytest.raises(AlignmentError, match="window_s"):
         FeedSmoothing(window_s=0)
+
+
+@pytest.mark.parametrize("rate_hz, jitter", [(1000.0, 80_000), (5.0, 0)])
+def test_feed_at_queries_equals_the_full_series_at_samples(motion, rate_hz, jitter):
+    ax = motion.axes(rate_hz, jitter_ns=jitter, seed=5)
+    t = ax["t_ns"].to_numpy()
+    full = feed_from_positions(t, ax)
+    pick = np.random.default_rng(1).choice(len(t), min(60, len(t) - 2), replace=False)
+    pick = np.concatenate([pick, [0, len(t) - 1]])
+    at = feed_at(t, ax, t[pick])
+    for col in ("feed_mm_min", "vx_mm_min", "vy_mm_min", "vz_mm_min"):
+        np.testing.assert_allclose(at[col].to_numpy(), full[col].to_numpy()[pick], atol=1e-6, rtol=1e-9)
+    # between samples it is the same estimator centred at the query: close to interpolating the series
+    # at 1 kHz; at 5 Hz it is the mean speed of the interval itself (no averaging with its neighbours)
+    mid = (t[10:-10:7] + t[11:-9:7]) // 2
+    at_mid = feed_at(t, ax, mid)["feed_mm_min"].to_numpy()
+    if rate_hz > 100:
+        interp = np.interp(mid, t, full["feed_mm_min"].to_numpy())
+        assert np.median(np.abs(at_mid - interp)) < 20.0
+    else:
+        i = np.searchsorted(t, mid)
+        chord = np.linalg.norm(ax[["x_mm", "y_mm", "z_mm"]].to_numpy()[i] - ax[["x_mm", "y_mm", "z_mm"]].to_numpy()[i - 1], axis=1)
+        np.testing.assert_allclose(at_mid, chord / ((t[i] - t[i - 1]) / 1e9) * 60.0, rtol=1e-9)
