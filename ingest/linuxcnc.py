@@ -10,9 +10,11 @@ function. Attaching to an already running LinuxCNC is described in docs/linuxcnc
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as dt
 import shutil
 import threading
+from collections.abc import Iterator
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -75,31 +77,51 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
         raise IngestError("output exists; pass --overwrite to replace it", file=str(out))
     profile_name, profile_toml = profile_toml_for(profile, ini_cfg)
     session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s, stop_event=stop_event)
-    try:
-        error = session_error(session.report, program)
+    error = session_error(session.report, program)
+    with keep_captures_on_failure(session.workdir):
         streams, missing = load_capture(session.sample_files, session.layout, period_ns=ini_cfg.servo_period_ns,
                                         linear_units=ini_cfg.linear_units, source=str(program))
-    finally:
-        cleanup(session)
-    return write_session(streams, missing, session.report, ini=ini_cfg, program=program.name,
-                         program_bytes=program.read_bytes(), profile_name=profile_name, profile_toml=profile_toml,
-                         out=out, overwrite=overwrite, compression=compression, notes=notes, error=error,
-                         wall_s=session.wall_s)
+        summary = write_session(streams, missing, session.report, ini=ini_cfg, program=program.name,
+                                program_bytes=program.read_bytes(), profile_name=profile_name,
+                                profile_toml=profile_toml, out=out, overwrite=overwrite, compression=compression,
+                                notes=notes, error=error, wall_s=session.wall_s)
+    cleanup(session)
+    return finish(summary, error, out)
+
+
+@contextlib.contextmanager
+def keep_captures_on_failure(workdir: Path) -> Iterator[None]:
+    """If converting or writing fails, the raw sampler captures stay on disk and the error says where."""
+    try:
+        yield
+    except FeedlogError as exc:
+        raise IngestError(f"{exc} (raw sampler captures kept in {workdir})") from exc
+
+
+def finish(summary: dict[str, Any] | None, error: FeedlogError | None, out: Path) -> dict[str, Any]:
+    """The summary of a session that ended normally; else its error (noting a recording kept)."""
+    if error is None:
+        assert summary is not None
+        return summary
+    if summary is not None:
+        error.message = f"{error.message} (recording up to the error kept in {out})"
+        error.args = (error._render(),)
+    raise error
 
 
 def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, *, ini: MachineIni,
                   program: str, program_bytes: bytes | None, profile_name: str, profile_toml: bytes,
                   out: Path, overwrite: bool, compression: str = "zstd", notes: str = "",
-                  error: FeedlogError | None = None, wall_s: float = 0.0) -> dict[str, Any]:
+                  error: FeedlogError | None = None, wall_s: float = 0.0) -> dict[str, Any] | None:
     """Write one recorded LinuxCNC session (also a cut-short one) and return its summary.
 
-    Raises `error` afterwards when the session did not end normally; with nothing moved, nothing is
-    written.
+    `error` (how the session failed, if it did) goes into the `status` metadata. A failed session in
+    which nothing moved writes nothing and returns None.
     """
     period_ns = ini.servo_period_ns
     span = motion_span(streams["axes"], period_ns)
     if error is not None and span is None:
-        raise error  # nothing moved: no recording to keep
+        return None  # nothing moved: no recording to keep
     motion_time_s = float(report.get("motion_time_end_s", float("nan"))) - float(report.get("motion_time_start_s", 0.0))
     axes_t = streams["axes"]["t_ns"]
     metadata = {
@@ -131,10 +153,6 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
                           dropped_frames=missing + int(report.get("overruns", 0)), source=str(out))
     out.parent.mkdir(parents=True, exist_ok=True)
     write_recording(out, recording, overwrite=overwrite, compression=compression)
-    if error is not None:
-        error.message = f"{error.message} (recording up to the error kept in {out})"
-        error.args = (error._render(),)
-        raise error
     return {
         "out": str(out),
         "program": program,

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from feedlog.errors import IngestError
-from feedlog.ingest.linuxcnc import profile_toml_for, write_session
+from feedlog.ingest.linuxcnc import finish, keep_captures_on_failure, profile_toml_for, write_session
 from feedlog.ingest.linuxcnc_capture import load_capture
 from feedlog.ingest.linuxcnc_hal import ENABLE_SIGNAL, MOTION_TIME_COMPONENT, recorder_tcl, standard_layout, \
     unload_tcl
@@ -46,6 +46,21 @@ def loaded_components() -> set[str]:
     return set(out.stdout.split())
 
 
+def wait_for_servo_thread(timeout_s: float = 30.0) -> None:
+    """Wait until the servo thread runs: LinuxCNC starts its threads after loading all HAL files."""
+    end = time.monotonic() + timeout_s
+    while True:
+        out = _halcmd("getp", "motion.servo.last-period", check=False)
+        try:
+            if out.returncode == 0 and int(out.stdout.split()[0]) > 0:
+                return
+        except (ValueError, IndexError):
+            pass
+        if time.monotonic() > end:
+            raise IngestError("LinuxCNC's servo thread is not running (motion.servo.last-period stays 0)")
+        time.sleep(0.2)
+
+
 def attach_linuxcnc(ini: str | Path, out: str | Path, *, program: str | Path | None = None,
                     profile: str | None = None, timeout_s: float = 3600.0, until_program_end: bool = True,
                     overwrite: bool = False, compression: str = "zstd", notes: str = "",
@@ -62,6 +77,8 @@ def attach_linuxcnc(ini: str | Path, out: str | Path, *, program: str | Path | N
     if out.exists() and not overwrite:
         raise IngestError("output exists; pass --overwrite to replace it", file=str(out))
     profile_name, profile_toml = profile_toml_for(profile, ini_cfg)
+    loaded_components()
+    wait_for_servo_thread()
     comps = loaded_components()
     if "sampler" in comps:
         raise IngestError("the running HAL already has a sampler component (halscope/halsampler in use?); "
@@ -69,12 +86,12 @@ def attach_linuxcnc(ini: str | Path, out: str | Path, *, program: str | Path | N
     clock = not any(m in comps for m in CLOCK_MODULES)
     layout = standard_layout(ini_cfg.coordinates, ini_cfg.joints, clock=clock)
     workdir = Path(tempfile.mkdtemp(prefix="feedlog-attach-"))
+    sample_files = [workdir / f"sampler{c}.txt" for c in layout.channels]
     try:
         (workdir / "record.tcl").write_text(recorder_tcl(layout))
         (workdir / "unload.tcl").write_text(unload_tcl(layout))
         driver = workdir / "driver.py"
         shutil.copyfile(DRIVER_SOURCE, driver)
-        sample_files = [workdir / f"sampler{c}.txt" for c in layout.channels]
         job = {"attach": True, "until_program_end": until_program_end, "channels": layout.channels,
                "sample_files": [str(p) for p in sample_files], "result": str(workdir / "result.json"),
                "enable_signal": ENABLE_SIGNAL, "timeout_s": timeout_s, "stop_file": str(workdir / "stop"),
@@ -109,16 +126,22 @@ def attach_linuxcnc(ini: str | Path, out: str | Path, *, program: str | Path | N
         program_path = Path(program) if program else (Path(report["program_file"]) if report.get("program_file")
                                                       else None)
         error = session_error(report, program_path or Path("<running program>"))
-        streams, missing = load_capture(sample_files, layout, period_ns=ini_cfg.servo_period_ns,
-                                        linear_units=ini_cfg.linear_units, source=str(out))
-    finally:
-        shutil.rmtree(workdir, ignore_errors=True)
-    program_bytes = program_path.read_bytes() if program_path and program_path.is_file() else None
-    return write_session(streams, missing, report, ini=ini_cfg,
-                         program=program_path.name if program_path else "",
-                         program_bytes=program_bytes, profile_name=profile_name, profile_toml=profile_toml,
-                         out=out, overwrite=overwrite, compression=compression,
-                         notes=notes or "attached to a running LinuxCNC", error=error, wall_s=wall_s)
+        program_bytes = program_path.read_bytes() if program_path and program_path.is_file() else None
+        with keep_captures_on_failure(workdir):
+            streams, missing = load_capture(sample_files, layout, period_ns=ini_cfg.servo_period_ns,
+                                            linear_units=ini_cfg.linear_units, source=str(out))
+            summary = write_session(streams, missing, report, ini=ini_cfg,
+                                    program=program_path.name if program_path else "",
+                                    program_bytes=program_bytes, profile_name=profile_name,
+                                    profile_toml=profile_toml, out=out, overwrite=overwrite,
+                                    compression=compression, notes=notes or "attached to a running LinuxCNC",
+                                    error=error, wall_s=wall_s)
+    except BaseException:
+        if not any(p.exists() and p.stat().st_size for p in sample_files):
+            shutil.rmtree(workdir, ignore_errors=True)  # nothing sampled: nothing to keep
+        raise
+    shutil.rmtree(workdir, ignore_errors=True)
+    return finish(summary, error, out)
 
 
-__all__ = ["attach_linuxcnc", "loaded_components"]
+__all__ = ["attach_linuxcnc", "loaded_components", "wait_for_servo_thread"]

@@ -8,8 +8,9 @@ nothing from feedlog: the job file says what to do, the result file says what ha
 
 Job (JSON): program, channels, sample_files, result, enable_signal, motion_time_pin,
 timeout_s, attach (bool: don't home or run, record until the program ends or SIGINT/SIGTERM),
-until_program_end (attach: stop when the program ends; else only on a signal), start_delay_s
-(wait before AUTO_RUN; with no channels the driver is a plain headless operator, used in tests).
+until_program_end (attach: stop when the program ends; else only on a signal), start_when_signal
+and start_delay_s (wait for a HAL signal to come on, then this long, before AUTO_RUN; with no channels
+the driver is a plain headless operator, used in tests).
 Result (JSON): ok, errors [{kind, text}], motion_time_s, overruns, ... written on every exit path.
 """
 
@@ -139,6 +140,17 @@ class Driver:
         self.result["overruns"] = overruns
         self.samplers = []
 
+    def wait_for_signal(self, name):
+        end = min(time.monotonic() + 60, self.deadline)
+        while time.monotonic() < end and not self.check_stop():
+            try:
+                if self.value(name):
+                    return
+            except Exception:  # the signal does not exist yet
+                pass
+            time.sleep(0.05)
+        raise Abort(f"signal {name} did not come on")
+
     def motion_time(self):
         pin = self.job.get("motion_time_pin")
         return float(self.value(pin)) if pin else float("nan")
@@ -170,6 +182,8 @@ class Driver:
             time.sleep(0.3)  # halsampler attached before the gate opens
             self.halcmd("sets", self.job["enable_signal"], "1")
             time.sleep(0.05)
+        if self.job.get("start_when_signal"):  # operator mode: run once a recorder has opened its gate
+            self.wait_for_signal(self.job["start_when_signal"])
         time.sleep(float(self.job.get("start_delay_s", 0.0)))
         self.result["program_file"] = self.stat.file
         self.result["motion_time_start_s"] = self.motion_time()

@@ -2,7 +2,7 @@
 
 Usage: python attach_scenario.py MACHINE.ini PROGRAM.ngc OUT.mcap RESULT.json [--machine-uses-integ]
 Starts LinuxCNC headless with a plain operator (feedlog's driver without samplers: it homes, waits
-a few seconds, runs the program and exits), attaches feedlog's recorder to the running HAL, and
+until a recorder has opened its gate, runs the program and exits), attaches feedlog's recorder to the running HAL, and
 writes attach_linuxcnc()'s summary or error to RESULT.json. Runs inside the test's namespaces.
 """
 
@@ -29,7 +29,8 @@ def main(ini_path: str, program: str, out: str, result: str, *options: str) -> i
     shutil.copyfile(DRIVER_SOURCE, driver)
     driver.chmod(0o755)
     job = {"program": program, "channels": [], "sample_files": [], "result": str(work / "operator.json"),
-           "enable_signal": None, "motion_time_pin": None, "timeout_s": 60, "start_delay_s": 4.0}
+           "enable_signal": None, "motion_time_pin": None, "timeout_s": 60,
+           "start_when_signal": "feedlog-enable", "start_delay_s": 0.3}
     (work / "job.json").write_text(json.dumps(job))
     ini = MachineIni.read(ini_path)
     text = ini.rewritten(display=f"{driver} {work / 'job.json'}", recorder=None)
@@ -52,14 +53,15 @@ def main(ini_path: str, program: str, out: str, result: str, *options: str) -> i
     outcome: dict = {}
     try:
         deadline = time.monotonic() + 30
-        while True:
+        while True:  # up when the operator (the display, started last) has joined the HAL
             try:
-                loaded_components()
-                break
+                if any(c.startswith("feedlog-driver-") for c in loaded_components()):
+                    break
             except FeedlogError:
-                if time.monotonic() > deadline or machine.poll() is not None:
-                    raise
-                time.sleep(0.2)
+                pass
+            if time.monotonic() > deadline or machine.poll() is not None:
+                raise FeedlogError("the operator's LinuxCNC did not come up")
+            time.sleep(0.2)
         outcome["summary"] = attach_linuxcnc(ini_path, out, program=program, timeout_s=60)
     except FeedlogError as exc:
         outcome["error"] = str(exc)
