@@ -98,8 +98,8 @@ def _read_source(source: str | Path, name: str | None) -> tuple[str, Path | None
             raw = path.read_bytes()
         except OSError as exc:
             raise ProgramError(f"cannot read part program: {exc.strerror or exc}", file=label) from None
-        return raw.decode("utf-8", errors="replace"), path, label
-    return source, None, name or "<string>"
+        return raw.decode("utf-8-sig", errors="replace"), path, label
+    return source.removeprefix("\ufeff"), None, name or "<string>"
 
 
 class _Rows:
@@ -429,6 +429,12 @@ def _metadata(tok: Tokens, W, has, m_codes, m_rows, is_motion, R: _Rows, file: s
         if after:
             warnings.append(f"{after} motion blocks after the program end (M2/M30) at line "
                             f"{meta['end_line']}; a controller would not run them")
+    if len(tok.percent) >= 2:  # the second `%` ends the program (RS274/NGC)
+        closing = int(np.searchsorted(R.rows, tok.percent[1]))
+        after = is_motion[closing + 1:].sum()
+        if after:
+            warnings.append(f"{after} motion blocks after the closing '%' at line {tok.percent[1] + 1}; "
+                            "a controller would not run them")
     if len(tok.block_delete):
         meta["block_delete_lines"] = (tok.block_delete + 1).tolist()
         warnings.append(f"{len(tok.block_delete)} lines start with '/' (block delete); kept as if the "

@@ -214,3 +214,13 @@ def test_bundled_pocket_example():
     assert m["kind"].value_counts()[lambda c: c > 0].to_dict() == {"linear": 9, "arc_cw": 3, "arc_ccw": 2, "rapid": 2}
     helix = m[m["z0_mm"] != m["z_mm"]].iloc[-2]
     assert helix.kind == "arc_cw" and helix.length_mm == pytest.approx(math.hypot(5 * math.pi, 0.5))
+
+
+def test_byte_order_mark_crlf_and_text_after_the_end(tmp_path):
+    path = tmp_path / "win.ngc"
+    path.write_bytes("\ufeff%\r\nG1 X1 F100\r\n%\r\nG1 X2\r\n".encode("utf-8"))
+    p = parse_program(path)
+    assert p.motion["x_mm"].tolist() == [1, 2] and p.motion["line"].tolist() == [2, 4]
+    assert any("closing '%'" in w for w in p.warnings)
+    q = parse_program("G1 X1 F1\nM30\nG1 X3\n")
+    assert any("program end" in w for w in q.warnings)
