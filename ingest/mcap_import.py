@@ -20,6 +20,7 @@ from feedlog.errors import IngestError
 from feedlog.ingest import mcap_format as fmt
 from feedlog.ingest.mapping import ColumnMap, build_streams, parse_map, resolve_target, time_to_ns
 from feedlog.ingest.reader import _DAMAGE, RecordScan, read_recording
+from feedlog.ingest.readers import ImportOptions
 from feedlog.ingest.recording import Recording
 
 
@@ -54,7 +55,8 @@ def _get(obj, path: list[str | int]):
     return obj
 
 
-def read_json_mcap(path: Path, mapping: dict[str, str], *, strict: bool = True, options=None) -> Recording:
+def read_json_mcap(path: Path, mapping: dict[str, str], *, strict: bool = True,
+                   options: ImportOptions | None = None) -> Recording:
     """Pick mapped fields from JSON messages of a generic MCAP file."""
     fields = {target: _field_path(spec, target) for target, spec in mapping.items() if spec not in ("log_time",)}
     time_field = fields.pop("t", None)
@@ -67,18 +69,17 @@ def read_json_mcap(path: Path, mapping: dict[str, str], *, strict: bool = True, 
     if not fields:
         raise IngestError("--map names no value fields", file=str(path))
     topics = sorted(set(by_stream.values()))
+    options = options or ImportOptions()
     cmap = ColumnMap(mapping={"t": "log_time", **{k: v for k, v in mapping.items() if k != "t"}},
-                     time_unit=(options.time_unit if options and options.time_unit else "ns"),
-                     length_unit=(options.length_unit if options and options.length_unit else "mm"),
-                     angle_unit=(options.angle_unit if options and options.angle_unit else "deg"),
-                     feed_unit=(options.feed_unit if options and options.feed_unit else "mm/min"), name="--map")
+                     time_unit=options.time_unit or "s", length_unit=options.length_unit or "mm",
+                     angle_unit=options.angle_unit or "deg", feed_unit=options.feed_unit or "mm/min", name="--map")
     times: dict[str, list[int]] = {t: [] for t in topics}
     values: dict[str, list[float]] = {target: [] for target in fields}
     bad = 0
     first_bad = ""
     count: dict[str, int] = {t: 0 for t in topics}
     channels: dict[int, Channel] = {}
-    scan = RecordScan(path, recover=bool(options and options.recover))
+    scan = RecordScan(path, recover=options.recover)
     for _, record in scan:
         if isinstance(record, Channel):
             channels[record.id] = record
@@ -110,10 +111,9 @@ def read_json_mcap(path: Path, mapping: dict[str, str], *, strict: bool = True, 
             values[target].append(value)
     streams = {}
     for stream, topic in by_stream.items():
-        if time_field and time_field[0] == topic:
-            t_ns = time_to_ns(np.asarray(times[topic], dtype=np.float64), cmap.with_units(
-                time_unit=options.time_unit if options and options.time_unit else "s"))
-        else:
+        if time_field and time_field[0] == topic:  # a time field in the declared unit (default s)
+            t_ns = time_to_ns(np.asarray(times[topic], dtype=np.float64), cmap)
+        else:  # the message log_time, already ns
             t_ns = np.asarray(times[topic], dtype=np.int64)
         order = np.argsort(t_ns, kind="stable")
         cols = {target: np.asarray(values[target], dtype=np.float64)[order] for target, (tp, _) in fields.items()

@@ -91,3 +91,18 @@ def test_truncated_generic_mcap_names_byte_and_recovers(tmp_path):
         read_source(cut, ImportOptions(mapping=mapping))
     rec = read_source(cut, ImportOptions(mapping=mapping, recover=True))
     assert len(rec.streams["axes"]) == 5000 and "truncated" in rec.metadata["recovered"]
+
+
+def test_generic_mcap_time_from_a_field_in_declared_units(tmp_path):
+    path = tmp_path / "stamped.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        cid = w.register_channel("/pos", "json", 0)
+        for i in range(20):
+            body = {"stamp_ms": 5000 + 2 * i, "x": i}
+            w.add_message(cid, 10**9 + 7 * i, json.dumps(body).encode(), 0)
+        w.finish()
+    rec = read_source(path, ImportOptions(mapping="t=/pos:stamp_ms,x=/pos:x", time_unit="ms"))
+    assert rec.streams["axes"]["t_ns"].tolist() == [(5000 + 2 * i) * 1_000_000 for i in range(20)]
+    np.testing.assert_allclose(rec.streams["axes"]["x_mm"], np.arange(20))
