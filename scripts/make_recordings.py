@@ -73,6 +73,15 @@ def catalogue() -> list[Entry]:
     add("pocket_f1000_g61", "pocket", "xyz", 1000, g61, "train", progs.pocket(1000, g61, width_mm=20.0, height_mm=10.0))
     add("freeform_f3000_p001", "freeform", "xyz", 3000, p001, "train", progs.freeform(3000, p001, width_mm=30.0, rows=7))
     add("freeform_f1000_p01", "freeform", "xyz", 1000, p01, "train", progs.freeform(1000, p01, width_mm=20.0, rows=5))
+    p005 = "G64 P0.05"
+    add("corners_f2000_p005", "corners", "xyz", 2000, p005, "train",
+        progs.corners(2000, p005, angles=(20, 70, 110, 140, 170), long_mm=30.0, short_mm=0.5))
+    add("circle_r10_f2000_p001", "polygon_circle", "xyz", 2000, p001, "train",
+        progs.polygon_circle(2000, p001, radius_mm=10.0, sides=36, laps=3))
+    add("pocket_f2000_p01", "pocket", "xyz", 2000, p01, "train",
+        progs.pocket(2000, p01, width_mm=25.0, height_mm=15.0, stepover_mm=3.0))
+    add("freeform_f2000_p005", "freeform", "xyz", 2000, p005, "train",
+        progs.freeform(2000, p005, width_mm=20.0, rows=5, row_step_mm=1.5, amp_mm=1.0, phase=1.9))
     # training programs (five-axis)
     add("5ax_near_f3000_p001", "five_axis_near", "xyzac", 3000, p001, "train", progs.five_axis_near(3000, p001))
     add("5ax_far_f3000_p001", "five_axis_far", "xyzac", 3000, p001, "train", progs.five_axis_far(3000, p001))
@@ -80,6 +89,10 @@ def catalogue() -> list[Entry]:
         progs.five_axis_near(1000, g61, offset=OFFSET_B))
     add("5ax_far_f1000_p01_offset", "five_axis_far", "xyzac", 1000, p01, "train",
         progs.five_axis_far(1000, p01, offset=OFFSET_B))
+    add("5ax_near_f2000_p01", "five_axis_near", "xyzac", 2000, p01, "train",
+        progs.five_axis_near(2000, p01, radius_mm=25.0))
+    add("5ax_far_f2000_g61", "five_axis_far", "xyzac", 2000, g61, "train",
+        progs.five_axis_far(2000, g61, radius_mm=25.0))
     # test programs: the shared reference programs, and new geometry of each family
     add("test_p001", "shared_test", "xyz", 3000, p001, "test", progs.shared_test(p001), "test_p001.ngc")
     add("test_p01", "shared_test", "xyz", 3000, p01, "test", progs.shared_test(p01), "test_p01.ngc")
