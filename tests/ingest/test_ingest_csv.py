@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from feedlog.cli import main
 from feedlog.errors import IngestError
@@ -123,3 +125,23 @@ def test_truncated_csv_last_line_is_a_bad_row(tmp_path):
     cut.write_bytes(data[: data.rindex(b",")])  # the last row loses its last field
     with pytest.raises(IngestError, match=r"cut\.csv:201: 1 bad rows at lines 201"):
         read_csv(cut, load_preset("servo-trace-1khz"))
+
+
+@settings(max_examples=15, deadline=None)
+@given(n=st.integers(2, 300), seed=st.integers(0, 2**31), delimiter=st.sampled_from([",", ";", "\t"]))
+def test_csv_round_trip_of_random_traces(tmp_path_factory, n, seed, delimiter):
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    rng = np.random.default_rng(seed)
+    t_ms = np.cumsum(rng.integers(1, 50, n)).astype(np.float64)
+    x = np.round(rng.normal(size=n) * 100, 6)
+    line = rng.integers(0, 10**6, n)
+    path = tmp_path_factory.mktemp("csv") / "trace.csv"
+    pacsv.write_csv(pa.table({"T": t_ms, "X": x, "N": line}), path,
+                    write_options=pacsv.WriteOptions(delimiter=delimiter))
+    cmap = ColumnMap(mapping=parse_map("t=T,x=X,line=N"), time_unit="ms", length_unit="um")
+    rec = read_csv(path, cmap, delimiter=delimiter)
+    assert rec.streams["axes"]["t_ns"].tolist() == (t_ms.astype(np.int64) * 1_000_000).tolist()
+    np.testing.assert_allclose(rec.streams["axes"]["x_mm"], x * 1e-3, rtol=1e-12)
+    assert rec.streams["line"]["line"].tolist() == line.tolist()
