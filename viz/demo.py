@@ -133,7 +133,11 @@ def _intro(result: DemoResult, out: Path) -> list[str]:
         lines.append(f"- {stage}: " + ("available" if reason is None else f"**not available** — {reason}"))
     if result.training is not None:
         if result.training.available:
-            lines.append(f"- trained models: {', '.join(f'`{p.relative_to(out)}`' for p in result.training.checkpoints.values()) or 'none'}")
+            paths = ", ".join(f"`{_rel(p, out)}`" for p in result.training.checkpoints.values()) or "none"
+            lines.append(f"- trained models: {paths} (train/'s own held-out evaluation: "
+                         f"`{_rel(out / 'models' / 'results.md', out)}`); model columns of `train` rows are "
+                         "in-sample, of `test` rows held out")
+            lines += [f"  - {note}" for note in result.training.notes]
         else:
             lines.append(f"- training skipped: {result.training.reason}")
     else:
@@ -142,6 +146,11 @@ def _intro(result: DemoResult, out: Path) -> list[str]:
     if "line stream" in sources:
         lines.append("- measured cycle times taken from the recordings' program-line stream (align not available)")
     return lines
+
+
+def _rel(path: Path, root: Path) -> str:
+    path = Path(path)
+    return path.relative_to(root).as_posix() if path.is_relative_to(root) else str(path)
 
 
 def _sections(result: DemoResult, bars: Path | None) -> list[ReportSection]:

@@ -42,12 +42,15 @@ def from_result(name: str, result: Any) -> ModelPrediction:
                            cycle_time_s=None if cycle is None else float(cycle))
 
 
-def model_prediction(checkpoint: str | Path, program: Any, *, profile: MachineProfile | None = None,
+def model_prediction(checkpoint: str | Path | Any, program: Any, *, profile: MachineProfile | None = None,
                      name: str | None = None) -> ModelPrediction:
-    """Predict `program` with the model saved at `checkpoint` (named after the file unless `name`)."""
+    """Predict `program` with the model saved at `checkpoint` (a path, or a model train/ already loaded),
+    named after the file unless `name` is given."""
     predict_program = stage_function("predict_program")
-    path = Path(checkpoint)
-    if not path.is_file():
-        raise ModelError(f"{path}: model checkpoint not found")
-    result = predict_program(path, program, profile=profile)
-    return from_result(name or path.stem, result)
+    if isinstance(checkpoint, (str, Path)):
+        path = Path(checkpoint)
+        if not path.is_file():
+            raise ModelError(f"{path}: model checkpoint not found")
+        name = name or path.stem
+    result = predict_program(program, checkpoint, profile)
+    return from_result(name or getattr(checkpoint, "name", "model"), result)

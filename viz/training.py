@@ -26,20 +26,54 @@ class TrainOutcome:
     checkpoints: dict[str, Path] = field(default_factory=dict)   # model name -> .pt
     evaluation: Any = None                                       # train's own evaluation table, when given
     notes: list[str] = field(default_factory=list)
+    loaded: dict[str, Any] = field(default_factory=dict)         # model name -> model loaded for prediction
+
+
+DEMO_MODELS = ("mlp", "bilstm-block", "bilstm-final", "hybrid")  # bilstm-r is a per-sample model: not a cycle-time one
+
+
+def program_table(run: RecordingRun):
+    """train's ProgramTable for an aligned run (block features and measured block times from align)."""
+    from feedlog.train import ProgramTable  # train is optional: imported only when it exists
+
+    g = run.gathered
+    return ProgramTable(run.entry.name, g.aligned.blocks, program=run.entry.family or run.entry.program,
+                        split=run.entry.split, points=g.aligned.points, profile=g.profile,
+                        program_text=run.recording.program_text if run.recording is not None else None)
 
 
 def train_models(runs: Sequence[RecordingRun], *, out_dir: Path, models: Sequence[str] | None = None,
                  preset: str = "quick", log: Callable[[str], None] = print) -> TrainOutcome:
     """Train on the runs that were aligned; a missing train/ or align/ stage is reported, not faked."""
     try:
-        stage_function("train_and_evaluate")
+        train_and_evaluate = stage_function("train_and_evaluate")
         stage_function("predict_program")
     except StageMissing as exc:
         return TrainOutcome(available=False, reason=str(exc))
     aligned = [r for r in runs if r.gathered is not None and r.gathered.aligned is not None]
     if not aligned:
         return TrainOutcome(available=False, reason="no recording could be aligned, so there is nothing to train on")
-    raise StageMissing("training is not wired into the demo yet")
+    names = tuple(models) if models else DEMO_MODELS
+    log(f"training {', '.join(names)} ({preset} preset) on {sum(r.entry.split == 'train' for r in aligned)} "
+        f"recordings, testing on {sum(r.entry.split == 'test' for r in aligned)}")
+    try:
+        tables = [program_table(r) for r in aligned]
+        results = train_and_evaluate(tables, out_dir=out_dir, models=names, preset=preset, overwrite=True,
+                                     progress=False, log=log)
+    except FeedlogError as exc:
+        return TrainOutcome(available=False, reason=f"training failed: {exc}")
+    except Exception as exc:  # noqa: BLE001 - a bug in train/ must not stop the main job
+        return TrainOutcome(available=False, reason=f"training failed with an internal error "
+                                                    f"({type(exc).__name__}: {exc})")
+    summary = results.attrs.get("summary", {})
+    checkpoints = {name: Path(info["checkpoint"]) for name, info in summary.items() if "checkpoint" in info}
+    notes = [f"{name}: skipped ({info['skipped']})" for name, info in summary.items() if "skipped" in info]
+    notes += [f"{name}: trained in {info['train_s']} s" for name, info in summary.items() if "train_s" in info]
+    notes += [f"{rec}: not evaluated ({why})" for rec, why in results.attrs.get("not_evaluated", {}).items()]
+    not_aligned = [r.entry.name for r in runs if r not in aligned]
+    if not_aligned:
+        notes.append(f"not used for training (not aligned): {', '.join(not_aligned)}")
+    return TrainOutcome(available=True, checkpoints=checkpoints, evaluation=results, notes=notes)
 
 
 def predict_for(outcome: TrainOutcome | None, run: RecordingRun) -> dict[str, ModelPrediction]:
@@ -47,10 +81,17 @@ def predict_for(outcome: TrainOutcome | None, run: RecordingRun) -> dict[str, Mo
     if outcome is None or not outcome.available:
         return {}
     out: dict[str, ModelPrediction] = {}
+    from feedlog.train import load_checkpoint
+
     from feedlog.viz.predictions import model_prediction
     for name, checkpoint in outcome.checkpoints.items():
         try:
-            out[name] = model_prediction(checkpoint, run.gathered.program, profile=run.gathered.profile, name=name)
+            if name not in outcome.loaded:  # load each checkpoint once for all recordings
+                outcome.loaded[name] = load_checkpoint(checkpoint)
+            out[name] = model_prediction(outcome.loaded[name], run.gathered.program, profile=run.gathered.profile,
+                                         name=name)
         except FeedlogError as exc:
             run.errors.append(f"prediction with {name} failed: {exc}")
+        except Exception as exc:  # noqa: BLE001 - a bug in train/ must not stop the main job
+            run.errors.append(f"prediction with {name} failed with an internal error ({type(exc).__name__}: {exc})")
     return out
