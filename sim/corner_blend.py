@@ -31,7 +31,7 @@ import numpy as np
 from feedlog.profile import MachineProfile
 from feedlog.sim.context import Context
 from feedlog.sim.mechanism import Mechanism
-from feedlog.sim.path import KIND_ARC, Pieces
+from feedlog.sim.path import Pieces, with_columns
 
 ACC_RATIO_TANGENTIAL = 0.5
 
@@ -74,6 +74,10 @@ class BlendArcCorner(Mechanism):
         pc = ctx.pieces
         blocks = ctx.blocks
         m = len(pc)
+        if m == 1:  # a single move: only the end condition applies
+            if self._continuous(blocks, pc.block)[0] and pc.length[0] > 0:
+                ctx.pieces = with_columns(pc, a_max=pc.a_max * 0.5)
+            return
         if m < 2:
             return
         lin = blocks.linear_index
@@ -103,13 +107,13 @@ class BlendArcCorner(Mechanism):
         v_end = np.zeros(m)
         a_max = pc.a_max.copy()
         overlap = np.zeros(m, bool)
+        halved = np.zeros(m, bool)   # LinuxCNC halves a segment's acceleration once (tcGetOverallMaxAccel)
 
         # rotary axes move in continuous mode: parabolic blend (or stop)
         para = ~hard & ~g61 & rotary
         if self.rotary_blend == "parabolic" and para.any():
             jp = np.flatnonzero(para)
             overlap[jp] = True
-            halved = np.zeros(m, bool)
             halved[jp] = True
             halved[jp + 1] = True
             a_max[halved] *= 0.5
@@ -138,7 +142,20 @@ class BlendArcCorner(Mechanism):
         np.maximum.at(red, jr, reduce[jr])
         np.maximum.at(red, jr + 1, reduce[jr])
         a_max *= 1.0 - red
+        # a continuous-mode segment that ends without a blend keeps LinuxCNC's "parabolic" end
+        # condition and so half its acceleration (tcGetOverallMaxAccel): the program's last move and
+        # moves before a dwell or other hard stop that is not a sharp corner
+        continuous = ~blocks.stop_after[b] | ((np.arange(m) == m - 1) & ~blocks.exact_path[b] & self._continuous(blocks, b))
+        end_stop = np.append(hard & ~sharp, True)
+        half = continuous & end_stop & ~halved & (length > 0)
+        a_max[half] *= 0.5
         ctx.pieces = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)
+
+    @staticmethod
+    def _continuous(blocks, b: np.ndarray) -> np.ndarray:
+        """Blocks programmed in G64 (their `stop_after` may only come from being last or a dwell)."""
+        mode = blocks.extra.get("continuous")
+        return mode[b] if mode is not None else ~blocks.exact_path[b]
 
     def _parabolic_speed(self, pc: Pieces, blocks, jp, u1, u2, a_half, v_req, moves_xyz) -> np.ndarray:
         """LinuxCNC tpComputeBlendVelocity: blend speed from the half-segment rule and the tolerance."""

@@ -246,15 +246,16 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     v_limit = np.minimum(v_axis, v_path)
     a_max = np.where(np.isfinite(a_axis), a_axis, acc.min())
 
+    extra: dict[str, np.ndarray] = {}
     mode = _labels(t["path_mode"])
     stop_after = (mode != schema.CONTINUOUS) | (code == KIND_DWELL)
     exact_path = (mode == schema.EXACT_PATH) & (code != KIND_DWELL)
+    extra["continuous"] = mode == schema.CONTINUOUS
     if n:
         stop_after[-1] = True
         exact_path[-1] = False
     hold = np.where(code == KIND_DWELL, np.nan_to_num(_column(t, "dwell_s", 0.0)), 0.0)
     length = np.where(moving, length, 0.0)
-    extra = {}
     if all(c in t.columns for c in ("ori_i", "ori_j", "ori_k")):
         ori = np.column_stack([_column(t, c, np.nan) for c in ("ori_i", "ori_j", "ori_k")])
         if not np.isnan(ori).all():

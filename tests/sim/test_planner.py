@@ -40,7 +40,9 @@ def test_diagonal_block_uses_projected_axis_limits(plain, gcode):
 @pytest.mark.parametrize("law", ["blend_arc", "junction_deviation"])
 def test_right_angle_corner_exact_stop_vs_continuous(plain, law, gcode):
     g61 = simulate(gcode("G21 G90 G61\nG1 X20 F3000\nG1 Y20\n"), plain, mechanisms=["lookahead", law])
-    g64 = simulate(gcode("G21 G90 G64 P0.05\nG1 X20 F3000\nG1 Y20\n"), plain, mechanisms=["lookahead", law])
+    # the last block in G61 in both, so only the corner differs (LinuxCNC halves the acceleration of a
+    # G64 block that ends the program, see test_last_continuous_block_runs_at_half_acceleration)
+    g64 = simulate(gcode("G21 G90 G64 P0.05\nG1 X20 F3000\nG61\nG1 Y20\n"), plain, mechanisms=["lookahead", law])
     # two full stops; LinuxCNC's blend law keeps its 10 % kink acceleration reduction on G61 corners
     acc = 900.0 if law == "blend_arc" else 1000.0
     one = 20 / F3000 + F3000 / acc
@@ -153,8 +155,10 @@ def test_cycle_time_never_increases_with_tolerance_or_feed(plain, law, gcode):
 
 def test_shorter_lookahead_is_never_faster(plain, gcode):
     prog = gcode("G21 G90 G64 P0.1\nF3000\n" + "\n".join(f"G1 X{0.2 * i:.1f}" for i in range(1, 200)) + "\n")
-    long = simulate(prog, plain, mechanisms={"lookahead": {"lookahead_blocks": 100}})
-    short = simulate(prog, plain, mechanisms={"lookahead": {"lookahead_blocks": 2}})
+    long = simulate(prog, plain, mechanisms={"lookahead": {"lookahead_blocks": 100}, "blend_arc": False,
+                                             "junction_deviation": True})
+    short = simulate(prog, plain, mechanisms={"lookahead": {"lookahead_blocks": 2}, "blend_arc": False,
+                                              "junction_deviation": True})
     assert short.cycle_time_s > long.cycle_time_s + 0.01
     # collinear 0.2 mm blocks with a long window: one trapezoid over 39.8 mm
     assert long.cycle_time_s == pytest.approx(39.8 / 50 + 50 / 1000, rel=0.01)
@@ -176,3 +180,12 @@ def test_blend_arc_stays_inside_the_tolerance(plain, gcode):
     dev = np.minimum(np.abs(s["y_mm"]).where(s["x_mm"] <= 20, np.inf), np.abs(s["x_mm"] - 20))
     assert dev.max() <= 0.05 + 1e-9
     assert dev.max() > 0.01  # the corner is really cut
+
+
+def test_last_continuous_block_runs_at_half_acceleration(plain, gcode):
+    """LinuxCNC keeps the 'parabolic' end condition on a G64 block that is not blended into a next
+    one, which halves its acceleration (tc.c tcGetOverallMaxAccel); G61 does not."""
+    g64 = simulate(gcode("G21 G90 G64 P0.05\nG1 X100 F3000\n"), plain, mechanisms=["lookahead", "blend_arc"])
+    g61 = simulate(gcode("G21 G90 G61\nG1 X100 F3000\n"), plain, mechanisms=["lookahead", "blend_arc"])
+    assert g64.cycle_time_s == pytest.approx(100 / 50 + 50 / 500, abs=1e-6)
+    assert g61.cycle_time_s == pytest.approx(100 / 50 + 50 / 1000, abs=1e-6)
