@@ -106,3 +106,30 @@ def test_generic_mcap_time_from_a_field_in_declared_units(tmp_path):
     rec = read_source(path, ImportOptions(mapping="t=/pos:stamp_ms,x=/pos:x", time_unit="ms"))
     assert rec.streams["axes"]["t_ns"].tolist() == [(5000 + 2 * i) * 1_000_000 for i in range(20)]
     np.testing.assert_allclose(rec.streams["axes"]["x_mm"], np.arange(20))
+
+
+FIX = __import__("pathlib").Path(__file__).resolve().parents[1] / "fixtures" / "ingest"
+
+
+def test_committed_format_v1_file_still_reads_exactly():
+    """A v1 file written when the format was defined: later readers must keep reading it."""
+    rec = read_source(FIX / "format_v1.mcap")
+    i = np.arange(100)
+    axes = rec.streams["axes"]
+    assert list(axes.columns) == ["t_ns", "x_mm", "y_mm", "z_mm"]
+    assert axes["t_ns"].tolist() == (i * 1_000_000).tolist()
+    np.testing.assert_array_equal(axes["x_mm"], i * 0.5)
+    assert rec.streams["line"]["line"].tolist() == list(range(10, 20))
+    assert rec.streams["status"]["in_position"].tolist() == [True, False]
+    assert rec.streams["status"]["motion_type"].dtype == np.int8
+    assert rec.metadata["machine"] == "fixture-mill" and rec.dropped_frames == 2
+    assert rec.program_text == "G1 X49.5 Y-24.75 F1000\nM2\n"
+
+
+def test_committed_generic_json_fixture():
+    rec = read_source(FIX / "generic_json.mcap",
+                      ImportOptions(mapping="x=/robot/pose:pos.x,y=/robot/pose:pos.y,z=/robot/pose:pos.z"))
+    axes = rec.streams["axes"]
+    assert axes["t_ns"].tolist() == [2_000_000_000 + k * 20_000_000 for k in range(50)]
+    np.testing.assert_array_equal(axes["y_mm"], np.arange(50) * 2.0)
+    np.testing.assert_array_equal(axes["z_mm"], 0.5)
