@@ -22,7 +22,7 @@ from typing import Any
 import pandas as pd
 
 from feedlog.errors import FeedlogError, IngestError
-from feedlog.ingest.linuxcnc_capture import load_capture, motion_span
+from feedlog.ingest.linuxcnc_capture import has_samples, load_capture, motion_span
 from feedlog.ingest.linuxcnc_session import MachineIni, cleanup, run_session, session_error
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording
 from feedlog.ingest.writer import write_recording
@@ -78,6 +78,9 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
     profile_name, profile_toml = profile_toml_for(profile, ini_cfg)
     session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s, stop_event=stop_event)
     error = session_error(session.report, program)
+    if error is not None and not has_samples(session.sample_files):
+        cleanup(session)
+        raise error  # failed before anything was sampled
     with keep_captures_on_failure(session.workdir):
         streams, missing = load_capture(session.sample_files, session.layout, period_ns=ini_cfg.servo_period_ns,
                                         linear_units=ini_cfg.linear_units, source=str(program))

@@ -20,7 +20,7 @@ from typing import Any
 
 from feedlog.errors import IngestError
 from feedlog.ingest.linuxcnc import finish, keep_captures_on_failure, profile_toml_for, write_session
-from feedlog.ingest.linuxcnc_capture import load_capture
+from feedlog.ingest.linuxcnc_capture import has_samples, load_capture
 from feedlog.ingest.linuxcnc_hal import ENABLE_SIGNAL, MOTION_TIME_COMPONENT, recorder_tcl, standard_layout, \
     unload_tcl
 from feedlog.ingest.linuxcnc_session import DEBIAN_PYTHON, DRIVER_SOURCE, MachineIni, linuxcnc_available, \
@@ -127,6 +127,8 @@ def attach_linuxcnc(ini: str | Path, out: str | Path, *, program: str | Path | N
                                                       else None)
         error = session_error(report, program_path or Path("<running program>"))
         program_bytes = program_path.read_bytes() if program_path and program_path.is_file() else None
+        if error is not None and not has_samples(sample_files):
+            raise error
         with keep_captures_on_failure(workdir):
             streams, missing = load_capture(sample_files, layout, period_ns=ini_cfg.servo_period_ns,
                                             linear_units=ini_cfg.linear_units, source=str(out))

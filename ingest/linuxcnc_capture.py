@@ -140,6 +140,11 @@ def capture_streams(joined: pd.DataFrame, layout: SamplerLayout, *, period_ns: i
             (("axes", axes), ("joints", joints), ("feed", feed), ("line", line), ("status", status))}
 
 
+def has_samples(files: list[Path]) -> bool:
+    """Whether any capture file holds data (a session that failed before sampling leaves none)."""
+    return any(Path(f).is_file() and Path(f).stat().st_size > 0 for f in files)
+
+
 def load_capture(files: list[Path], layout: SamplerLayout, *, period_ns: int, linear_units: str = "mm",
                  source: str = "") -> tuple[dict[str, pd.DataFrame], int]:
     """Streams and the number of missing servo periods from a set of capture files."""

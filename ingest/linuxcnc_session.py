@@ -259,7 +259,11 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
                                     stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
                                     start_new_session=True)
             try:
-                wait_with_stop(proc, timeout_s + 30, stop_event, workdir / "stop")
+                try:
+                    wait_with_stop(proc, timeout_s + 30, stop_event, workdir / "stop")
+                except KeyboardInterrupt:  # LinuxCNC runs in its own session: stop it cleanly, keep the data
+                    (workdir / "stop").touch()
+                    wait_with_stop(proc, 60, None, workdir / "stop")
             except subprocess.TimeoutExpired:
                 os.killpg(proc.pid, signal.SIGTERM)
                 try:
