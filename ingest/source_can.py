@@ -37,7 +37,8 @@ def open_bus(interface: str, channel: str | None, bitrate: int | None = None, **
 
 
 def record(args: argparse.Namespace) -> dict[str, Any]:
-    bus = open_bus(args.interface, args.channel, args.bitrate)
+    extra = {"rx_queue_size": 200_000} if args.interface == "virtual" else {}  # bounded, like a driver buffer
+    bus = open_bus(args.interface, args.channel, args.bitrate, **extra)
     try:
         from feedlog.ingest.cli_record import session_attachments
 
