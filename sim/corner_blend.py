@@ -15,6 +15,8 @@ blendmath.c `blendComputeParameters`, `blendCheckConsume`), re-derived here in v
   acceleration and the next block starts while the current one decelerates from the blend speed
   (this is why LinuxCNC's five-axis G64 is slower than G61);
 - corners sharper than `sharp_corner_deg` from a reversal stop;
+- a continuous-mode block that is not blended into a next one (the last move, a move before a
+  dwell) keeps the parabolic end condition and so half its acceleration;
 - in G61 (exact path) tangent junctions are still passed without stopping; at the other G61
   junctions LinuxCNC keeps the kink acceleration reduction (`kink_ratio`) on both blocks, so exact-stop
   blocks run at 90 % of their acceleration (tp.c: `tpChooseBestBlend` returns before

@@ -128,6 +128,9 @@ class FirInterpolator(Mechanism):
 
         def sample():
             t = time_grid(raw_end + td, dt)
+            if not len(pc):
+                return t, np.repeat(blocks.p0[:1], len(t), axis=0) if len(blocks) else \
+                    np.zeros((len(t), len(blocks.axes))), np.zeros(len(t)), np.zeros(len(t), np.int64)
             idx = np.clip(np.searchsorted(t0, t, side="right") - 1, 0, last)
             tau = np.clip(t - t0[idx], 0.0, dur[idx])
             s = (np.minimum(tau, d_s[idx]) * f_s[idx]

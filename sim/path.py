@@ -148,6 +148,13 @@ def _codes(column: pd.Series, mapping: dict[str, int]) -> np.ndarray:
     return lookup[cat.cat.codes.to_numpy()]
 
 
+def _where(table: pd.DataFrame, i: int) -> str:
+    """'file:line' of row i of a block table (for error messages)."""
+    line = int(table["line"].iloc[i])
+    file = str(table["file"].iloc[i]) if "file" in table.columns else ""
+    return f"{file}:{line}" if file else f"line {line}"
+
+
 def _column(table: pd.DataFrame, name: str, default: float) -> np.ndarray:
     if name not in table.columns:
         return np.full(len(table), default, dtype=np.float64)
@@ -174,6 +181,15 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     code = code[keep]
     axes = profile.axis_names
     units = schema.AXIS_UNITS
+    for a in schema.AXES:  # an axis the machine does not have must not move
+        if a in axes or f"{a}_{units[a]}" not in t.columns:
+            continue
+        d = np.abs(_column(t, f"{a}_{units[a]}", np.nan) - _column(t, f"{a}0_{units[a]}", np.nan))
+        bad_axis = (d > 1e-9) & (code != KIND_DWELL)
+        if bad_axis.any():
+            i = int(np.flatnonzero(bad_axis)[0])
+            raise SimulationError(f"{_where(t, i)}: the program moves axis {a.upper()}, which "
+                                  f"machine profile {profile.name!r} does not have (axes: {', '.join(axes)})")
     p1 = np.column_stack([_column(t, f"{a}_{units[a]}", np.nan) for a in axes])
     p0 = np.column_stack([_column(t, f"{a}0_{units[a]}", np.nan) for a in axes])
     # unknown start (first move of a program): no motion on that axis
@@ -181,7 +197,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     bad = np.isnan(p1).any(axis=1) & (code != KIND_DWELL)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise SimulationError(f"line {int(t['line'].iloc[i])}: motion block without an end position "
+        raise SimulationError(f"{_where(t, i)}: motion block without an end position "
                               f"for axes {', '.join(axes)}")
     p1 = np.where(np.isnan(p1), p0, p1)
     n, k = p0.shape
@@ -203,7 +219,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     length = np.where(lin_len > EPS_LEN, lin_len, rot_len)
     for i in np.flatnonzero(is_arc):  # arcs are rare; the per-arc work is a few scalar ops
         if plane[i] not in _PLANES or np.isnan(center[i]).any():
-            raise SimulationError(f"line {int(t['line'].iloc[i])}: arc without a centre or plane")
+            raise SimulationError(f"{_where(t, i)}: arc without a centre or plane")
         a1, a2, nrm = _PLANES[plane[i]]
         xyz0, xyz1 = p0[i, lin], p1[i, lin]
         r0 = np.array([xyz0[a1] - center[i, a1], xyz0[a2] - center[i, a2]])
@@ -229,7 +245,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     bad_feed = moving & ~(feed > 0)
     if bad_feed.any():
         i = int(np.flatnonzero(bad_feed)[0])
-        raise SimulationError(f"line {int(t['line'].iloc[i])}: feed move with no feed rate (F)")
+        raise SimulationError(f"{_where(t, i)}: feed move with no feed rate (F)")
 
     # axis limits projected on the block direction (lines: exact; arcs: the plane axes)
     vel = np.array([profile.axes[a].vel_max for a in axes])
