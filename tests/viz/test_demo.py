@@ -109,3 +109,27 @@ def test_demo_without_recordings_is_an_error(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
     assert main(["demo", "--recordings", str(tmp_path / "empty"), "--out", str(tmp_path / "o")]) == 1
     assert "no recordings" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(availability()["train"] is not None or availability()["align"] is not None,
+                    reason="train/ or align/ not available in this installation")
+def test_demo_trains_keeps_the_models_and_predicts_every_recording(recordings_dir, tmp_path, capsys):
+    from feedlog.toolpath import parse_program
+    from feedlog.train import predict_program
+
+    out = tmp_path / "demo"
+    assert main(["demo", "--recordings", str(recordings_dir), "--out", str(out), "--models", "mlp",
+                 "--detail-plots", "0", "--json"]) == 0
+    rows = {r["recording"]: r for r in json.loads(capsys.readouterr().out)}
+    checkpoint = out / "models" / "mlp.pt"
+    assert checkpoint.is_file()
+    expected = predict_program(parse_program(syn.program_text()), checkpoint, "linuxcnc-xyz").cycle_time_s
+    for name in ("square_a", "square_b"):
+        assert rows[name]["mlp_s"] == pytest.approx(expected, abs=1e-6)  # JSON keeps 6 decimals
+        assert rows[name]["mlp_err_pct"] == pytest.approx((expected / rows[name]["measured_s"] - 1) * 100, abs=1e-3)
+    assert rows["broken"]["mlp_s"] is None
+    report = (out / "report.md").read_text()
+    assert "trained models: `models/mlp.pt`" in report
+    # the block-time overlay carries the model's per-block prediction
+    content = rrd_content(out / "rerun" / "square_b.rrd")
+    assert content["/blocks/mlp"]["rows"] == 4
