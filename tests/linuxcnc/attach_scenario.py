@@ -1,4 +1,4 @@
-"""A machine someone else started, and feedlog attaching to it (run by test_attach.py).
+"""A machine someone else started, and feedlog attaching to it (run by test_linuxcnc_attach.py).
 
 Usage: python attach_scenario.py MACHINE.ini PROGRAM.ngc OUT.mcap RESULT.json [--machine-uses-integ]
 Starts LinuxCNC headless with a plain operator (feedlog's driver without samplers: it homes, waits
