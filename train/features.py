@@ -103,7 +103,9 @@ def build_inputs(table: pd.DataFrame, inputs: Sequence[str], *, constants: dict[
         elif name.endswith("_next"):
             values = np.concatenate([values[1:], [0.0]]) if len(values) else values
         cols[name] = values
-    matrix = np.column_stack([cols[n] for n in inputs]) if len(inputs) else np.zeros((len(table), 0))
+    matrix = np.empty((len(table), len(inputs)), np.float64)
+    for j, n in enumerate(inputs):
+        matrix[:, j] = cols[n]
     bad = ~np.isfinite(matrix)
     if bad.any():
         row, col = np.argwhere(bad)[0]
@@ -135,7 +137,10 @@ def _base_column(table: pd.DataFrame, name: str, constants: dict[str, float]) ->
     if name == "tol_eff_mm":
         tol = table["tol_mm"].to_numpy(np.float64)
         return np.where(np.isnan(tol), NO_TOLERANCE_MM, tol)
-    return pd.to_numeric(table[name], errors="coerce").to_numpy(np.float64)
+    col = table[name]
+    if not pd.api.types.is_numeric_dtype(col):
+        col = pd.to_numeric(col, errors="coerce")
+    return col.to_numpy(np.float64)
 
 
 def effective_feed(table: pd.DataFrame) -> np.ndarray:
@@ -145,7 +150,7 @@ def effective_feed(table: pd.DataFrame) -> np.ndarray:
     nominal = table["nominal_time_s"].to_numpy(np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
         from_time = np.where(nominal > 0, length / nominal * 60.0, np.nan)
-    rapid = (table["kind"].astype(str).to_numpy() == "rapid") if "kind" in table else np.zeros(len(table), bool)
+    rapid = (table["kind"] == "rapid").to_numpy(bool) if "kind" in table else np.zeros(len(table), bool)
     use_time = rapid | ~np.isfinite(feed) | (feed <= 0)
     out = np.where(use_time & np.isfinite(from_time), from_time, feed)
     return np.where(np.isfinite(out), out, 0.0)

@@ -1,9 +1,10 @@
 """Sequence-to-sequence models over a program's blocks: Bi-LSTM block by block (Chien Fig. 7) and BiLSTM-R.
 
-Long programs are cut into overlapping windows (`window` blocks, every `stride`); each block's
-prediction is taken from the window whose centre is nearest, so every block sees context on both
-sides except at the program's ends. Training uses the same windows; the last `val_fraction` of every
-training program's windows is held out for early stopping.
+Long programs are cut into overlapping windows (`window` blocks, every `stride`) for training; the
+last `val_fraction` of every training program is held out for early stopping. Prediction uses longer
+windows (`predict_window`, default 4 x window) overlapping by 2 x `predict_context`; each block's
+value comes from the window whose centre is nearest, so every block sees at least `predict_context`
+blocks on both sides (except at the program's ends) while few blocks are computed twice.
 """
 
 from __future__ import annotations
@@ -37,6 +38,10 @@ class SeqConfig(ModelConfig):
     epochs: int = 150
     patience: int = 20
     log_target: bool = True  # learn log(target + log_floor): block times span four decades
+    # prediction runs longer windows (0: 4 x window) that overlap by 2 x predict_context blocks, so every
+    # block still sees at least predict_context blocks on each side but few blocks are computed twice
+    predict_window: int = 0
+    predict_context: int = 16
 
     presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8}}
 
@@ -49,6 +54,13 @@ class SeqConfig(ModelConfig):
         if not 1 <= self.stride <= self.window:
             raise ModelError(f"{type(self).__name__}: need 1 <= stride <= window, got stride {self.stride}, "
                              f"window {self.window}")
+        if self.predict_context < 0 or 2 * self.predict_context >= self.prediction_window:
+            raise ModelError(f"{type(self).__name__}: need 0 <= 2 x predict_context < prediction window, got "
+                             f"predict_context {self.predict_context}, window {self.prediction_window}")
+
+    @property
+    def prediction_window(self) -> int:
+        return self.predict_window or 4 * self.window
 
 
 class SeqModel(Model):
@@ -117,12 +129,14 @@ class SeqModel(Model):
         x = self.norms["x"].apply(self._matrix(table))
         if len(x) == 0:
             return np.zeros(0)
-        xw, _, _ = make_windows(x, None, length=cfg.window, stride=cfg.stride)
+        length = cfg.prediction_window
+        stride = length - 2 * cfg.predict_context
+        xw, _, _ = make_windows(x, None, length=length, stride=stride)
         net = self.nets["net"].eval()
         with torch.no_grad():
             out = np.concatenate([net(torch.from_numpy(xw[i:i + PREDICT_BATCH])).numpy()
                                   for i in range(0, len(xw), PREDICT_BATCH)])
-        per_row = stitch_windows(out, len(x), length=cfg.window, stride=cfg.stride)
+        per_row = stitch_windows(out, len(x), length=length, stride=stride)
         return self._decode(self.norms["y"].invert(per_row[:, None])[:, 0])
 
     def predict(self, table: ProgramTable) -> TablePrediction:
