@@ -72,7 +72,7 @@ class RecordingWriter:
         self._check_open()
         batch = fmt.table_to_batch(stream, table, self._schemas.get(stream))
         if stream not in self._schemas:
-            self._register(stream, batch.schema)
+            self._guard(self._register, stream, batch.schema)
         if batch.num_rows:
             t = batch.column(0).to_numpy()
             first_back = _first_backwards(t, self._last_t.get(stream))
