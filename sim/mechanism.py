@@ -42,6 +42,7 @@ REGISTRY: dict[str, str] = {
     "block_time": "feedlog.sim.block_time:BlockTimeFloor",
     "reversal_dwell": "feedlog.sim.reversal_dwell:ReversalDwell",
     "following_lag": "feedlog.sim.following_lag:FollowingLag",
+    "jerk_filter": "feedlog.sim.jerk_filter:JerkFilter",
 }
 
 # Controller families whose measured behaviour needs mechanism settings beyond the profile's limits.

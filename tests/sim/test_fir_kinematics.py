@@ -99,3 +99,30 @@ def test_workpiece_offset_slows_a_rotary_move(make_machine, gcode):
     times = [simulate(gcode(text), prof, mechanisms={"trunnion": {"workpiece_offset_mm": (0, off, 0)}}).cycle_time_s
              for off in (0.0, 150.0, 400.0)]
     assert times[0] < times[1] < times[2]
+
+
+def test_jerk_filter_bounds_jerk_and_adds_its_window(plain, gcode):
+    prog = gcode("G21 G90 G61\nG1 X60 F3000\n")
+    base = simulate(prog, plain, mechanisms=["lookahead"])
+    smooth = simulate(prog, plain, mechanisms=["lookahead", "jerk_filter"])  # default 10 ms window
+    assert smooth.cycle_time_s == pytest.approx(base.cycle_time_s + 0.010, abs=1e-9)
+    dt = 0.001
+    v = smooth.series["x_mm"].diff().to_numpy()[1:] / dt
+    a = np.diff(v) / dt
+    jerk = np.abs(np.diff(a)) / dt
+    assert jerk.max() <= 1000 / 0.010 * 1.05          # a_max / T_j
+    assert np.abs(a).max() <= 1000 * 1.01
+    assert smooth.series["x_mm"].iloc[-1] == pytest.approx(60.0)
+    raw_jerk = np.abs(np.diff(np.diff(base.series["x_mm"].diff().to_numpy()[1:] / dt) / dt)) / dt
+    assert raw_jerk.max() > 4 * jerk.max()             # the plain trapezoid has acceleration steps
+
+
+def test_jerk_filter_defaults_from_profile_jerk_limits(make_machine):
+    from feedlog.sim import resolve_mechanisms
+
+    prof = make_machine()
+    assert "jerk_filter" not in {m.name for m in resolve_mechanisms(prof)}
+    axes = {k: v.__class__(vel_max=v.vel_max, acc_max=v.acc_max, jerk_max=50000.0) for k, v in prof.axes.items()}
+    jerky = prof.replace(axes=axes)
+    mech = {m.name: m for m in resolve_mechanisms(jerky)}
+    assert mech["jerk_filter"].jerk_time_s == pytest.approx(1000 / 50000)
