@@ -174,6 +174,7 @@ def capture(bus: can.BusABC, layout: DbcLayout, writer: RecordingWriter, *, stop
     stats = CaptureStats()
     show = Progress(progress)
     start = time.monotonic()
+    stopped = False
     try:
         while True:
             elapsed = time.monotonic() - start
@@ -190,12 +191,14 @@ def capture(bus: can.BusABC, layout: DbcLayout, writer: RecordingWriter, *, stop
             writer.flush_if_due()
             show.show(stats, time.monotonic() - start)
         notifier.stop()
+        stopped = True
         _write(decoder.feed(buffer.take(), stats, final=True), writer, stats, buffer)
     except IngestError as exc:  # the disk refused a write: the file keeps what was flushed before
         stats.error = str(exc)
         stats.stopped_by = "write error"
-        notifier.stop()
     finally:
+        if not stopped:
+            notifier.stop()
         stats.wall_s = time.monotonic() - start
         stats.frames = buffer.received
         _update_drops(stats, buffer)
