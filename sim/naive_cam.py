@@ -71,19 +71,26 @@ class NaiveCamMerge(Mechanism):
         need = np.unique(np.concatenate([idx, idx - 1]))
         ends = dict(zip(need.tolist(), map(tuple, p1[need].tolist())))
         starts = dict(zip(need.tolist(), p0[need].tolist()))
-        chain_start = -1
-        chain: list[int] = []
+        tol_of = tol.tolist()
+        dropped: list[int] = []      # rows merged into the next one
+        joined: list[tuple[int, int]] = []  # (row, start row of its chain)
+        chain_start, chain_len, pts, s0 = -1, 0, [], None
         prev = -2
         for i in idx.tolist():
             if i != prev + 1 or chain_start < 0:
-                chain_start, chain = i - 1, [i - 1]
-            if len(chain) <= self.max_chain and _within([ends[c] for c in chain], starts[chain_start], ends[i], tol[i]):
-                keep[chain[-1]] = False
-                chain.append(i)
-                start_of[i] = chain_start
-            else:
-                chain_start, chain = i, [i]  # the chain ending at i - 1 is flushed; i starts a new one
+                chain_start, chain_len, pts, s0 = i - 1, 1, [ends[i - 1]], starts[i - 1]
+            if chain_len <= self.max_chain and _within(pts, s0, ends[i], tol_of[i]):
+                dropped.append(i - 1)
+                joined.append((i, chain_start))
+                pts.append(ends[i])
+                chain_len += 1
+            else:  # the chain ending at i - 1 is flushed; i starts a new one
+                chain_start, chain_len, pts, s0 = i, 1, [ends[i]], starts[i]
             prev = i
+        if dropped:
+            keep[np.asarray(dropped)] = False
+            rows, first = np.asarray(joined).T
+            start_of[rows] = first
         merged = np.flatnonzero(keep & (start_of != np.arange(n)))
         if not len(merged):
             return
