@@ -67,19 +67,22 @@ def motion_span(t_ns: np.ndarray, positions: np.ndarray, *, still_mm: float = 1e
     if len(moving) == 0:
         raise AlignmentError(f"the recording never moves (no axis changes by more than {still_mm} mm)")
     i0, i1 = int(moving[0]), int(moving[-1])
-    chord = np.sqrt((np.diff(p[:, :3], axis=0) ** 2).sum(axis=1)) if p.shape[1] >= 3 else step
+
+    def chord(i: int) -> float:  # straight distance moved in interval i
+        return float(np.linalg.norm(p[i + 1, :3] - p[i, :3])) if p.shape[1] >= 3 else float(step[i])
+
     t_start, t_end = int(t[i0]), int(t[i1 + 1])
     dt0 = t[i0 + 1] - t[i0]
-    if dt0 > sparse_ns and i0 + 1 < len(chord):
+    if dt0 > sparse_ns and i0 + 1 < len(step):
         nxt = i0 + 1
-        v = chord[nxt] / ((t[nxt + 1] - t[nxt]) / 1e9)
-        tau = _time_from_rest(float(chord[i0]), max(v, chord[i0] / (dt0 / 1e9)), acc_mm_s2)
+        v = chord(nxt) / ((t[nxt + 1] - t[nxt]) / 1e9)
+        tau = _time_from_rest(chord(i0), max(v, chord(i0) / (dt0 / 1e9)), acc_mm_s2)
         t_start = int(t[i0 + 1] - min(int(tau * 1e9), int(dt0)))
     dt1 = t[i1 + 1] - t[i1]
     if dt1 > sparse_ns and i1 - 1 >= 0:
         prv = i1 - 1
-        v = chord[prv] / ((t[prv + 1] - t[prv]) / 1e9)
-        tau = _time_from_rest(float(chord[i1]), max(v, chord[i1] / (dt1 / 1e9)), acc_mm_s2)
+        v = chord(prv) / ((t[prv + 1] - t[prv]) / 1e9)
+        tau = _time_from_rest(chord(i1), max(v, chord(i1) / (dt1 / 1e9)), acc_mm_s2)
         t_end = int(t[i1] + min(int(tau * 1e9), int(dt1)))
     return MotionSpan(t_start_ns=t_start, t_end_ns=t_end, first_index=i0, last_index=i1 + 1)
 
@@ -135,6 +138,7 @@ def blocks_from_lines(t_ns: np.ndarray, line: np.ndarray, motion_blocks: pd.Data
 
 
 NO_TIME = np.iinfo(np.int64).min
+SHORT_LEAVE_SAMPLES = 64
 
 
 def leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndarray, seg_end: np.ndarray,
@@ -160,21 +164,29 @@ def leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndarray, 
     lo = np.concatenate([[0], hi[:-1] + 1])
     lo = np.maximum(lo, hi - int(np.ceil(search_s * 1e9 / period)) + 1)
     rows = np.flatnonzero(ok & (hi >= lo))
-    if not len(rows):
-        return out
-    width = int((hi[rows] - lo[rows]).max()) + 1
-    for part in np.array_split(rows, max(1, len(rows) * width // 2_000_000 + 1)):
-        idx = lo[part, None] + np.arange(width)[None, :]
-        valid = idx <= hi[part, None]
-        idx = np.minimum(idx, n - 1)
-        w = p[idx] - a[part, None, :]
-        dv = d[part, None, :]
-        dd = (dv * dv).sum(axis=2)
-        u = np.clip(np.where(dd > 0, (w * dv).sum(axis=2) / np.where(dd > 0, dd, 1.0), 0.0), 0.0, 1.0)
-        dist = np.sqrt(((w - u[..., None] * dv) ** 2).sum(axis=2))
-        last_on = np.where(valid & (dist <= on_path_mm), idx, -1).max(axis=1)
-        found = last_on >= 0
-        out[part[found]] = t[np.minimum(last_on[found] + 1, n - 1)]
+    # first the last few samples before each end (a blend is short), then the whole window where needed
+    for first_try in (True, False):
+        if not len(rows):
+            break
+        start = np.maximum(lo[rows], hi[rows] - SHORT_LEAVE_SAMPLES + 1) if first_try else lo[rows]
+        width = int((hi[rows] - start).max()) + 1
+        missed = []
+        for sel in np.array_split(np.arange(len(rows)), max(1, len(rows) * width // 2_000_000 + 1)):
+            part, st = rows[sel], start[sel]
+            idx = st[:, None] + np.arange(width)[None, :]
+            valid = idx <= hi[part, None]
+            idx = np.minimum(idx, n - 1)
+            w = p[idx] - a[part, None, :]
+            dv = d[part, None, :]
+            dd = (dv * dv).sum(axis=2)
+            u = np.clip(np.where(dd > 0, (w * dv).sum(axis=2) / np.where(dd > 0, dd, 1.0), 0.0), 0.0, 1.0)
+            dist = np.sqrt(((w - u[..., None] * dv) ** 2).sum(axis=2))
+            last_on = np.where(valid & (dist <= on_path_mm), idx, -1).max(axis=1)
+            found = last_on >= 0
+            out[part[found]] = t[np.minimum(last_on[found] + 1, n - 1)]
+            # not found in the short window, and the window did not already cover all of it: try again
+            missed.append(part[~found & (st > lo[part])])
+        rows = np.concatenate(missed) if first_try and missed else np.empty(0, dtype=np.int64)
     return out
 
 

@@ -9,7 +9,8 @@ constrained to progress along the program:
 
 1. The measured path is reduced to vertices at least `resolution_mm` of path length apart (standstill
    and dwell collapse to their first and last sample; nothing moves between them), and its cumulative
-   length S is computed.
+   length S is computed. Steps 2-3 search a coarser copy (`coarse_mm`); every match is then refined on
+   the fine path within its coarse segment and the two next to it.
 2. The first CL point that the tool reaches fixes the start: the *earliest* passage within `tol_mm`.
 3. CL points are then processed in order, in chunks (`chunk_points`, `chunk_mm`). The anchor is the last
    well-matched point of the previous chunk. CL point k, ds = s_k - s_anchor of program ahead of it, may
@@ -55,6 +56,7 @@ class MatchConfig:
                                    # 50 mm sparse
     sparse_ns: int = 5_000_000     # sampling period above which the data count as sparse
     resolution_mm: float = 1e-3    # vertex spacing of the reduced measured path
+    coarse_mm: float = 0.05        # vertex spacing of the path the search runs on (then refined)
     still_mm: float = 1e-6         # path length below which the tool has not left a point (departure)
     chord_allowance: float = 0.5   # tolerance += this x the matched sampled chord (a chord cuts corners)
 
@@ -73,6 +75,8 @@ class MatchConfig:
             raise AlignmentError(f"chord_allowance must be >= 0, got {self.chord_allowance}")
         if not self.still_mm >= 0:
             raise AlignmentError(f"still_mm must be >= 0, got {self.still_mm}")
+        if not self.coarse_mm >= self.resolution_mm:
+            raise AlignmentError(f"coarse_mm ({self.coarse_mm}) must be >= resolution_mm ({self.resolution_mm})")
         if not self.resolution_mm > 0:
             raise AlignmentError(f"resolution_mm must be > 0, got {self.resolution_mm}")
 
@@ -108,6 +112,82 @@ def reduce_path(positions: np.ndarray, resolution_mm: float) -> tuple[np.ndarray
     keep[1:] |= change
     keep[:-1] |= change
     return np.flatnonzero(keep), s
+
+
+def _bin_edges(s: np.ndarray, step: float) -> np.ndarray:
+    """Indices of the first and last element of every `step`-wide bin of the non-decreasing `s`."""
+    b = np.floor(s / step).astype(np.int64)
+    keep = np.zeros(len(s), dtype=bool)
+    keep[0] = keep[-1] = True
+    change = b[1:] != b[:-1]
+    keep[1:] |= change
+    keep[:-1] |= change
+    return np.flatnonzero(keep)
+
+
+def _refine(cl, m, seg_of, u_of, sv_c, s_full, fine_keep, pos, weight):
+    """Move matches from the coarse path onto the fine one: each point is projected onto the fine
+    segments spanning its coarse segment and the neighbouring two; the least distance +
+    weight x |S - coarse S| wins (earliest on ties), so a retraced neighbour never steals the match."""
+    ks = np.flatnonzero(m)
+    j = seg_of[ks]
+    s_coarse = sv_c[j] + u_of[ks] * (sv_c[np.minimum(j + 1, len(sv_c) - 1)] - sv_c[j])
+    lo_s = sv_c[np.maximum(j - 1, 0)]
+    hi_s = sv_c[np.minimum(j + 2, len(sv_c) - 1)]
+    fv = pos[fine_keep]
+    fs = s_full[fine_keep]
+    fp0, fd = fv[:-1], np.diff(fv, axis=0)
+    fdd = (fd * fd).sum(axis=1)
+    nf = len(fp0)
+    lo = np.clip(np.searchsorted(fs, lo_s, side="left") - 1, 0, nf - 1)
+    hi = np.clip(np.searchsorted(fs, hi_s, side="right"), 0, nf - 1)
+    seg_new = np.full(len(seg_of), -1, dtype=np.int64)
+    u_new = np.full(len(seg_of), np.nan)
+    d_new = np.full(len(seg_of), np.nan)
+    width = hi - lo + 1
+    order = np.argsort(width)
+    for part in np.array_split(order, max(1, int(width.sum()) // 1_000_000 + 1)):
+        if not len(part):
+            continue
+        band = int(width[part].max())
+        idx = lo[part, None] + np.arange(band)[None, :]
+        valid = idx <= hi[part, None]
+        idx = np.minimum(idx, nf - 1)
+        u, dk = _project(cl[ks[part]][:, None, :], fp0[idx], fd[idx], fdd[idx])
+        dk = np.where(valid, dk, np.inf)
+        score = dk + weight * np.abs(fs[idx] + u * (fs[idx + 1] - fs[idx]) - s_coarse[part, None])
+        best = np.argmax(score <= score.min(axis=1, keepdims=True) + TIE_MM, axis=1)
+        rows = np.arange(len(part))
+        seg_new[ks[part]] = idx[rows, best]
+        u_new[ks[part]] = u[rows, best]
+        d_new[ks[part]] = dk[rows, best]
+    return fine_keep, seg_new, u_new, d_new
+
+
+def _first_passage(c: np.ndarray, tol: float, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
+    """(segment, u, distance) of the closest point of the earliest passage of the path within `tol` of
+    point c, or None. Scans the path from its start in growing blocks (the start is usually early)."""
+    n = len(p0)
+    lo, size = 0, 4096
+    while lo < n:
+        hi = min(n, lo + size)
+        u, dk = _project(c[None, :], p0[lo:hi], d[lo:hi], dd[lo:hi])
+        near = np.flatnonzero(dk <= tol)
+        if len(near):
+            j = int(near[0])
+            end = j  # the passage goes on while within tol; extend the block if it runs past it
+            while True:
+                out = np.flatnonzero(dk[j:] > tol)
+                if len(out) or hi == n:
+                    end = j + (int(out[0]) if len(out) else len(dk) - j)
+                    break
+                hi2 = min(n, hi + size)
+                u2, dk2 = _project(c[None, :], p0[hi:hi2], d[hi:hi2], dd[hi:hi2])
+                u, dk, hi = np.concatenate([u, u2]), np.concatenate([dk, dk2]), hi2
+            best = j + int(np.argmin(dk[j:end]))
+            return lo + best, float(u[best]), float(dk[best])
+        lo, size = hi, size * 2
+    return None
 
 
 def _project(c: np.ndarray, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
@@ -152,13 +232,16 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     if not (tol > 0).all():
         raise AlignmentError(f"tolerances must be > 0 mm, got min {np.nanmin(tol)}")
 
-    keep, s_full = reduce_path(pos, cfg.resolution_mm)
+    fine_keep, s_full = reduce_path(pos, cfg.resolution_mm)
+    # search on a coarse copy of the path (vertices >= coarse_mm apart), refine on the fine one
+    keep = fine_keep[_bin_edges(s_full[fine_keep], cfg.coarse_mm)]
     v = pos[keep]
     sv = s_full[keep]
     p0, d = v[:-1], np.diff(v, axis=0)
     dd = (d * d).sum(axis=1)
     nseg = len(p0)
     spacing = float(np.median(np.diff(sv))) if nseg else 0.0
+    sv_len = np.diff(sv)  # path length along each coarse segment
     dt_all = np.diff(t)
     period = int(np.median(dt_all[dt_all > 0])) if (dt_all > 0).any() else 0
     sparse = period > cfg.sparse_ns
@@ -175,16 +258,9 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     order = np.flatnonzero(finite_cl)
     start = None
     for k in order[: min(len(order), 64)]:
-        u, dk = _project(cl[k][None, :], p0, d, dd)
-        near = np.flatnonzero(dk <= tol[k])
-        if len(near):
-            j = int(near[0])
-            # walk to the local minimum of this passage
-            run_end = j
-            while run_end + 1 < nseg and dk[run_end + 1] <= tol[k]:
-                run_end += 1
-            j = j + int(np.argmin(dk[j:run_end + 1]))
-            seg_of[k], u_of[k], dist[k] = j, u[j], dk[j]
+        found = _first_passage(cl[k], tol[k], p0, d, dd)
+        if found is not None:
+            seg_of[k], u_of[k], dist[k] = found
             start = k
             break
     if start is None:
@@ -192,7 +268,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
                              "of the program's first "
                              f"points (e.g. {np.round(cl[order[0]], 3).tolist() if len(order) else '-'}); wrong "
                              "program, units or work offset?")
-    anchor_s, anchor_S = s_prog[start], sv[seg_of[start]] + u_of[start] * np.sqrt(dd[seg_of[start]])
+    anchor_s, anchor_S = s_prog[start], sv[seg_of[start]] + u_of[start] * sv_len[seg_of[start]]
     ratio = 1.0
     speed = None if speed_mm_s is None else np.nan_to_num(np.asarray(speed_mm_s, dtype=np.float64), nan=0.0)
     tv = t[keep]
@@ -231,7 +307,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         # score: distance + progress_weight x |progress error|; for a point on a straight stretch the
         # distance grows with slope 1 away from the foot point, so a weight < 1 never moves the minimum,
         # but between passes that are equally close (a retraced line) it picks the expected one
-        s_cand = sv[idx] + u * seg_len[idx]
+        s_cand = sv[idx] + u * sv_len[idx]
         score = dk + cfg.progress_weight * np.abs(s_cand - pred[:, None])
         # earliest of the (near-)equally good candidates: arrival, not departure, at a standstill
         near_best = score <= score.min(axis=1, keepdims=True) + TIE_MM
@@ -246,14 +322,24 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         good = ks[dist[ks] <= tol[ks] + cfg.chord_allowance * reach]
         if len(good):
             a = good[-1]
-            new_s, new_S = s_prog[a], sv[seg_of[a]] + u_of[a] * seg_len[seg_of[a]]
+            new_s, new_S = s_prog[a], sv[seg_of[a]] + u_of[a] * sv_len[seg_of[a]]
             if new_s - anchor_s > w0:  # local ratio of measured to programmed length, for the prediction
                 ratio = float(np.clip((new_S - anchor_S) / (new_s - anchor_s), 0.05, 1.0 + drift))
             anchor_s, anchor_S = new_s, new_S
         i = hi_i
 
-    # 4. monotone progress
+    # refine every match on the fine path, around its coarse segment and the two next to it
     m = seg_of >= 0
+    if m.any():
+        keep, seg_of, u_of, dist = _refine(cl, m, seg_of, u_of, sv, s_full, fine_keep, pos, cfg.progress_weight)
+        v = pos[keep]
+        sv = s_full[keep]
+        p0, d = v[:-1], np.diff(v, axis=0)
+        seg_len = np.sqrt((d * d).sum(axis=1))
+        sv_len = np.diff(sv)
+        nseg = len(p0)
+
+    # 4. monotone progress
     frac = np.where(m, seg_of + np.nan_to_num(u_of), np.nan)
     mono = frac.copy()
     mono[m] = np.maximum.accumulate(frac[m])
@@ -275,7 +361,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         j, uu = seg_of[m], u_of[m]
         a, b = keep[j], keep[j + 1]
         # inside a reduced segment the path is (nearly) straight: locate by length, not by sample count
-        s_at = sv[j] + uu * seg_len[j]
+        s_at = sv[j] + uu * sv_len[j]
         sub = np.searchsorted(s_full, s_at, side="left") - 1
         sub = np.clip(np.maximum(sub, a), a, np.maximum(b - 1, a))
         span = s_full[sub + 1] - s_full[sub] if len(s_full) > 1 else np.zeros(len(sub))

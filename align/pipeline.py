@@ -17,6 +17,7 @@ Steps (each one a module of its own):
 
 from __future__ import annotations
 
+import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -144,6 +145,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     Keyword overrides set `AlignConfig` fields, e.g. `align_recording(rec, tol_mm=2.0)`.
     """
     cfg = replace(config or AlignConfig(), **overrides) if overrides else (config or AlignConfig())
+    lap = _Laps()
     prof = _profile(recording, profile)
     prog = _program(recording, program)
     axes, cols = _positions(recording, cfg)
@@ -152,6 +154,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     xyz = pos[:, :3]
     report: dict[str, Any] = {"recording": recording.source, "program": prog.name, "config": _config_dict(cfg),
                               "warnings": []}
+    lap("inputs")
     timing = stream_timing(t, name=cfg.positions)
     report["timing"] = {cfg.positions: timing.as_dict()}
     if timing.gaps:
@@ -165,8 +168,10 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     report["motion"] = {"t_start_ns": span.t_start_ns, "t_end_ns": span.t_end_ns, "cycle_time_s": span.duration_s,
                         "sub_sample_model": refined}
 
+    lap("motion_span")
     # --- CL points and the constrained match -------------------------------------------------------
     cl = cl_points(prog, chord_tol_mm=cfg.chord_tol_mm).reset_index(drop=True)
+    lap("cl_points")
     if len(cl) < 2:
         raise AlignmentError(f"{prog.name}: the program has no motion to align")
     blocks_tab = prog.blocks.set_index("block")
@@ -181,6 +186,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     speed = np.where(kind == RAPID, rapid_mm_min, cl["feed_mm_min"].to_numpy(dtype=np.float64)) / 60.0
     match = match_cl_points(cl[list(LINEAR)].to_numpy(dtype=np.float64), t, xyz, s_mm=cl["s_mm"].to_numpy(),
                             config=mcfg, tolerance=tolerance, check=check, labels=labels, speed_mm_s=speed)
+    lap("match")
     d = match.dist_mm[np.isfinite(match.dist_mm)]
     report["match"] = {"cl_points": len(cl), "measured_samples": len(t), "matched": int(match.matched.sum()),
                        "dist_median_mm": float(np.median(d)) if len(d) else None,
@@ -195,6 +201,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     path_feed, feed_from = _path_feed(recording, cfg, feeds, tq)
     report["feed_source"] = feed_from
     points = _points_table(cl, match, feeds, path_feed, span)
+    lap("feeds")
 
     # --- blocks -------------------------------------------------------------------------------------
     motion = prog.motion.reset_index(drop=True)
@@ -217,7 +224,9 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
                                end_leave_ns=leave)
     geo["source"] = "geometry"
     report["boundary"] = boundary
+    lap("geometry_blocks")
     line_blocks = _line_blocks(recording, cfg, motion, span, geo, report)
+    lap("line_blocks")
     primary = line_blocks if line_blocks is not None else geo
 
     feats = block_features(prog, prof)
@@ -227,6 +236,8 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
                         "unseen_in_line_stream": int((~line_blocks["seen"]).sum()) if line_blocks is not None else None,
                         "sum_duration_s": float(primary["duration_s"].sum())}
     report["cycle_time_s"] = span.duration_s
+    lap("features")
+    report["timings_s"] = lap.laps
     return Alignment(points=points, blocks=blocks_out, cycle_time_s=span.duration_s, report=report,
                      geometry_blocks=geo, line_blocks=line_blocks)
 
@@ -241,6 +252,19 @@ def _refine_with_sim(span: MotionSpan, t: np.ndarray, xyz: np.ndarray, prog: Pro
         return span, None
     series = sim.series
     return refine_span(span, t, xyz, series["t_ns"].to_numpy(), series[list(LINEAR)].to_numpy()), f"sim:{prof.name}"
+
+
+class _Laps:
+    """Wall time per pipeline step, for the report."""
+
+    def __init__(self) -> None:
+        self.laps: dict[str, float] = {}
+        self._t = time.perf_counter()
+
+    def __call__(self, name: str) -> None:
+        now = time.perf_counter()
+        self.laps[name] = round(now - self._t, 6)
+        self._t = now
 
 
 def _config_dict(cfg: AlignConfig) -> dict[str, Any]:
