@@ -29,6 +29,7 @@ import pandas as pd
 from feedlog.profile import MachineProfile
 from feedlog.sim.context import Context, Trajectory
 from feedlog.sim.mechanism import Mechanism
+from feedlog.sim.path import projected_limits
 from feedlog.units import seconds_to_ns
 
 
@@ -100,14 +101,19 @@ class TrunnionKinematics(Mechanism):
         b = ctx.blocks
         ia, ic = self._axes(ctx)
         ori = b.extra.get("ori")
-        if self.orientation_from_vectors and ori is not None:
-            have = ~np.isnan(ori).any(axis=1)
-            if have.all() and len(b):
-                a_end, c_end = rotary_from_orientation(ori)
-                b.p1[:, ia], b.p1[:, ic] = a_end, c_end
-                b.p0[1:, ia], b.p0[1:, ic] = a_end[:-1], c_end[:-1]
-                b.p0[0, ia], b.p0[0, ic] = a_end[0], c_end[0]
+        if self.orientation_from_vectors and ori is not None and len(b):
+            have = ~np.isnan(ori).any(axis=1) & (np.linalg.norm(np.nan_to_num(ori), axis=1) > 0)
+            if have.any():
+                a_end, c_end = rotary_from_orientation(ori[have])
+                b.p1[have, ia], b.p1[have, ic] = a_end, c_end
+                # each block starts where the previous one ended
+                b.p0[1:, ia], b.p0[1:, ic] = b.p1[:-1, ia], b.p1[:-1, ic]
                 b.rotary = (np.abs(b.p1[:, [ia, ic]] - b.p0[:, [ia, ic]]) > 1e-9).any(axis=1)
+                vel = np.array([ctx.profile.axes[a].vel_max for a in b.axes])
+                acc = np.array([ctx.profile.axes[a].acc_max for a in b.axes])
+                v_axis, a_axis = projected_limits(b.p1 - b.p0, b.length, vel, acc)
+                b.v_limit = np.minimum(b.v_limit, v_axis)
+                b.a_max = np.minimum(b.a_max, a_axis)
         if not self.limit_joints or not len(b):
             return
         n = len(b)
