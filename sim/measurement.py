@@ -1,7 +1,7 @@
 """Measurement model: what a data logger would record of a simulated run.
 
 Turns a `SimResult` into a `feedlog.ingest.recording.Recording` with the standard streams `axes`,
-`feed` and `line`, sampled at `rate_hz` (5 Hz .. 1 kHz) with a constant latency (the logger sees
+`feed` and `line` (and `joints` when the machine has five-axis kinematics), sampled at `rate_hz` (5 Hz .. 1 kHz) with a constant latency (the logger sees
 the motion `latency_s` late), Gaussian timestamp jitter, position quantisation (encoder or
 fieldbus resolution) and Gaussian measurement noise. Continuous channels (positions, feed) are
 interpolated, the executing line holds its last value. Deterministic for a given `seed`.
@@ -81,6 +81,13 @@ def measure(result: SimResult, model: MeasurementModel | None = None, *, program
     held = np.clip(np.searchsorted(t_sim, t_seen, side="right") - 1, 0, len(t_sim) - 1)
     line = series["line"].to_numpy(np.int64)[held]
 
+    streams = {"axes": pd.DataFrame(axes), "feed": pd.DataFrame({"t_ns": t_ns, "feed_mm_min": feed}),
+               "line": pd.DataFrame({"t_ns": t_ns, "line": line})}
+    joints = result.joints
+    if joints is not None:  # five-axis kinematics: machine joint positions, sampled the same way
+        jt = joints["t_ns"].to_numpy(np.int64) / 1e9
+        streams["joints"] = pd.DataFrame({"t_ns": t_ns, **{c: np.interp(t_seen, jt, joints[c].to_numpy(np.float64))
+                                                          for c in joints.columns if c != "t_ns"}})
     profile = result.profile
     metadata = {"machine": profile.name, "controller": f"feedlog.sim ({profile.controller or 'simulated'})",
                 "units": "mm", "nominal_rate_hz": f"{model.rate_hz:g}", "start_time": str(start_time_ns),
@@ -89,7 +96,4 @@ def measure(result: SimResult, model: MeasurementModel | None = None, *, program
     attachments = {PROFILE_ATTACHMENT: profile.to_toml().encode()}
     if program_text is not None:
         attachments[PROGRAM_ATTACHMENT] = program_text.encode()
-    return Recording(streams={"axes": pd.DataFrame(axes),
-                              "feed": pd.DataFrame({"t_ns": t_ns, "feed_mm_min": feed}),
-                              "line": pd.DataFrame({"t_ns": t_ns, "line": line})},
-                     metadata=metadata, attachments=attachments, source="feedlog.sim")
+    return Recording(streams=streams, metadata=metadata, attachments=attachments, source="feedlog.sim")

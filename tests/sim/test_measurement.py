@@ -60,3 +60,13 @@ def test_deterministic_for_a_seed(result):
 def test_bad_models_raise(kwargs):
     with pytest.raises(SimulationError):
         MeasurementModel(**kwargs)
+
+
+def test_five_axis_recording_has_joints(make_machine, gcode):
+    prof = make_machine(five_axis=True)
+    res = simulate(gcode("G21 G90 G61\nF1200\nG1 X10 C90\n"), prof)
+    rec = measure(res, MeasurementModel(rate_hz=100))
+    joints = rec.stream("joints")
+    assert list(joints.columns) == ["t_ns", "j0_pos", "j1_pos", "j2_pos", "j3_pos", "j4_pos"]
+    # table rotated 90 deg about C: the workpiece point (10, 0) is at machine (0, 10)
+    assert joints[["j0_pos", "j1_pos"]].iloc[-1].to_numpy() == pytest.approx([0.0, 10.0], abs=1e-6)
