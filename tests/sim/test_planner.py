@@ -189,3 +189,31 @@ def test_last_continuous_block_runs_at_half_acceleration(plain, gcode):
     g61 = simulate(gcode("G21 G90 G61\nG1 X100 F3000\n"), plain, mechanisms=["lookahead", "blend_arc"])
     assert g64.cycle_time_s == pytest.approx(100 / 50 + 50 / 500, abs=1e-6)
     assert g61.cycle_time_s == pytest.approx(100 / 50 + 50 / 1000, abs=1e-6)
+
+
+def test_parabolic_blends_keep_the_path_continuous_and_within_limits(make_machine, gcode):
+    """Rotary motion: LinuxCNC's parabolic blends overlap two blocks; positions stay continuous,
+    axis speeds within limits, and the path still ends at the program's end point."""
+    prof = make_machine(five_axis=True)
+    rows = "\n".join(f"G1 X{2 * i} Y{(i % 2) * 2} C{10 * i}" for i in range(1, 15))
+    res = simulate(gcode("G21 G90 G64 P0.05\nF3000\n" + rows + "\n"), prof, mechanisms=["lookahead", "blend_arc"])
+    assert res.trajectory.plan.overlap_s.max() > 0.005  # the blends really overlap
+    s = res.series
+    vel = np.abs(np.diff(s[["x_mm", "y_mm", "z_mm", "a_deg", "c_deg"]].to_numpy(), axis=0)) / 0.001
+    limits = np.array([50, 50, 50, 60, 60])
+    assert (vel <= limits * 1.001).all()
+    assert s[["x_mm", "y_mm", "c_deg"]].iloc[-1].to_numpy() == pytest.approx([28.0, 0.0, 140.0])
+    # blocks follow each other without gaps or overlaps in the block table
+    b = res.blocks
+    assert (b["t_start_ns"].to_numpy()[1:] == b["t_end_ns"].to_numpy()[:-1]).all()
+
+
+def test_consumed_short_line_runs_at_arc_speed(plain, gcode):
+    """A line shorter than a few servo cycles between two blend arcs is consumed (LinuxCNC
+    blendCheckConsume): it runs at the blend speed and takes no separate servo-cycle minimum."""
+    prog = gcode("G21 G90 G64 P0.5\nF3000\nG1 X20\nG1 X20.3 Y0.3\nG1 X40 Y0.3\n")
+    res = simulate(prog, plain, mechanisms=["lookahead", "blend_arc"])
+    assert res.cycle_time_s < simulate(gcode("G21 G90 G61\nF3000\nG1 X20\nG1 X20.3 Y0.3\nG1 X40 Y0.3\n"), plain,
+                                       mechanisms=["lookahead", "blend_arc"]).cycle_time_s
+    mid = res.series[(res.series["x_mm"] > 19.5) & (res.series["x_mm"] < 21.0)]
+    assert mid["feed_mm_min"].min() > 300  # never crawls through the short middle block
