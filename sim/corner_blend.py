@@ -152,6 +152,8 @@ class BlendArcCorner(Mechanism):
         half = continuous & end_stop & ~halved & (length > 0)
         a_max[half] *= 0.5
         ctx.pieces = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)
+        ctx.notes.update(blend_arcs=int(use_arc.sum()), tangent_junctions=int(use_kink.sum()),
+                         parabolic_blends=int(overlap.sum()), consumed_lines=int((ctx.pieces.clamp_len == 0).sum()))
 
     @staticmethod
     def _continuous(blocks, b: np.ndarray) -> np.ndarray:

@@ -215,5 +215,6 @@ def test_consumed_short_line_runs_at_arc_speed(plain, gcode):
     res = simulate(prog, plain, mechanisms=["lookahead", "blend_arc"])
     assert res.cycle_time_s < simulate(gcode("G21 G90 G61\nF3000\nG1 X20\nG1 X20.3 Y0.3\nG1 X40 Y0.3\n"), plain,
                                        mechanisms=["lookahead", "blend_arc"]).cycle_time_s
+    assert res.notes["blend_arcs"] == 2 and res.notes["consumed_lines"] == 1
     mid = res.series[(res.series["x_mm"] > 19.5) & (res.series["x_mm"] < 21.0)]
     assert mid["feed_mm_min"].min() > 300  # never crawls through the short middle block
