@@ -152,7 +152,8 @@ def resolve_mechanisms(profile: MachineProfile, mechanisms: MechanismSpec = None
     Parameter layers (later wins): class defaults from the profile, the controller preset, the
     profile's `[sim.<name>]` table, then `mechanisms`. `mechanisms` is either a sequence of names
     (exactly those run; the default interpolator is added when none is named) or a mapping
-    `name -> {param: value}` / `name -> True/False` applied on top of the profile.
+    `name -> {param: value}` / `name -> True/False` applied on top of the profile; switching on an
+    interpolator or a corner law there switches off the others of its kind.
     """
     tables: dict[str, dict[str, Any]] = {}
     for name, table in _preset(profile).items():
@@ -176,6 +177,14 @@ def resolve_mechanisms(profile: MachineProfile, mechanisms: MechanismSpec = None
                 enabled[name] = bool(value.get("enabled", True))
             else:
                 raise SimulationError(f"mechanism {name!r}: expected True/False or a parameter mapping, got {value!r}")
+        # switching on an interpolator or a corner law switches off the others of its kind
+        for kind in ("interpolator", "corner"):
+            chosen = [n for n, v in mechanisms.items() if enabled.get(n) and mechanism_class(n).kind == kind
+                      and (v is True or isinstance(v, Mapping) and v.get("enabled", True))]
+            if chosen:
+                for other in REGISTRY:
+                    if other not in chosen and mechanism_class(other).kind == kind:
+                        enabled[other] = False
     elif mechanisms is not None:
         names = [str(m) for m in mechanisms]
         for name in names:

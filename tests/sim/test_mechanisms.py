@@ -31,7 +31,16 @@ def test_unknown_mechanism_and_parameter_are_rejected(plain):
     with pytest.raises(SimulationError, match="must be > 0"):
         resolve_mechanisms(plain, {"feed_override": {"override": 0}})
     with pytest.raises(SimulationError, match="exactly one interpolator"):
-        resolve_mechanisms(plain, {"fir": True})
+        resolve_mechanisms(plain, {"lookahead": False})
+    with pytest.raises(SimulationError, match="exactly one interpolator"):
+        resolve_mechanisms(plain, ["fir", "cam"])
+
+
+def test_switching_on_an_interpolator_or_corner_law_replaces_the_default(plain):
+    names = {m.name for m in resolve_mechanisms(plain, {"fir": True})}
+    assert "fir" in names and "lookahead" not in names
+    names = {m.name for m in resolve_mechanisms(plain, {"junction_deviation": {"default_deviation_mm": 0.02}})}
+    assert "junction_deviation" in names and "blend_arc" not in names
 
 
 def test_profile_sim_tables_switch_and_parameterise(plain):
