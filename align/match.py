@@ -21,7 +21,8 @@ constrained to progress along the program:
    comes back to the same place later lies beyond the window. Inside it the candidate with the least
    distance + progress_weight x |S - S_pred| wins, S_pred = S_anchor + r ds with r the measured/programmed
    length ratio of the last chunk; this separates a line retraced right after a reversal (equally close,
-   far apart in progress) and never moves the foot point on a straight stretch (weight < 1).
+   far apart in progress) and never moves the foot point on a straight stretch (weight < 1). A best
+   candidate on the window's edge means the window was too small: it is widened (up to MAX_WIDEN times).
 4. Progress is made monotone (a running maximum over the matched positions); a point pushed forward is
    re-measured at its new position.
 
@@ -52,7 +53,7 @@ class MatchConfig:
                                    # 0.05 dense
     progress_weight: float = 0.25  # mm of score per mm of distance from the predicted progress
     chunk_points: int = 256        # CL points per chunk
-    chunk_mm: float | None = None  # program length per chunk (at least one point); None: 10 mm dense,
+    chunk_mm: float | None = None  # program length per chunk (at least one point); None: 25 mm dense,
                                    # 50 mm sparse
     sparse_ns: int = 5_000_000     # sampling period above which the data count as sparse
     resolution_mm: float = 1e-3    # vertex spacing of the reduced measured path
@@ -99,6 +100,7 @@ class Match:
 
 NO_TIME = np.iinfo(np.int64).min
 TIE_MM = 1e-6
+MAX_WIDEN = 4
 
 
 def reduce_path(positions: np.ndarray, resolution_mm: float) -> tuple[np.ndarray, np.ndarray]:
@@ -134,11 +136,8 @@ def _refine(cl, m, seg_of, u_of, sv_c, s_full, fine_keep, pos, weight):
     s_coarse = sv_c[j] + u_of[ks] * (sv_c[np.minimum(j + 1, len(sv_c) - 1)] - sv_c[j])
     lo_s = sv_c[np.maximum(j - 1, 0)]
     hi_s = sv_c[np.minimum(j + 2, len(sv_c) - 1)]
-    fv = pos[fine_keep]
     fs = s_full[fine_keep]
-    fp0, fd = fv[:-1], np.diff(fv, axis=0)
-    fdd = (fd * fd).sum(axis=1)
-    nf = len(fp0)
+    nf = len(fine_keep) - 1
     lo = np.clip(np.searchsorted(fs, lo_s, side="left") - 1, 0, nf - 1)
     hi = np.clip(np.searchsorted(fs, hi_s, side="right"), 0, nf - 1)
     seg_new = np.full(len(seg_of), -1, dtype=np.int64)
@@ -153,7 +152,9 @@ def _refine(cl, m, seg_of, u_of, sv_c, s_full, fine_keep, pos, weight):
         idx = lo[part, None] + np.arange(band)[None, :]
         valid = idx <= hi[part, None]
         idx = np.minimum(idx, nf - 1)
-        u, dk = _project(cl[ks[part]][:, None, :], fp0[idx], fd[idx], fdd[idx])
+        fp0 = pos[fine_keep[idx]]
+        fd = pos[fine_keep[idx + 1]] - fp0
+        u, dk = _project(cl[ks[part]][:, None, :], fp0, fd, (fd * fd).sum(axis=-1))
         dk = np.where(valid, dk, np.inf)
         score = dk + weight * np.abs(fs[idx] + u * (fs[idx + 1] - fs[idx]) - s_coarse[part, None])
         best = np.argmax(score <= score.min(axis=1, keepdims=True) + TIE_MM, axis=1)
@@ -162,6 +163,53 @@ def _refine(cl, m, seg_of, u_of, sv_c, s_full, fine_keep, pos, weight):
         u_new[ks[part]] = u[rows, best]
         d_new[ks[part]] = dk[rows, best]
     return fine_keep, seg_new, u_new, d_new
+
+
+class _LazySegments:
+    """p0[j] (segment start) or d[j] (segment vector) of the path keep[j] -> keep[j + 1], on demand."""
+
+    def __init__(self, pos: np.ndarray, keep: np.ndarray, *, start: bool) -> None:
+        self.pos, self.keep, self.start = pos, keep, start
+
+    def __getitem__(self, j):
+        a = self.pos[self.keep[j]]
+        return a if self.start else self.pos[self.keep[np.asarray(j) + 1]] - a
+
+
+class _LazyLength:
+    def __init__(self, pos: np.ndarray, keep: np.ndarray) -> None:
+        self.d = _LazySegments(pos, keep, start=False)
+
+    def __getitem__(self, j):
+        v = self.d[j]
+        return np.sqrt((v * v).sum(axis=-1))
+
+
+class _LazyDiff:
+    def __init__(self, values: np.ndarray) -> None:
+        self.values = values
+
+    def __getitem__(self, j):
+        j = np.asarray(j)
+        return self.values[j + 1] - self.values[j]
+
+
+def _best_in_windows(c, pred, lo, hi, p0, d, dd, sv, sv_len, weight):
+    """For points c (k, 3): the best segment in [lo, hi] by distance + weight x |S - pred| (earliest of
+    near-equal ones: arrival, not departure, at a standstill). For a point on a straight stretch the
+    distance grows with slope 1 away from the foot point, so a weight < 1 never moves the minimum, but
+    between equally close passes (a retraced line) it picks the expected one."""
+    nseg = len(sv) - 1
+    band = int((hi - lo).max()) + 1
+    idx = lo[:, None] + np.arange(band)[None, :]
+    valid = idx <= hi[:, None]
+    idx = np.minimum(idx, nseg - 1)
+    u, dk = _project(c[:, None, :], p0[idx], d[idx], dd[idx])
+    dk = np.where(valid, dk, np.inf)
+    score = dk + weight * np.abs(sv[idx] + u * sv_len[idx] - pred[:, None])
+    best = np.argmax(score <= score.min(axis=1, keepdims=True) + TIE_MM, axis=1)
+    rows = np.arange(len(c))
+    return idx[rows, best], u[rows, best], dk[rows, best]
 
 
 def _first_passage(c: np.ndarray, tol: float, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
@@ -227,7 +275,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         seg[~(finite_cl[1:] & finite_cl[:-1])] = 0.0
         s_mm = np.concatenate([[0.0], np.cumsum(seg)])
     s_prog = np.asarray(s_mm, dtype=np.float64)
-    tol = np.full(k_all, cfg.tol_mm) if tolerance is None else np.broadcast_to(
+    tol = np.full(k_all, float(cfg.tol_mm)) if tolerance is None else np.broadcast_to(
         np.asarray(tolerance, dtype=np.float64), (k_all,)).copy()
     if not (tol > 0).all():
         raise AlignmentError(f"tolerances must be > 0 mm, got min {np.nanmin(tol)}")
@@ -247,7 +295,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     sparse = period > cfg.sparse_ns
     w_min = 2.0 if sparse else 0.5
     w0 = cfg.window_mm if cfg.window_mm is not None else max(w_min, 3.0 * spacing, 4.0 * float(tol.max()))
-    chunk_mm = cfg.chunk_mm if cfg.chunk_mm is not None else (50.0 if sparse else 10.0)
+    chunk_mm = cfg.chunk_mm if cfg.chunk_mm is not None else (50.0 if sparse else 25.0)
     drift = cfg.drift if cfg.drift is not None else (0.2 if sparse else 0.05)
 
     seg_of = np.full(k_all, -1, dtype=np.int64)
@@ -298,24 +346,19 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
             hi_s = pred + w0 + drift * ds
         lo = np.clip(np.searchsorted(sv, lo_s, side="right") - 1, 0, max(nseg - 1, 0))
         hi = np.clip(np.searchsorted(sv, hi_s, side="left"), 0, max(nseg - 1, 0))
-        band = int((hi - lo).max()) + 1
-        idx = lo[:, None] + np.arange(band)[None, :]
-        valid = idx <= hi[:, None]
-        idx = np.minimum(idx, nseg - 1)
-        u, dk = _project(cl[ks][:, None, :], p0[idx], d[idx], dd[idx])
-        dk = np.where(valid, dk, np.inf)
-        # score: distance + progress_weight x |progress error|; for a point on a straight stretch the
-        # distance grows with slope 1 away from the foot point, so a weight < 1 never moves the minimum,
-        # but between passes that are equally close (a retraced line) it picks the expected one
-        s_cand = sv[idx] + u * sv_len[idx]
-        score = dk + cfg.progress_weight * np.abs(s_cand - pred[:, None])
-        # earliest of the (near-)equally good candidates: arrival, not departure, at a standstill
-        near_best = score <= score.min(axis=1, keepdims=True) + TIE_MM
-        best = np.argmax(near_best, axis=1)
-        rows = np.arange(len(ks))
-        seg_of[ks] = idx[rows, best]
-        u_of[ks] = u[rows, best]
-        dist[ks] = dk[rows, best]
+        todo = np.arange(len(ks))
+        for _ in range(MAX_WIDEN):
+            seg_b, u_b, d_b = _best_in_windows(cl[ks[todo]], pred[todo], lo[todo], hi[todo], p0, d, dd, sv, sv_len,
+                                               cfg.progress_weight)
+            seg_of[ks[todo]], u_of[ks[todo]], dist[ks[todo]] = seg_b, u_b, d_b
+            # a best candidate on the window's edge may hide a better one beyond it: widen and retry
+            edge = ((seg_b == lo[todo]) & (lo[todo] > 0)) | ((seg_b == hi[todo]) & (hi[todo] < nseg - 1))
+            if not edge.any():
+                break
+            todo = todo[edge]
+            width = hi[todo] - lo[todo] + 1
+            lo[todo] = np.maximum(lo[todo] - width, 0)
+            hi[todo] = np.minimum(hi[todo] + width, nseg - 1)
         reach = seg_len[seg_of[ks]]
         if speed is not None:
             reach = np.maximum(reach, speed[ks] * seg_dt[seg_of[ks]])
@@ -332,12 +375,13 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     m = seg_of >= 0
     if m.any():
         keep, seg_of, u_of, dist = _refine(cl, m, seg_of, u_of, sv, s_full, fine_keep, pos, cfg.progress_weight)
-        v = pos[keep]
         sv = s_full[keep]
-        p0, d = v[:-1], np.diff(v, axis=0)
-        seg_len = np.sqrt((d * d).sum(axis=1))
-        sv_len = np.diff(sv)
-        nseg = len(p0)
+        nseg = len(keep) - 1
+        # fine segment geometry, gathered only where needed
+        p0 = _LazySegments(pos, keep, start=True)
+        d = _LazySegments(pos, keep, start=False)
+        seg_len = _LazyLength(pos, keep)
+        sv_len = _LazyDiff(sv)
 
     # 4. monotone progress
     frac = np.where(m, seg_of + np.nan_to_num(u_of), np.nan)
