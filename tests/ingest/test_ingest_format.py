@@ -8,6 +8,8 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
@@ -253,3 +255,25 @@ def test_failed_write_keeps_flushed_data_and_ends_the_file_when_it_can(tmp_path,
             read_recording(path)
         rec = read_recording(path, recover=True)
     np.testing.assert_array_equal(rec.streams["feed"]["t_ns"].to_numpy(), t)
+
+
+_DTYPES = [np.float64, np.float32, np.int64, np.int32, np.int8, np.bool_]
+
+
+@settings(max_examples=20, deadline=None)
+@given(n=st.integers(0, 40_000), seed=st.integers(0, 2**31), kinds=st.lists(st.sampled_from(range(6)), max_size=5),
+       rows_per_message=st.sampled_from([1, 7, 16384]))
+def test_round_trip_of_random_streams(tmp_path_factory, n, seed, kinds, rows_per_message):
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.integers(-10**12, 10**12, n)).astype(np.int64)  # negative times too
+    columns = {"t_ns": t}
+    for k, kind in enumerate(kinds):
+        dtype = _DTYPES[kind]
+        values = rng.integers(-100, 100, n) if dtype not in (np.float64, np.float32) else rng.normal(size=n)
+        columns[f"c{k}"] = (values > 0) if dtype is np.bool_ else values.astype(dtype)
+    table = pd.DataFrame(columns)
+    path = tmp_path_factory.mktemp("rt") / "r.mcap"
+    with RecordingWriter(path, rows_per_message=rows_per_message if n < 2000 else 16384) as w:
+        w.write("s", table.iloc[: n // 2])
+        w.write("s", table.iloc[n // 2:])
+    pd.testing.assert_frame_equal(read_recording(path).streams["s"], table, check_dtype=True)
