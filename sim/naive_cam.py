@@ -68,6 +68,14 @@ class NaiveCamMerge(Mechanism):
         keep = np.ones(n, bool)
         start_of = np.arange(n)       # for kept rows: the row whose start is the merged start
         idx = np.flatnonzero(cand) + 1  # rows that may join their predecessor
+        # an isolated candidate (neither neighbour is one) forms the chain [i - 1, i], whose exact
+        # test is the three-point pre-test it passed: merge those without the loop
+        is_cand = np.zeros(n + 1, bool)
+        is_cand[idx] = True
+        alone = ~is_cand[idx - 1] & ~is_cand[idx + 1]
+        keep[idx[alone] - 1] = False
+        start_of[idx[alone]] = idx[alone] - 1
+        idx = idx[~alone]
         need = np.unique(np.concatenate([idx, idx - 1]))
         ends = dict(zip(need.tolist(), map(tuple, p1[need].tolist())))
         starts = dict(zip(need.tolist(), p0[need].tolist()))
