@@ -8,6 +8,8 @@ a file, a running viewer, a served web viewer, or a freshly spawned viewer (the 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 import time
 from pathlib import Path
 
@@ -41,9 +43,34 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--overwrite", action="store_true", help="replace an existing --save file")
 
 
+WEB_PORT = 9090
+
+
+def check_display() -> None:
+    """A spawned viewer needs a display: say so before any work is done."""
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise FeedlogError("no display to open a Rerun viewer on (DISPLAY/WAYLAND_DISPLAY unset); "
+                           "use --save OUT.rrd (then `rerun OUT.rrd` elsewhere), --connect URL or --serve")
+
+
+def spawn_viewer(stream, blueprint) -> None:
+    """Start a Rerun viewer (the `rerun` next to this Python first) or say how else to look."""
+    bin_dir = Path(sys.executable).parent
+    if (bin_dir / "rerun").exists() and str(bin_dir) not in os.environ.get("PATH", "").split(os.pathsep):
+        os.environ["PATH"] = f"{bin_dir}{os.pathsep}{os.environ.get('PATH', '')}"
+    try:
+        stream.spawn(default_blueprint=blueprint)
+    except RuntimeError as exc:
+        first = str(exc).strip().splitlines()[0]
+        raise FeedlogError(f"cannot start the Rerun viewer ({first}); use --save OUT.rrd, --connect or --serve") \
+            from None
+
+
 def run(args: argparse.Namespace) -> int:
     if args.save is not None and args.save.exists() and not args.overwrite:
         raise FeedlogError(f"{args.save} exists; pass --overwrite to replace it")
+    if args.save is None and args.connect is None and not args.serve:
+        check_display()
     recording = stage_function("read_recording")(args.recording)
     name = args.recording.stem
     gathered = gather(recording, name=name, program=args.program, profile=args.profile, simulate=args.sim,
@@ -67,13 +94,17 @@ def run(args: argparse.Namespace) -> int:
     elif args.serve:
         uri = stream.serve_grpc(default_blueprint=blueprint)
         import rerun as rr
-        rr.serve_web_viewer(open_browser=False, connect_to=uri)
-        print(f"serving {uri}; open the web viewer printed above; Ctrl-C to stop")
+        rr.serve_web_viewer(web_port=WEB_PORT, open_browser=False, connect_to=uri)
+        print(f"serving {uri}; web viewer: http://localhost:{WEB_PORT}/?url={uri} "
+              f"(or `rerun --connect {uri}`); Ctrl-C to stop")
     else:
-        stream.spawn(default_blueprint=blueprint)
+        spawn_viewer(stream, blueprint)
     stream.send_recording_name(name)
     counts = log_view(data, stream)
-    stream.flush()
+    try:
+        stream.flush()
+    except RuntimeError as exc:  # the viewer went away or was never reachable
+        raise FeedlogError(f"could not deliver the recording to the Rerun viewer: {exc}") from None
     print(f"{name}: {sum(counts.values())} samples over {len(counts)} series")
     if args.png is not None:
         for kind, path in plot_view(data, args.png).items():

@@ -61,3 +61,11 @@ def test_view_refuses_to_overwrite_and_reports_bad_files(tmp_path, recording_fil
     assert main(["view", str(broken), "--save", str(tmp_path / "b.rrd")]) == 1
     err = capsys.readouterr().err
     assert err.startswith("feedlog view: error:") and "broken.mcap" in err and "Traceback" not in err
+
+
+def test_view_without_a_display_says_how_else_to_look(recording_file, monkeypatch, capsys):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr("sys.platform", "linux")
+    assert main(["view", str(recording_file), "--no-align"]) == 1
+    assert "use --save OUT.rrd" in capsys.readouterr().err
