@@ -173,11 +173,15 @@ def _diagnostic_read(path: Path, header_line: int, used: dict[str, str], cmap: C
         return "skip"
 
     sources = list(dict.fromkeys(used.values()))
-    table = pacsv.read_csv(
-        path,
-        read_options=pacsv.ReadOptions(skip_rows=header_line - 1, use_threads=False),
-        parse_options=pacsv.ParseOptions(delimiter=delimiter, invalid_row_handler=on_invalid),
-        convert_options=pacsv.ConvertOptions(column_types={s: pa.string() for s in sources}, include_columns=sources))
+    try:  # as bytes: a cell that is not even UTF-8 is a bad value, not a crash
+        table = pacsv.read_csv(
+            path,
+            read_options=pacsv.ReadOptions(skip_rows=header_line - 1, use_threads=False),
+            parse_options=pacsv.ParseOptions(delimiter=delimiter, invalid_row_handler=on_invalid),
+            convert_options=pacsv.ConvertOptions(column_types={s: pa.binary() for s in sources},
+                                                 include_columns=sources))
+    except pa.ArrowException as exc:
+        raise IngestError(f"unreadable CSV: {exc}", file=str(path)) from None
     lines = _data_lines(path, header_line)
     # pyarrow numbers a row as skip_rows + 1 (header) + its 1-based index among non-empty data rows
     dropped = np.array([number - header_line - 1 for number, _ in wrong_width], dtype=np.int64)
@@ -187,7 +191,8 @@ def _diagnostic_read(path: Path, header_line: int, used: dict[str, str], cmap: C
     keep = np.ones(table.num_rows, dtype=bool)
     converted: dict[str, np.ndarray] = {}
     for target, source in used.items():
-        text = table.column(source).to_numpy(zero_copy_only=False)
+        raw = pd.Series(table.column(source).to_numpy(zero_copy_only=False), dtype=object)
+        text = raw.str.decode("utf-8", errors="replace").to_numpy(dtype=object)
         if target == "t" and cmap.time_unit == "datetime":
             values, ok = _parse_datetimes(text, cmap)
         else:

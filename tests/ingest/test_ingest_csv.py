@@ -145,3 +145,12 @@ def test_csv_round_trip_of_random_traces(tmp_path_factory, n, seed, delimiter):
     assert rec.streams["axes"]["t_ns"].tolist() == (t_ms.astype(np.int64) * 1_000_000).tolist()
     np.testing.assert_allclose(rec.streams["axes"]["x_mm"], x * 1e-3, rtol=1e-12)
     assert rec.streams["line"]["line"].tolist() == line.tolist()
+
+
+def test_bytes_that_are_not_utf8_are_a_bad_value_not_a_crash(tmp_path):
+    path = tmp_path / "binary.csv"
+    path.write_bytes(b"t,x\n0,1\n1,\xff\xfe\n2,3\n")
+    cmap = ColumnMap(mapping=parse_map("t=t,x=x"))
+    with pytest.raises(IngestError, match=r"binary\.csv:3: 1 bad rows at lines 3; first: column 'x'"):
+        read_csv(path, cmap)
+    assert read_csv(path, cmap, strict=False).streams["axes"]["x_mm"].tolist() == [1.0, 3.0]
