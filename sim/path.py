@@ -116,10 +116,14 @@ class Pieces:
 
     def tangent_xyz(self, index: np.ndarray, sigma: np.ndarray, lin: list[int]) -> np.ndarray:
         """Unit TCP tangent (len(index), 3) at sigma (zeros where the TCP does not move)."""
-        ang = self.omega[index] * sigma
-        d = (self.dir[index] + self.radius[index, None] * self.omega[index, None]
-             * (-np.sin(ang)[:, None] * self.e1[index] + np.cos(ang)[:, None] * self.e2[index]))[:, lin]
-        norm = np.linalg.norm(d, axis=1)
+        d = self.dir[index][:, lin]
+        curved = self.radius[index] > 0
+        if curved.any():  # arcs: add the circular part's derivative
+            idx = index[curved]
+            ang = self.omega[idx] * np.broadcast_to(sigma, index.shape)[curved]
+            d[curved] += (self.radius[idx, None] * self.omega[idx, None]
+                          * (-np.sin(ang)[:, None] * self.e1[idx] + np.cos(ang)[:, None] * self.e2[idx]))[:, lin]
+        norm = np.sqrt(np.einsum("ij,ij->i", d, d))
         return np.divide(d, norm[:, None], out=np.zeros_like(d), where=norm[:, None] > EPS_LEN)
 
 
