@@ -30,7 +30,8 @@ def is_feedlog_recording(path: Path) -> bool:
         with open(path, "rb") as f:
             return make_reader(f).get_header().profile == fmt.PROFILE
     except _DAMAGE as exc:
-        raise IngestError(f"not an MCAP file ({exc})", file=str(path), position="byte 0") from None
+        why = "empty file" if path.stat().st_size == 0 else f"{type(exc).__name__}: {exc}"
+        raise IngestError(f"not an MCAP file ({why})", file=str(path), position="byte 0") from None
 
 
 def read_mcap_source(path: Path, options) -> Recording:
