@@ -51,7 +51,10 @@ class RecordingWriter:
         self.rows_per_message = rows_per_message
         self.dropped_frames = 0
         self._stored_drops: int | None = None
-        self._file: BinaryIO = open(self.path, "wb")
+        try:
+            self._file: BinaryIO = open(self.path, "wb")
+        except OSError as exc:
+            raise IngestError(f"cannot create the recording: {exc.strerror or exc}", file=str(self.path)) from None
         self._mcap = Writer(self._file, chunk_size=chunk_size, compression=COMPRESSIONS[compression],
                             index_types=IndexType.ALL)
         self._channels: dict[str, int] = {}
@@ -240,6 +243,9 @@ def write_recording(path: str | os.PathLike, recording: Recording, *, overwrite:
     path = Path(path)
     if path.exists() and not overwrite:
         raise IngestError("output exists; pass overwrite=True (--overwrite) to replace it", file=str(path))
+    if not path.parent.is_dir():
+        raise IngestError("cannot create the recording: No such file or directory (its folder is missing)",
+                          file=str(path))
     partial = path.with_name(path.name + ".partial")
     try:
         with RecordingWriter(partial, metadata=recording.metadata, attachments=recording.attachments,

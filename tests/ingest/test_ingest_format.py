@@ -90,6 +90,11 @@ def test_overwrite_is_refused_unless_asked(tmp_path):
     assert len(read_recording(path).streams["axes"]) == 200
 
 
+def test_unwritable_output_is_an_ingest_error(tmp_path):
+    with pytest.raises(IngestError, match=r"cannot create the recording: No such file or directory"):
+        write_recording(tmp_path / "missing" / "rec.mcap", make_recording(10))
+
+
 def test_newer_format_version_is_refused(tmp_path):
     path = tmp_path / "future.mcap"
     with open(path, "wb") as f:
