@@ -9,15 +9,53 @@ import numpy as np
 
 from feedlog.profile import MachineProfile
 from feedlog.toolpath.features import block_features
-from feedlog.toolpath.linearize import cl_points
-from feedlog.toolpath.program import Program
-from feedlog.toolpath.schema import MOTION_KINDS, RAPID
-
-BBOX_CHORD_TOL_MM = 0.001
+from feedlog.toolpath import arcs
+from feedlog.toolpath.program import K_ARC_CCW, K_ARC_CW, Program, kind_codes
+from feedlog.toolpath.schema import END_COLUMNS, MOTION_KINDS, RAPID, START_COLUMNS
 
 
 def _num(x: float) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
+
+
+def extents(program: Program) -> dict[str, list[float]]:
+    """[min, max] per axis over the programmed path (arcs by their extreme points, not their ends);
+    rotary axes only when they move."""
+    m = program.motion
+    if not len(m):
+        return {}
+    lo = np.minimum(m[list(START_COLUMNS)].to_numpy().min(axis=0), m[list(END_COLUMNS)].to_numpy().min(axis=0))
+    hi = np.maximum(m[list(START_COLUMNS)].to_numpy().max(axis=0), m[list(END_COLUMNS)].to_numpy().max(axis=0))
+    kind = kind_codes(m["kind"])
+    arc = np.flatnonzero((kind == K_ARC_CW) | (kind == K_ARC_CCW))
+    if len(arc):
+        idx = arcs.plane_index(m["plane"].to_numpy()[arc])
+        s = arcs.to_plane(m[list(START_COLUMNS[:3])].to_numpy()[arc], idx)
+        c = arcs.to_plane(m[["cx_mm", "cy_mm", "cz_mm"]].to_numpy()[arc], idx)
+        e = arcs.to_plane(m[list(END_COLUMNS[:3])].to_numpy()[arc], idx)
+        r0 = np.hypot(s[:, 0] - c[:, 0], s[:, 1] - c[:, 1])
+        r1 = np.hypot(e[:, 0] - c[:, 0], e[:, 1] - c[:, 1])
+        a0 = np.arctan2(s[:, 1] - c[:, 1], s[:, 0] - c[:, 0])
+        swept = np.radians(m["sweep_deg"].to_numpy()[arc])
+        ccw = kind[arc] == K_ARC_CCW
+        for q in range(4):  # the circle's extreme points at 0, 90, 180, 270 deg
+            ang = q * np.pi / 2
+            to_q = np.where(ccw, ang - a0, a0 - ang) % arcs.TWO_PI
+            on = to_q <= swept
+            if not on.any():
+                continue
+            frac = to_q[on] / swept[on]  # radius and rise vary linearly along the arc
+            r = r0[on] + (r1[on] - r0[on]) * frac
+            uv = np.zeros((on.sum(), 3))
+            uv[:, 0] = c[on, 0] + r * np.cos(ang)
+            uv[:, 1] = c[on, 1] + r * np.sin(ang)
+            uv[:, 2] = s[on, 2] + (e[on, 2] - s[on, 2]) * frac
+            xyz = arcs.from_plane(uv, idx[on])
+            lo[:3] = np.minimum(lo[:3], xyz.min(axis=0))
+            hi[:3] = np.maximum(hi[:3], xyz.max(axis=0))
+    names = [c for c in END_COLUMNS]
+    return {name: [float(lo[j]), float(hi[j])] for j, name in enumerate(names)
+            if j < 3 or lo[j] != 0 or hi[j] != 0}
 
 
 def summarize(program: Program, profile: MachineProfile) -> dict[str, Any]:
@@ -30,11 +68,7 @@ def summarize(program: Program, profile: MachineProfile) -> dict[str, Any]:
     feed = feats.loc[~rapid, "feed_mm_min"].to_numpy()
     feed = feed[np.isfinite(feed)]
     dwell_s = float(b["dwell_s"].sum())
-    pts = cl_points(program, chord_tol_mm=BBOX_CHORD_TOL_MM)
-    bbox = {}
-    for col in ("x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"):
-        if len(pts) and (col[0] in "xyz" or (pts[col] != 0).any()):
-            bbox[col] = [float(pts[col].min()), float(pts[col].max())]
+    bbox = extents(program)
     tol = feats["tol_mm"].to_numpy()
     return {
         "file": program.name,

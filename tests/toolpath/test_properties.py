@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from feedlog.errors import ProgramError
 from feedlog.toolpath import cl_points, parse_program
+from feedlog.toolpath.summary import extents
 
 coord = st.decimals(min_value=-500, max_value=500, places=3, allow_nan=False, allow_infinity=False)
 
@@ -102,6 +103,13 @@ def test_random_arcs_have_the_expected_centre_sweep_and_length(case):
     centre = {17: ("x_mm", "y_mm"), 18: ("z_mm", "x_mm"), 19: ("y_mm", "z_mm")}[plane]
     radii = np.hypot(on_arc[centre[0]] - cu, on_arc[centre[1]] - cv)
     assert np.allclose(radii, r, atol=1e-4)
+    # the summary's extents: the arc's true extreme points, as dense chords approach them
+    box = extents(p)
+    dense = cl_points(p, chord_tol_mm=1e-4)
+    for col in ("x_mm", "y_mm", "z_mm"):
+        assert box[col][0] <= dense[col].min() + 1e-9 and box[col][1] >= dense[col].max() - 1e-9
+        assert box[col][0] == pytest.approx(dense[col].min(), abs=2e-4)
+        assert box[col][1] == pytest.approx(dense[col].max(), abs=2e-4)
 
 
 garbage_chars = st.sampled_from(list("GXYZABCIJKFMNPQRSTOUgxyz0123456789.-+ ()%;#[]=/\n\t\r") + ["é", "\x00"])
