@@ -34,6 +34,7 @@ DERIVED: dict[str, tuple[str, ...]] = {
     "tol_eff_mm": ("tol_mm",),
     "log_length_mm": ("length_mm",),
     "log_nominal_time_s": ("nominal_time_s",),
+    "log_sim_duration_s": ("sim_duration_s",),
     **{c: () for c in PROFILE_COLUMNS},
 }
 
@@ -43,7 +44,7 @@ DERIVED: dict[str, tuple[str, ...]] = {
 CHIEN_INPUTS = ("feed_eff_mm_min", "length_mm", "corner_start_deg", "corner_end_deg", "tol_eff_mm",
                 "ori_arc_deg", "ori_corner_start_deg", "ori_corner_end_deg", "ori_tol_deg", "sin_rot",
                 "xo_mm", "yo_mm", "zo_mm", "nominal_time_s", "log_length_mm", "log_nominal_time_s")
-LOG_FLOOR = {"log_length_mm": 1e-3, "log_nominal_time_s": 1e-4}  # added before the log (mm, s)
+LOG_FLOOR = {"log_length_mm": 1e-3, "log_nominal_time_s": 1e-4, "log_sim_duration_s": 1e-4}  # added before the log (mm, s)
 
 
 def sun_inputs(axis: str) -> tuple[str, ...]:
@@ -158,13 +159,20 @@ def effective_feed(table: pd.DataFrame) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Normaliser:
-    """Per-column z-score: (x - mean) / std, std floored so constant columns map to 0."""
+    """Per-column z-score: (x - mean) / std, std floored so constant columns map to 0.
+
+    `apply` first clips each column to the range seen in training (`lo`, `hi`), so a program far
+    outside the training data (0.01 mm segments after training on 1 mm ones) is not extrapolated
+    by the network but treated like the nearest training example.
+    """
 
     mean: tuple[float, ...]
     std: tuple[float, ...]
+    lo: tuple[float, ...] | None = None
+    hi: tuple[float, ...] | None = None
 
     @classmethod
-    def fit(cls, matrix: np.ndarray) -> Normaliser:
+    def fit(cls, matrix: np.ndarray, *, bounds: bool = True) -> Normaliser:
         matrix = np.asarray(matrix, np.float64)
         if matrix.ndim == 1:
             matrix = matrix[:, None]
@@ -173,20 +181,29 @@ class Normaliser:
         mean = matrix.mean(axis=0)
         std = matrix.std(axis=0)
         std = np.where(std > 1e-9 * np.maximum(1.0, np.abs(mean)), std, 1.0)
-        return cls(tuple(float(v) for v in mean), tuple(float(v) for v in std))
+        if not bounds:
+            return cls(tuple(float(v) for v in mean), tuple(float(v) for v in std))
+        return cls(tuple(float(v) for v in mean), tuple(float(v) for v in std),
+                   tuple(float(v) for v in matrix.min(axis=0)), tuple(float(v) for v in matrix.max(axis=0)))
 
     def apply(self, matrix: np.ndarray) -> np.ndarray:
+        if self.lo is not None and self.hi is not None:
+            matrix = np.clip(matrix, np.asarray(self.lo), np.asarray(self.hi))
         return ((matrix - np.asarray(self.mean, np.float32)) / np.asarray(self.std, np.float32)).astype(np.float32)
 
     def invert(self, values: np.ndarray) -> np.ndarray:
         return np.asarray(values, np.float64) * np.asarray(self.std) + np.asarray(self.mean)
 
     def to_dict(self) -> dict[str, list[float]]:
-        return {"mean": list(self.mean), "std": list(self.std)}
+        out = {"mean": list(self.mean), "std": list(self.std)}
+        if self.lo is not None and self.hi is not None:
+            out |= {"lo": list(self.lo), "hi": list(self.hi)}
+        return out
 
     @classmethod
     def from_dict(cls, data: dict) -> Normaliser:
         try:
-            return cls(tuple(float(v) for v in data["mean"]), tuple(float(v) for v in data["std"]))
+            bounds = [tuple(float(v) for v in data[k]) if k in data else None for k in ("lo", "hi")]
+            return cls(tuple(float(v) for v in data["mean"]), tuple(float(v) for v in data["std"]), *bounds)
         except (KeyError, TypeError, ValueError) as exc:
             raise ModelError(f"checkpoint normalisation statistics are malformed: {exc}") from None

@@ -35,12 +35,18 @@ def train_net(net: nn.Module, loss_fn: LossFn, *, n_train: int, n_val: int, seed
               lr: float, batch_size: int, patience: int, desc: str, progress: bool = True) -> dict[str, Any]:
     """Fit `net` in place; keep the weights of the epoch with the lowest validation loss.
 
-    Without validation examples the training loss decides instead. Returns a small report.
+    The untrained net is the first candidate (epoch 0): training that never beats it on validation
+    leaves it unchanged. Without validation examples the training loss decides. Returns a small report.
     """
     setup_torch()
     optimiser = torch.optim.Adam(net.parameters(), lr=lr)
     generator = torch.Generator().manual_seed(seed)
-    best, best_state, best_epoch, stale = float("inf"), copy.deepcopy(net.state_dict()), 0, 0
+    best = float("inf")
+    if n_val:
+        net.eval()
+        with torch.no_grad():
+            best = float(loss_fn(net, None, "val"))
+    best_state, best_epoch, stale = copy.deepcopy(net.state_dict()), -1, 0
     train_loss = float("nan")
     bar = tqdm(range(epochs), desc=desc, disable=not progress, leave=False, unit="epoch")
     epoch = 0

@@ -117,7 +117,7 @@ class FinalBiLSTM(Model):
         order = rng.permutation(cfg.crops)
         val_idx, train_idx = order[:n_val], order[n_val:]
         self.norms["x"] = Normaliser.fit(np.concatenate([seqs[i] for i in train_idx]))
-        self.norms["y"] = Normaliser.fit(totals_arr[train_idx])
+        self.norms["y"] = Normaliser.fit(totals_arr[train_idx], bounds=False)
         norm_seqs = [self.norms["x"].apply(s) for s in seqs]
         y = torch.from_numpy(self.norms["y"].apply(totals_arr[:, None])[:, 0])
         x_all, len_all = _padded(norm_seqs)

@@ -1,7 +1,14 @@
 """Hybrid: the simulation's block times plus a learned residual (learning corrects the physics).
 
-The residual learner is the block-by-block Bi-LSTM with one more input, the simulated block time
-`sim_duration_s`; its target is `duration_s - sim_duration_s`. The simulated time comes from
+The residual learner is the block-by-block Bi-LSTM with two more inputs, the simulated block time
+`sim_duration_s` and its logarithm. Its target is the residual on a log scale,
+r = log(duration_s + 0.1 ms) - log(sim_duration_s + 0.1 ms), so a prediction is (sim + 0.1 ms) e^r - 0.1 ms: a
+correction factor, which cannot add seconds to a program of many short blocks the way an additive
+residual can. The output layer starts at zero (the mean training residual) and training keeps the
+untrained net unless it beats it on the validation tail, so where the simulation is already right
+the hybrid stays with it. The ratio is measured over a window of neighbouring blocks
+(`residual_span`), because align and the simulation may attribute a corner's time to different
+sides of a block boundary. The simulated time comes from
 `feedlog.sim.simulate(program, profile)` (`attach_sim`), or from a `sim_duration_s` column already in
 the table.
 """
@@ -13,6 +20,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 import pandas as pd
+import torch
 
 from feedlog.errors import ModelError
 from feedlog.train.dataset import ProgramTable
@@ -23,17 +31,25 @@ from feedlog.train.nets import BiLSTMSeq
 from feedlog.train.registry import register_model
 
 SIM_COLUMN = "sim_duration_s"
+RESIDUAL_FLOOR_S = 1e-4
 
 
 @dataclass(frozen=True)
 class HybridConfig(SeqConfig):
-    inputs: tuple[str, ...] = CHIEN_INPUTS + (SIM_COLUMN,)
-    log_target: bool = False  # the residual can be negative
+    inputs: tuple[str, ...] = CHIEN_INPUTS + (SIM_COLUMN, "log_sim_duration_s")
+    log_target: bool = False  # the residual is already a log ratio
+    # the ratio is taken over sums of 2 x residual_span + 1 neighbouring blocks: align and the simulation
+    # may split a corner's time differently between two blocks, which per-block ratios would learn
+    residual_span: int = 8
+    # keep the simulation unless the correction helps on whole programs the residual net has not seen
+    val_by: str = "program"
 
     presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8}}
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        if self.residual_span < 0:
+            raise ModelError(f"HybridConfig.residual_span must be >= 0, got {self.residual_span}")
         if SIM_COLUMN not in self.inputs:
             raise ModelError(f"HybridConfig.inputs must include {SIM_COLUMN!r}, got {self.inputs}")
 
@@ -59,14 +75,36 @@ def attach_sim(table: ProgramTable, *, program: Any = None) -> ProgramTable:
     sim = result.blocks[["block", "duration_s"]].rename(columns={"duration_s": SIM_COLUMN})
     sim = sim.groupby("block", as_index=False)[SIM_COLUMN].sum()
     blocks = table.blocks.merge(sim, on="block", how="left")
-    # blocks the simulation merged into a neighbour or skipped (zero length) take no time of their own
-    missing = int(blocks[SIM_COLUMN].isna().sum())
-    blocks[SIM_COLUMN] = blocks[SIM_COLUMN].fillna(0.0)
-    metadata = dict(table.metadata)
-    if missing:
-        metadata["sim_blocks_without_time"] = str(missing)
+    # blocks the simulation skipped (zero length) or merged into a later block (LinuxCNC joins short
+    # segments; the group's time sits on its last block) share their group's time by length, as align
+    # splits merged groups by geometry
+    blocks[SIM_COLUMN] = spread_merged(blocks[SIM_COLUMN].fillna(0.0).to_numpy(np.float64),
+                                       blocks["length_mm"].to_numpy(np.float64))
     return ProgramTable(table.name, blocks, program=table.program, split=table.split, points=table.points,
-                        profile=table.profile, program_text=table.program_text, metadata=metadata)
+                        profile=table.profile, program_text=table.program_text,
+                        metadata=dict(table.metadata))
+
+
+def spread_merged(times: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Zero-time blocks before a block with time form its group; the group's time is split by length."""
+    n = len(times)
+    if n == 0:
+        return times
+    carrier = times > 0
+    group = np.concatenate([[0], np.cumsum(carrier)[:-1]])  # a carrier closes its group
+    total = np.bincount(group, weights=times, minlength=group.max() + 1)
+    length = np.bincount(group, weights=lengths, minlength=group.max() + 1)
+    count = np.bincount(group, minlength=group.max() + 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        share = np.where(length[group] > 0, lengths / length[group], 1.0 / count[group])
+    return total[group] * share
+
+
+def _window_sums(values: np.ndarray, span: int) -> np.ndarray:
+    """Sum over the blocks k - span .. k + span (clipped at the program's ends)."""
+    c = np.concatenate([[0.0], np.cumsum(values)])
+    k = np.arange(len(values))
+    return c[np.minimum(k + span + 1, len(values))] - c[np.maximum(k - span, 0)]
 
 
 @register_model
@@ -77,13 +115,26 @@ class HybridModel(SeqModel):
 
     def build_nets(self) -> None:
         setup_torch(self.config.seed)
-        self.nets = {"net": BiLSTMSeq(len(self.inputs), self.config.hidden, self.config.layers)}
+        net = BiLSTMSeq(len(self.inputs), self.config.hidden, self.config.layers)
+        torch.nn.init.zeros_(net.head.weight)
+        torch.nn.init.zeros_(net.head.bias)
+        self.nets = {"net": net}
+
+    def fit(self, tables, *, progress: bool = True) -> None:
+        super().fit(tables, progress=progress)
+        seen = np.concatenate([self.target(t) for t in tables])
+        self.params["residual_range"] = [float(seen.min()), float(seen.max())]
 
     def target(self, table: ProgramTable) -> np.ndarray:
-        return table.durations() - self._sim(table)
+        span = self.config.residual_span
+        measured = _window_sums(table.durations(), span)
+        simulated = _window_sums(self._sim(table), span)
+        return np.log(measured + RESIDUAL_FLOOR_S) - np.log(simulated + RESIDUAL_FLOOR_S)
 
     def to_durations(self, table: ProgramTable, values: np.ndarray) -> np.ndarray:
-        return np.maximum(self._sim(table) + values, 0.0)
+        lo, hi = self.params.get("residual_range", (-np.inf, np.inf))
+        values = np.clip(values, lo, hi)  # never a larger correction than training saw
+        return np.maximum((self._sim(table) + RESIDUAL_FLOOR_S) * np.exp(values) - RESIDUAL_FLOOR_S, 0.0)
 
     def _sim(self, table: ProgramTable) -> np.ndarray:
         if SIM_COLUMN not in table.blocks.columns:

@@ -100,7 +100,7 @@ class PerAxisMLP(Model):
         for a in cfg.axes:
             x, y = np.concatenate(xs[a]), np.concatenate(ys[a])
             self.norms[f"x_{a}"] = Normaliser.fit(x[~val_mask])
-            self.norms[f"y_{a}"] = Normaliser.fit(y[~val_mask])
+            self.norms[f"y_{a}"] = Normaliser.fit(y[~val_mask], bounds=False)
             xn = torch.from_numpy(self.norms[f"x_{a}"].apply(x))
             yn = torch.from_numpy(self.norms[f"y_{a}"].apply(y[:, None])[:, 0])
             data = {"train": (xn[torch.from_numpy(~val_mask)], yn[torch.from_numpy(~val_mask)]),

@@ -1,7 +1,8 @@
 """Sequence-to-sequence models over a program's blocks: Bi-LSTM block by block (Chien Fig. 7) and BiLSTM-R.
 
-Long programs are cut into overlapping windows (`window` blocks, every `stride`) for training; the
-last `val_fraction` of every training program is held out for early stopping. Prediction uses longer
+Long programs are cut into overlapping windows (`window` blocks, every `stride`) for training. Early
+stopping watches the last `val_fraction` of every training program, or with `val_by="program"` (the
+hybrid's default) that fraction of the training programs held out whole. Prediction uses longer
 windows (`predict_window`, default 4 x window) overlapping by 2 x `predict_context`; each block's
 value comes from the window whose centre is nearest, so every block sees at least `predict_context`
 blocks on both sides (except at the program's ends) while few blocks are computed twice.
@@ -42,6 +43,9 @@ class SeqConfig(ModelConfig):
     # block still sees at least predict_context blocks on each side but few blocks are computed twice
     predict_window: int = 0
     predict_context: int = 16
+    # early stopping on the tail of every training program ("tail") or on held-out whole programs
+    # ("program", with >= 3 training tables: how the model does on programs it has not seen)
+    val_by: str = "tail"
 
     presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8}}
 
@@ -54,6 +58,8 @@ class SeqConfig(ModelConfig):
         if not 1 <= self.stride <= self.window:
             raise ModelError(f"{type(self).__name__}: need 1 <= stride <= window, got stride {self.stride}, "
                              f"window {self.window}")
+        if self.val_by not in ("program", "tail"):
+            raise ModelError(f"{type(self).__name__}.val_by must be 'program' or 'tail', got {self.val_by!r}")
         if self.predict_context < 0 or 2 * self.predict_context >= self.prediction_window:
             raise ModelError(f"{type(self).__name__}: need 0 <= 2 x predict_context < prediction window, got "
                              f"predict_context {self.predict_context}, window {self.prediction_window}")
@@ -61,6 +67,16 @@ class SeqConfig(ModelConfig):
     @property
     def prediction_window(self) -> int:
         return self.predict_window or 4 * self.window
+
+
+def validation_heads(lengths: Sequence[int], *, fraction: float, by: str, seed: int) -> list[int]:
+    """Per table, the row where its validation part starts (0: the whole table validates)."""
+    n = len(lengths)
+    if by == "program" and n >= 3 and fraction > 0:
+        k = max(1, int(round(n * fraction)))
+        held = set(np.random.default_rng(seed).choice(n, size=k, replace=False).tolist())
+        return [0 if i in held else length for i, length in enumerate(lengths)]
+    return [tail_split(length, fraction) for length in lengths]
 
 
 class SeqModel(Model):
@@ -97,9 +113,9 @@ class SeqModel(Model):
         self.constants = profile_constants(tables[0].profile)
         xs = [self._matrix(t) for t in tables]
         ys = [self._encode(self.target(t)) for t in tables]
-        heads = [tail_split(len(y), cfg.val_fraction) for y in ys]
+        heads = validation_heads([len(y) for y in ys], fraction=cfg.val_fraction, by=cfg.val_by, seed=cfg.seed)
         self.norms["x"] = Normaliser.fit(np.concatenate([x[:h] for x, h in zip(xs, heads)]))
-        self.norms["y"] = Normaliser.fit(np.concatenate([y[:h] for y, h in zip(ys, heads)]))
+        self.norms["y"] = Normaliser.fit(np.concatenate([y[:h] for y, h in zip(ys, heads)]), bounds=False)
         parts: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {"train": [], "val": []}
         for x, y, h in zip(xs, ys, heads):
             xn, yn = self.norms["x"].apply(x), self.norms["y"].apply(y[:, None])[:, 0]

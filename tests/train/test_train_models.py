@@ -122,3 +122,30 @@ def test_learning_beats_cam_on_held_out_programs(tmp_path):
     assert np.abs(results["hybrid_err_pct"]).mean() < np.abs(results["sim_err_pct"]).mean()
     assert (tmp_path / "results.md").read_text().count("|") > 10
     assert (tmp_path / "predictions" / "test-4.parquet").is_file()
+
+
+def test_spread_merged_shares_a_group_time_by_length():
+    from feedlog.train.model_hybrid import spread_merged
+
+    times = np.array([0.0, 0.0, 3.0, 1.0, 0.0, 0.0])  # blocks 0-2 merged into 2; 4-5 trail with no time
+    lengths = np.array([1.0, 2.0, 3.0, 5.0, 1.0, 1.0])
+    out = spread_merged(times, lengths)
+    assert np.allclose(out, [0.5, 1.0, 1.5, 1.0, 0.0, 0.0])
+    assert out.sum() == pytest.approx(times.sum())
+
+
+def test_validation_heads():
+    from feedlog.train.model_seq import validation_heads
+
+    by_program = validation_heads([10, 20, 30, 40, 50], fraction=0.2, by="program", seed=0)
+    assert sorted(by_program).count(0) == 1 and set(by_program) - {0} <= {10, 20, 30, 40, 50}
+    assert validation_heads([10, 20], fraction=0.2, by="program", seed=0) == [8, 16]  # too few programs
+    assert validation_heads([10, 20, 30], fraction=0.2, by="tail", seed=0) == [8, 16, 24]
+
+
+def test_inputs_are_clipped_to_the_training_range():
+    from feedlog.train.features import Normaliser
+
+    n = Normaliser.fit(np.array([[0.0], [1.0], [2.0]]))
+    assert n.apply(np.array([[100.0]]))[0, 0] == pytest.approx(n.apply(np.array([[2.0]]))[0, 0])
+    assert Normaliser.fit(np.array([[0.0], [2.0]]), bounds=False).lo is None
