@@ -55,6 +55,7 @@ def main() -> None:
                     speedup=1.0, stop=stop)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "load.mcap"
+        cpu0 = time.process_time()
         player.start()
         try:
             summary = record_bus(rx, out, stop=stop, progress=None,
@@ -63,6 +64,7 @@ def main() -> None:
             stop.set()
             player.join(timeout=10)
             rx.shutdown()
+        cpu_s = time.process_time() - cpu0
         rec = read_recording(out)
         samples = len(rec.streams["axes"])
         size_mb = out.stat().st_size / 1e6
@@ -71,6 +73,8 @@ def main() -> None:
     print(f"logger load: target {args.frames_per_s:.0f} frames/s for {args.seconds:g} s ({planned} frames)")
     print(f"  sent {player.sent} frames, recorded {summary['frames']} frames in {summary['wall_s']:.1f} s "
           f"= {summary['frames_per_s']:.0f} frames/s (target {args.frames_per_s:.0f})")
+    print(f"  CPU {cpu_s:.1f} s for player + logger = {cpu_s / max(summary['frames'], 1) * 1e6:.1f} us per frame "
+          f"(at 30000 frames/s that is {cpu_s / max(summary['frames'], 1) * 3e4 * 100:.0f} % of one core)")
     print(f"  dropped_frames {summary['dropped_frames']}, bus overruns {player.overruns}, "
           f"axes samples in file {samples}, file {size_mb:.1f} MB, peak RSS {peak_mb:.0f} MB")
 
