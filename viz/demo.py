@@ -142,9 +142,10 @@ def _intro(result: DemoResult, out: Path) -> list[str]:
             lines.append(f"- training skipped: {result.training.reason}")
     else:
         lines.append("- training skipped (--no-train)")
-    sources = sorted({r.measured_source for r in result.runs if r.measured_source})
-    if "line stream" in sources:
-        lines.append("- measured cycle times taken from the recordings' program-line stream (align not available)")
+    from_lines = [r.entry.name for r in result.runs if r.measured_source == "line stream"]
+    if from_lines:
+        lines.append(f"- measured cycle time taken from the program-line stream (not aligned, see the recording's "
+                     f"section) for {len(from_lines)} recording(s): {', '.join(from_lines)}")
     return lines
 
 
