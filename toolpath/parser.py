@@ -154,15 +154,17 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     code_of = lambda k: _word(int(letter[k]), float(value[k]))  # noqa: E731
 
     is_g, is_m = letter == L["G"], letter == L["M"]
-    g10 = np.full(len(letter), -1, dtype=np.int64)
-    m_int = np.full(len(letter), -1, dtype=np.int64)
     g_idx, m_idx = np.flatnonzero(is_g), np.flatnonzero(is_m)
-    g10[g_idx] = np.rint(value[g_idx] * 10)
-    m_int[m_idx] = np.rint(value[m_idx])
-    g_ok = (g10[g_idx] >= 0) & (g10[g_idx] < 1000) & (np.abs(value[g_idx] * 10 - g10[g_idx]) < 1e-6)
-    g_ok[g_ok] = _GROUP_LUT[g10[g_idx][g_ok]] >= 0
-    m_ok = _M_LUT[np.where((m_int[m_idx] >= 0) & (m_int[m_idx] < 200), m_int[m_idx], 200)] & (
-        m_int[m_idx] == value[m_idx])
+    g10f = np.rint(value[g_idx] * 10)
+    g_ok = (g10f >= 0) & (g10f < 1000) & (np.abs(value[g_idx] * 10 - g10f) < 1e-6)
+    g_ok[g_ok] = _GROUP_LUT[g10f[g_ok].astype(np.int64)] >= 0
+    mf = value[m_idx]
+    m_ok = (mf >= 0) & (mf < 200) & (mf == np.rint(mf))
+    m_ok[m_ok] = _M_LUT[mf[m_ok].astype(np.int64)]
+    g10 = np.full(len(letter), -1, dtype=np.int16)  # G code x 10 (G90.1 -> 901); -1 elsewhere
+    g10[g_idx] = np.where(g_ok, g10f, -1)
+    m_int = np.full(len(letter), -1, dtype=np.int16)
+    m_int[m_idx] = np.where(m_ok, mf, -1)
     bad_letter = ~_ACCEPTED_LUT[letter]
     if not (g_ok.all() and m_ok.all() and not bad_letter.any()):
         bad_g = np.zeros(len(letter), dtype=bool)
@@ -189,7 +191,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     groups: dict[str, np.ndarray] = {}
     for gi, gname in enumerate(_GROUP_NAMES):
         sel = group == gi
-        col = np.full(n, -1, dtype=np.int64)
+        col = np.full(n, -1, dtype=np.int16)
         if sel.any():
             counts = np.bincount(g_rows[sel], minlength=n)
             if counts.max() > 1:
@@ -201,8 +203,14 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
 
     # -- other words: one per letter and line ------------------------------------------------------
     other = ~is_g & ~is_m
-    W = np.full((26, n), np.nan)  # letter-major: one contiguous row per letter
-    W[letter[other], row_of[other]] = value[other]
+    # letter-major, one contiguous row per letter that occurs; S maps a letter to its row (letters that
+    # never occur share the last row, all NaN)
+    present = np.flatnonzero(np.bincount(letter[other], minlength=26))
+    slot = np.full(26, len(present), dtype=np.int64)
+    slot[present] = np.arange(len(present))
+    S = {ch: int(slot[i]) for i, ch in enumerate(LETTERS)}
+    W = np.full((len(present) + 1, n), np.nan)
+    W[slot[letter[other]], row_of[other]] = value[other]
     has = ~np.isnan(W)
     if np.count_nonzero(has) < np.count_nonzero(other):  # a letter twice on one line
         counts = np.bincount(row_of[other] * 26 + letter[other], minlength=n * 26)
@@ -214,9 +222,9 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     unit = np.where(modal["units"] == 200, MM_PER_INCH, 1.0)
     motion_mode = np.where(modal["motion"] == 800, -1, modal["motion"])
     is_dwell = groups["dwell"] == 40
-    axis_cols = [L[c] for c in AXIS_LETTERS]
+    axis_cols = [S[c] for c in AXIS_LETTERS]
     has_axis = has[axis_cols].any(axis=0)
-    has_ijk = has[[L["I"], L["J"], L["K"]]].any(axis=0)
+    has_ijk = has[[S["I"], S["J"], S["K"]]].any(axis=0)
     linear_mode = (motion_mode == 0) | (motion_mode == 10)
     arc_mode = (motion_mode == 20) | (motion_mode == 30)
     orient = has_ijk & linear_mode & ~is_dwell
@@ -225,7 +233,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     def first(mask: np.ndarray, message: str, letters: str) -> None:
         if mask.any():
             r = int(np.flatnonzero(mask)[0])
-            code = next((c for c in letters if c in L and has[L[c], r]), letters)
+            code = next((c for c in letters if c in S and has[S[c], r]), letters)
             raise R.error(r, message, code)
 
     first(has_axis & is_dwell, "axis words with G4 dwell", AXIS_LETTERS)
@@ -233,8 +241,8 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
           AXIS_LETTERS)
     first(arc_mode & has_ijk & ~has_axis & ~is_dwell, "arc without an end point (no axis words)", "IJK")
     first(has_ijk & ~(is_motion & (arc_mode | orient)), "I/J/K without an arc or a five-axis move", "IJK")
-    first(has[L["R"]] & ~(is_motion & arc_mode), "R word without an arc", "R")
-    first(is_dwell & ~has[L["P"]], "G4 dwell needs a P word (seconds)", "G4")
+    first(has[S["R"]] & ~(is_motion & arc_mode), "R word without an arc", "R")
+    first(is_dwell & ~has[S["P"]], "G4 dwell needs a P word (seconds)", "G4")
 
     kind_code = np.full(n, KINDS.index(NONE), dtype=np.int8)
     for mode, kind in KIND_OF_MOTION.items():
@@ -247,10 +255,10 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     any_incremental = bool(incremental.any())
     end = np.zeros((6, n))  # axis-major while computing: contiguous rows
     for j, ch in enumerate(AXIS_LETTERS):
-        if not has[L[ch]].any():
+        if not has[S[ch]].any():
             continue
-        v = W[L[ch]] * unit if j < 3 else W[L[ch]]
-        set_here = has[L[ch]] & is_motion
+        v = W[S[ch]] * unit if j < 3 else W[S[ch]]
+        set_here = has[S[ch]] & is_motion
         if not any_incremental:
             end[j] = _ffill(v, set_here, 0.0)
             continue
@@ -271,7 +279,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     plane = modal["plane"] // 10
     if is_arc.any():
         a = np.flatnonzero(is_arc)
-        p_turns = W[L["P"], a]
+        p_turns = W[S["P"], a]
         bad = ~np.isnan(p_turns) & ((p_turns < 1) | (p_turns != np.rint(p_turns)))
         if bad.any():
             raise R.error(a[bad][0], "arc P (turns) must be a positive integer", f"P{p_turns[bad][0]:g}")
@@ -279,13 +287,13 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         idx = arcs.plane_index(plane[a])
         s_uvw = arcs.to_plane(start[:3, a].T, idx)
         e_uvw = arcs.to_plane(end[:3, a].T, idx)
-        ijk_rows = [L["I"], L["J"], L["K"]]
+        ijk_rows = [S["I"], S["J"], S["K"]]
         ijk = np.nan_to_num(W[np.ix_(ijk_rows, a)].T) * unit[a, None]
         ijk_has = has[np.ix_(ijk_rows, a)].T
         off_uvw = arcs.to_plane(ijk, idx)
         has_uvw = arcs.to_plane(ijk_has, idx)
         ccw = motion_mode[a] == 30
-        use_r = has[L["R"], a]
+        use_r = has[S["R"], a]
         if (use_r & has_uvw[:, :2].any(axis=1)).any():
             raise R.error(a[use_r & has_uvw[:, :2].any(axis=1)][0], "arc with both R and I/J/K", "R")
         if has_uvw[:, 2].any():
@@ -296,12 +304,12 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
             raise R.error(a[~use_r & ~has_uvw[:, :2].any(axis=1)][0], "arc needs R or centre words", "G2/G3")
         c_uv = np.where((modal["arc_distance"][a] == 901)[:, None], off_uvw[:, :2], s_uvw[:, :2] + off_uvw[:, :2])
         if use_r.any():
-            rr = W[L["R"], a[use_r]] * unit[a[use_r]]
+            rr = W[S["R"], a[use_r]] * unit[a[use_r]]
             c_r, ok = arcs.centre_from_radius(s_uvw[use_r, :2], e_uvw[use_r, :2], rr, ccw[use_r])
             if not ok.all():
                 k = a[use_r][~ok][0]
                 raise R.error(k, "arc radius is shorter than half the chord (or start equals end)",
-                              f"R{W[L['R'], k]:g}")
+                              f"R{W[S['R'], k]:g}")
             c_uv[use_r] = c_r
         r0 = np.hypot(*(s_uvw[:, :2] - c_uv).T)
         r1 = np.hypot(*(e_uvw[:, :2] - c_uv).T)
@@ -321,7 +329,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     # -- orientation vectors (five-axis CL data) ---------------------------------------------------
     ori = np.full((n, 3), np.nan)
     if orient.any():
-        o = np.nan_to_num(W[[L["I"], L["J"], L["K"]]][:, orient].T)
+        o = np.nan_to_num(W[[S["I"], S["J"], S["K"]]][:, orient].T)
         norm = np.linalg.norm(o, axis=1)
         if (norm <= 1e-12).any():
             raise R.error(np.flatnonzero(orient)[norm <= 1e-12][0], "tool orientation vector of length 0", "IJK")
@@ -331,16 +339,16 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
             ori[:, j] = _ffill(given[:, j], orient, np.nan)
 
     # -- feed ---------------------------------------------------------------------------------------
-    f_here = has[L["F"]]
+    f_here = has[S["F"]]
     inverse_time = modal["feed_mode"] == 930
-    f_mm = W[L["F"]] * unit
+    f_mm = W[S["F"]] * unit
     modal_feed = _ffill(f_mm, f_here & ~inverse_time, np.nan)
     feed_move = is_motion & (motion_mode != 0)
     lin_len = length
-    rot_len = np.sqrt(((end[3:] - start[3:]) ** 2).sum(axis=0)) if has[[L[c] for c in "ABC"]].any() \
+    rot_len = np.sqrt(((end[3:] - start[3:]) ** 2).sum(axis=0)) if has[[S[c] for c in "ABC"]].any() \
         else np.zeros(n)
     time_len = np.where(lin_len > 1e-12, lin_len, rot_len)  # LinuxCNC: F applies to XYZ, else to ABC
-    feed = np.where(inverse_time, time_len * W[L["F"]], modal_feed)
+    feed = np.where(inverse_time, time_len * W[S["F"]], modal_feed)
     feed = np.where(feed_move, feed, np.nan)
     warnings: list[str] = []
     missing_it = feed_move & inverse_time & ~f_here
@@ -355,18 +363,18 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
 
     # -- path control, dwell, spindle, M codes, comments -----------------------------------------
     path_here = groups["path"] >= 0
-    p_val = W[L["P"]] * unit
-    q_val = W[L["Q"]] * unit
+    p_val = W[S["P"]] * unit
+    q_val = W[S["Q"]] * unit
     g64 = groups["path"] == 640
     tol_here = np.where(g64, p_val, 0.0)
-    merge_here = np.where(g64, np.where(has[L["Q"]], q_val, p_val), np.nan)
+    merge_here = np.where(g64, np.where(has[S["Q"]], q_val, p_val), np.nan)
     tol = _ffill(tol_here, path_here, np.nan)
     merge = _ffill(merge_here, path_here, np.nan)
     path_code = np.select([modal["path"] == 610, modal["path"] == 611], [0, 1], 2).astype(np.int8)
-    dwell = np.where(is_dwell, W[L["P"]], 0.0)
+    dwell = np.where(is_dwell, W[S["P"]], 0.0)
     if (dwell < 0).any():
         raise R.error(int(np.flatnonzero(dwell < 0)[0]), "negative dwell time", "P")
-    spindle = _ffill(W[L["S"]], has[L["S"]], 0.0)
+    spindle = _ffill(W[S["S"]], has[S["S"]], 0.0)
     mcodes = _strings(n)
     stop = np.zeros(n, dtype=bool)
     if is_m.any():
@@ -403,23 +411,24 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         "length_mm": np.where(is_motion, length, 0.0),
         "radius_mm": radius,
         "sweep_deg": sweep_deg,
-        "n_word": np.where(has[L["N"]], W[L["N"]], -1).astype(np.int64),
+        "n_word": np.where(has[S["N"]], W[S["N"]], -1).astype(np.int64),
         "stop": stop,
     })
     assert list(blocks.columns[:len(BLOCK_COLUMNS)]) == list(BLOCK_COLUMNS)
-    metadata = _metadata(tok, W, has, m_int[is_m], row_of[is_m], is_motion, R, file, warnings)
+    metadata = _metadata(tok, W[S["O"]], has[S["O"]], m_int[is_m], row_of[is_m], is_motion, R, file,
+                         warnings)
     for u in R.unsupported:
         warnings.append(f"line {u.line}: skipped {u.code} ({u.reason})")
     return Program(blocks=blocks, path=path, warnings=warnings, unsupported=R.unsupported,
                    metadata=metadata)
 
 
-def _metadata(tok: Tokens, W, has, m_codes, m_rows, is_motion, R: _Rows, file: str,
+def _metadata(tok: Tokens, o_value, o_has, m_codes, m_rows, is_motion, R: _Rows, file: str,
               warnings: list[str]) -> dict:
     meta: dict = {"file": file, "lines": tok.n_lines, "percent_lines": (tok.percent + 1).tolist()}
-    o_rows = np.flatnonzero(has[L["O"]])
+    o_rows = np.flatnonzero(o_has)
     if len(o_rows):
-        meta["program_number"] = int(W[L["O"], o_rows[0]])
+        meta["program_number"] = int(o_value[o_rows[0]])
     if tok.comments:
         meta["title"] = tok.comments[min(tok.comments)]
     ends = m_rows[np.isin(m_codes, PROGRAM_END)]
