@@ -1,7 +1,7 @@
 """feedlog.ingest: the recording model, feedlog's MCAP recording format, readers and the live logger.
 
 Public API: `Recording`, `read_recording(path, *, recover=False)`, `write_recording(path, recording, *,
-overwrite=False, compression="lz4")`, `RecordingWriter(path, *, metadata=, attachments=)`, and
+overwrite=False, compression="none")`, `RecordingWriter(path, *, metadata=, attachments=)`, and
 `read_source(path_or_scheme, ImportOptions(...))` for any supported input (MCAP, CSV, CAN logs).
 """
 

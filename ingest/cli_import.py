@@ -18,8 +18,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help=f"file to convert ({', '.join(SUFFIXES)}); prefix can: for a python-can CSV log")
     parser.add_argument("-o", "--out", help="recording to write (.mcap)")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing output file")
-    parser.add_argument("--compression", choices=["lz4", "zstd", "none"], default="lz4",
-                        help="MCAP chunk compression (default lz4; zstd is smaller, none reads fastest)")
+    parser.add_argument("--compression", choices=["none", "lz4", "zstd"], default="none",
+                        help="MCAP chunk compression (default none: fastest, float positions barely "
+                             "compress; zstd for small archives)")
     mapping = parser.add_mutually_exclusive_group()
     mapping.add_argument("--preset", help="named column mapping (see --list-presets)")
     mapping.add_argument("--map", dest="mapping", metavar="T=COL,...",

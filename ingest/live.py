@@ -233,8 +233,9 @@ def record_bus(bus: can.BusABC, out, *, dbc: str | None = None, metadata: dict[s
     attachments = {**(attachments or {}), layout.path.name: layout.source_text()}
     metadata = {"dbc": layout.path.name, **(metadata or {})}
     metadata.setdefault("start_time", time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()))
+    # lz4: live batches are small and repetitive (line, status), so they shrink well at no cost that matters
     writer = RecordingWriter(out, metadata=metadata, attachments=attachments, overwrite=overwrite,
-                             flush_interval_s=flush_interval_s)
+                             flush_interval_s=flush_interval_s, compression="lz4")
     try:
         stats = capture(bus, layout, writer, stop=stop or threading.Event(), finished=finished,
                         duration_s=duration_s, max_buffer_frames=max_buffer_frames, drop_columns=drop_columns,

@@ -38,7 +38,7 @@ class RecordingWriter:
     def __init__(self, path: str | os.PathLike, *, metadata: dict[str, str] | None = None,
                  attachments: dict[str, bytes] | None = None, overwrite: bool = False,
                  flush_interval_s: float = 1.0, rows_per_message: int = 16384,
-                 chunk_size: int = 4 * 1024 * 1024, compression: str = "lz4") -> None:
+                 chunk_size: int = 4 * 1024 * 1024, compression: str = "none") -> None:
         if flush_interval_s <= 0 or rows_per_message < 1:
             raise ValueError(f"flush_interval_s={flush_interval_s} and rows_per_message={rows_per_message} "
                              "must be positive")
@@ -238,7 +238,7 @@ def _first_backwards(t, previous: int | None) -> int | None:
 
 
 def write_recording(path: str | os.PathLike, recording: Recording, *, overwrite: bool = False,
-                    compression: str = "lz4") -> None:
+                    compression: str = "none") -> None:
     """Write a whole recording. The file appears under `path` only once it is complete."""
     path = Path(path)
     if path.exists() and not overwrite:
