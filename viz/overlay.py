@@ -141,8 +141,7 @@ def _log_blocks(data: ViewData, stream: rr.RecordingStream, counts: dict[str, in
     blocks = data.blocks
     if not len(blocks):
         return
-    starts = data.measured[data.measured["block"] >= 0].groupby("block")["t_rel_ns"].min()
-    t_start = blocks["block"].map(starts).to_numpy(dtype=np.float64)
+    t_start = blocks["t_start_rel_ns"].to_numpy(dtype=np.float64)  # NaN: a block only predicted, never measured
     has_time = np.isfinite(t_start)
     if not has_time.any():
         return

@@ -80,7 +80,7 @@ class ViewData:
     name: str
     axes: tuple[str, ...]
     measured: pd.DataFrame            # t_ns, t_rel_ns, <axis cols>, v<axis>, feed_mm_min, s_mm, block, commanded_feed_mm_min
-    blocks: pd.DataFrame              # block, line, measured_s, sim_s?, <model>_s
+    blocks: pd.DataFrame              # block, measured_s, sim_s?, <model>_s, line?, t_start_rel_ns
     programmed_path: pd.DataFrame | None
     sim: pd.DataFrame | None          # t_rel_ns, <axis cols>, v<axis>, feed_mm_min, s_mm, block
     model_series: dict[str, pd.DataFrame]   # name -> t_rel_ns, feed_mm_min
@@ -221,9 +221,11 @@ def _commanded_feed(table: pd.DataFrame, program_blocks: pd.DataFrame, rapid_mm_
     return table["block"].map(feed).to_numpy(dtype=np.float64)
 
 
-def _block_table(table: pd.DataFrame, inputs: ViewInputs) -> pd.DataFrame:
+def _block_table(table: pd.DataFrame, inputs: ViewInputs, t_start_ns: int) -> pd.DataFrame:
     measured = (inputs.measured_blocks if inputs.measured_blocks is not None else measured_block_times(table))
     blocks = measured[["block", "duration_s"]].rename(columns={"duration_s": "measured_s"})
+    # where each block started, on the common time axis (blocks too short to hold a sample keep theirs)
+    blocks["t_start_rel_ns"] = measured["t_start_ns"].to_numpy(dtype=np.int64) - t_start_ns
     if inputs.sim_blocks is not None and len(inputs.sim_blocks):
         blocks = blocks.merge(inputs.sim_blocks[["block", "duration_s"]].rename(columns={"duration_s": "sim_s"}),
                               on="block", how="outer")
@@ -234,6 +236,7 @@ def _block_table(table: pd.DataFrame, inputs: ViewInputs) -> pd.DataFrame:
     if inputs.program_blocks is not None:
         blocks = blocks.merge(inputs.program_blocks[["block", "line"]], on="block", how="left")
     blocks = blocks.sort_values("block").reset_index(drop=True)
+    blocks = blocks[[c for c in blocks.columns if c != "t_start_rel_ns"] + ["t_start_rel_ns"]]
     blocks["block"] = blocks["block"].astype(np.int64)
     return blocks
 
@@ -281,6 +284,6 @@ def prepare_view(inputs: ViewInputs) -> ViewData:
         orientation = pd.DataFrame({"x_mm": sel["x_mm"].to_numpy(), "y_mm": sel["y_mm"].to_numpy(),
                                     "z_mm": sel["z_mm"].to_numpy(), "i": ori[:, 0], "j": ori[:, 1], "k": ori[:, 2]})
 
-    return ViewData(name=inputs.name, axes=axes, measured=table, blocks=_block_table(table, inputs),
+    return ViewData(name=inputs.name, axes=axes, measured=table, blocks=_block_table(table, inputs, t_start),
                     programmed_path=inputs.program_path, sim=sim, model_series=model_series,
                     residuals=residuals, orientation=orientation, notes=notes)
