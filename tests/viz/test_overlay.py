@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 import rerun as rr
 from conftest import column_values, rrd_content
@@ -99,3 +100,20 @@ def test_log_view_goes_to_any_recording_stream():
     assert counts["feed/measured"] > 3000
     assert counts["blocks/measured"] == 4
     assert len(memory.drain_as_bytes()) > 0
+
+
+def test_a_block_shorter_than_a_sample_still_gets_its_block_time(tmp_path):
+    rec = syn.recording(lead_s=0.0)
+    t = rec.streams["axes"]["t_ns"].to_numpy()
+    # block 1 lasts 0.4 ms, between two samples 1 ms apart: no sample is ever inside it
+    starts = [t[0], t[1000] + 300_000, t[1000] + 700_000]
+    ends = [starts[1], starts[2], t[2000]]
+    aligned = pd.DataFrame({"block": [0, 1, 2], "t_start_ns": starts, "t_end_ns": ends})
+    aligned["duration_s"] = (aligned["t_end_ns"] - aligned["t_start_ns"]) / 1e9
+    data = prepare_view(ViewInputs(rec, measured_blocks=aligned))
+    assert not (data.measured["block"] == 1).any()
+    save_view(data, tmp_path / "short.rrd")
+    entry = rrd_content(tmp_path / "short.rrd")["/blocks/measured"]
+    np.testing.assert_array_equal(column_values(entry, TIMELINE_BLOCK), [0, 1, 2])
+    np.testing.assert_array_equal(column_values(entry, TIMELINE_TIME), np.array(starts) - starts[0])
+    np.testing.assert_allclose(column_values(entry, "Scalars:scalars"), aligned["duration_s"])
