@@ -11,6 +11,7 @@ Entity paths (ENTITY_* below) are the contract the tests check in the saved .rrd
 
 from __future__ import annotations
 
+import uuid
 from pathlib import Path
 
 import numpy as np
@@ -171,8 +172,9 @@ def view_blueprint(data: ViewData) -> rrb.Blueprint:
 
 
 def new_stream(name: str) -> rr.RecordingStream:
-    """A recording stream of its own (not the global one), named after the recording."""
-    return rr.RecordingStream(APPLICATION_ID, recording_id=f"feedlog-{name}")
+    """A recording stream of its own (not the global one), named after the recording; a fresh id per
+    export so that two exports sent to one viewer stay two recordings."""
+    return rr.RecordingStream(APPLICATION_ID, recording_id=f"feedlog-{name}-{uuid.uuid4().hex[:12]}")
 
 
 def save_view(data: ViewData, path: str | Path) -> dict[str, int]:
