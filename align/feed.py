@@ -150,6 +150,51 @@ def feed_at(t_ns: np.ndarray, positions: pd.DataFrame | np.ndarray, query_ns: np
     instead of interpolated between samples): O(n) for one running integral plus O(queries x window
     samples), so a long 1 kHz recording costs little when only CL points need a feed."""
     t_ns, p, cols, li, period, window = _prepare(t_ns, positions, columns, smoothing)
+    return _feed_at(t_ns, p, cols, li, period, window, query_ns)
+
+
+def feed_at_checked(t_ns: np.ndarray, values: np.ndarray, cols: list[str], query_ns: np.ndarray, *,
+                    period_ns: int, smoothing: FeedSmoothing | None = None) -> pd.DataFrame:
+    """`feed_at` for callers that already hold validated arrays (finite float64 positions in `cols`
+    order, x/y/z first; non-decreasing int64 times) and their sampling period."""
+    window = (smoothing or FeedSmoothing()).window_ns(period_ns)
+    li = [cols.index(c) for c in cols if c in LINEAR]
+    return _feed_at(np.asarray(t_ns, dtype=np.int64), values, list(cols), li, int(period_ns), window, query_ns)
+
+
+def _local_moving_average(t: np.ndarray, p: np.ndarray, idx: np.ndarray, a: np.ndarray, b: np.ndarray,
+                          window: float) -> np.ndarray:
+    """`moving_average` at the samples idx (k, m) (rows spanning samples a..b), from running integrals
+    over each row's own neighbourhood only: no pass over the whole recording."""
+    n = len(t)
+    half = window / 2
+    aw = np.clip(np.searchsorted(t, t[a] - half, side="right") - 1, 0, n - 2)
+    bw = np.clip(np.searchsorted(t, t[b] + half, side="left"), 1, n - 1)
+    width = int((bw - aw).max()) + 1
+    widx = np.minimum(aw[:, None] + np.arange(width)[None, :], bw[:, None])  # (k, L)
+    tw = t[widx]
+    pw = p[widx]
+    piece = 0.5 * (pw[:, 1:] + pw[:, :-1]) * (tw[:, 1:] - tw[:, :-1])[..., None]
+    local = np.concatenate([np.zeros((len(a), 1, p.shape[1])), np.cumsum(piece, axis=1)], axis=1)
+    rows = np.arange(len(a))[:, None]
+
+    def integral_at(tq):  # (k, m) times -> (k, m, c) running integral since t[aw]
+        kk = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, n - 2)
+        j = np.clip(kk - aw[:, None], 0, width - 1)
+        dt = t[kk + 1] - t[kk]
+        tau = (tq - t[kk])[..., None]
+        inv = np.where(dt > 0, 1.0 / np.where(dt > 0, dt, 1.0), 0.0)[..., None]
+        return local[rows, j] + p[kk] * tau + 0.5 * (p[kk + 1] - p[kk]) * inv * tau * tau
+
+    ti = t[idx]
+    wlo = np.clip(ti - half, t[0], t[-1])
+    whi = np.clip(ti + half, t[0], t[-1])
+    span = (whi - wlo)[..., None]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(span > 0, (integral_at(whi) - integral_at(wlo)) / np.where(span > 0, span, 1.0), p[idx])
+
+
+def _feed_at(t_ns, p, cols, li, period, window, query_ns) -> pd.DataFrame:
     n = len(t_ns)
     t = (t_ns - t_ns[0]).astype(np.float64)
     q = (np.asarray(query_ns, dtype=np.int64) - t_ns[0]).astype(np.float64)
@@ -162,17 +207,7 @@ def feed_at(t_ns: np.ndarray, positions: pd.DataFrame | np.ndarray, query_ns: np
     m = int((b - a).max()) + 1 if len(q) else 2
     idx = np.minimum(a[:, None] + np.arange(m)[None, :], b[:, None])  # (k, m): samples a..b, then b repeated
     if window > 1.5 * period:
-        dtv = np.diff(t)
-        integral = np.vstack([np.zeros((1, p.shape[1])), np.cumsum(0.5 * (p[1:] + p[:-1]) * dtv[:, None], axis=0)])
-        ti = t[idx].ravel()
-        wlo = np.clip(ti - window / 2, t[0], t[-1])
-        whi = np.clip(ti + window / 2, t[0], t[-1])
-        span = (whi - wlo)[:, None]
-        ia = _integral_at(t, p, integral, wlo)
-        ib = _integral_at(t, p, integral, whi)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            ps = np.where(span > 0, (ib - ia) / np.where(span > 0, span, 1.0), p[idx.ravel()])
-        ps = ps.reshape(len(q), m, p.shape[1])
+        ps = _local_moving_average(t, p, idx, a, b, window)
     else:
         ps = p[idx]
     rows = np.arange(len(q))

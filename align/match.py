@@ -251,14 +251,16 @@ def _project(c: np.ndarray, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
 def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray, *,
                     s_mm: np.ndarray | None = None, config: MatchConfig | None = None,
                     tolerance: np.ndarray | None = None, check: np.ndarray | None = None,
-                    labels: list[str] | None = None, speed_mm_s: np.ndarray | None = None) -> Match:
+                    labels: list[str] | None = None, speed_mm_s: np.ndarray | None = None,
+                    period_ns: int | None = None) -> Match:
     """Match ordered CL points (k, 3) to the measured path (`t_ns` (n,), `positions` (n, 3)).
 
     `s_mm`: the program's cumulative length at each CL point (default: chord length of `cl_xyz`).
     `tolerance`: per-point tolerance in mm (default `config.tol_mm` everywhere), e.g. widened by a
     block's G64 P blending tolerance. `check`: which points the tolerance applies to (default all finite
     ones); `labels` name points in the error message (e.g. "block 12 (line 40)"); `speed_mm_s`: the
-    programmed speed at each point, which bounds how far the tool can stray between two samples.
+    programmed speed at each point, which bounds how far the tool can stray between two samples;
+    `period_ns`: the sampling period when the caller knows it (default: median interval).
     """
     cfg = config or MatchConfig()
     cl = np.asarray(cl_xyz, dtype=np.float64)
@@ -290,8 +292,11 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     nseg = len(p0)
     spacing = float(np.median(np.diff(sv))) if nseg else 0.0
     sv_len = np.diff(sv)  # path length along each coarse segment
-    dt_all = np.diff(t)
-    period = int(np.median(dt_all[dt_all > 0])) if (dt_all > 0).any() else 0
+    if period_ns is None:
+        dt_all = np.diff(t)
+        period = int(np.median(dt_all[dt_all > 0])) if (dt_all > 0).any() else 0
+    else:
+        period = int(period_ns)
     sparse = period > cfg.sparse_ns
     w_min = 2.0 if sparse else 0.5
     w0 = cfg.window_mm if cfg.window_mm is not None else max(w_min, 3.0 * spacing, 4.0 * float(tol.max()))

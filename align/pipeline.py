@@ -28,7 +28,7 @@ import pandas as pd
 from feedlog.align.blocks import (NO_TIME, MotionSpan, blocks_from_geometry, blocks_from_lines, compare_blocks,
                                   leave_times, motion_span, split_merged)
 from feedlog.align.clock import event_offset, shift_stream
-from feedlog.align.feed import LINEAR, ROTARY, FeedSmoothing, feed_at
+from feedlog.align.feed import LINEAR, ROTARY, FeedSmoothing, feed_at_checked
 from feedlog.align.match import MatchConfig, match_cl_points
 from feedlog.align.subsample import refine_span
 from feedlog.align.timing import stream_timing
@@ -123,7 +123,7 @@ def _acc_limit(profile: MachineProfile | None) -> float:
     return float(min(lin)) if lin else np.inf
 
 
-def _positions(recording: Recording, cfg: AlignConfig) -> tuple[pd.DataFrame, list[str]]:
+def _positions(recording: Recording, cfg: AlignConfig) -> tuple[pd.DataFrame, list[str], np.ndarray]:
     axes = recording.stream(cfg.positions)
     missing = [c for c in LINEAR if c not in axes.columns]
     if missing:
@@ -134,7 +134,7 @@ def _positions(recording: Recording, cfg: AlignConfig) -> tuple[pd.DataFrame, li
         bad = int(np.flatnonzero(~np.isfinite(values).all(axis=1))[0])
         raise AlignmentError(f"{recording.source or 'recording'}: stream {cfg.positions!r} sample {bad} "
                              "has a non-finite position")
-    return axes, cols
+    return axes, cols, values
 
 
 def align_recording(recording: Recording, program: Program | str | Path | None = None, *,
@@ -148,9 +148,8 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     lap = _Laps()
     prof = _profile(recording, profile)
     prog = _program(recording, program)
-    axes, cols = _positions(recording, cfg)
+    axes, cols, pos = _positions(recording, cfg)
     t = axes["t_ns"].to_numpy(dtype=np.int64)
-    pos = axes[cols].to_numpy(dtype=np.float64)
     xyz = pos[:, :3]
     report: dict[str, Any] = {"recording": recording.source, "program": prog.name, "config": _config_dict(cfg),
                               "warnings": []}
@@ -185,7 +184,8 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     rapid_mm_min = prof.rapid_mm_min if prof is not None else np.nan
     speed = np.where(kind == RAPID, rapid_mm_min, cl["feed_mm_min"].to_numpy(dtype=np.float64)) / 60.0
     match = match_cl_points(cl[list(LINEAR)].to_numpy(dtype=np.float64), t, xyz, s_mm=cl["s_mm"].to_numpy(),
-                            config=mcfg, tolerance=tolerance, check=check, labels=labels, speed_mm_s=speed)
+                            config=mcfg, tolerance=tolerance, check=check, labels=labels, speed_mm_s=speed,
+                            period_ns=timing.period_ns)
     lap("match")
     d = match.dist_mm[np.isfinite(match.dist_mm)]
     report["match"] = {"cl_points": len(cl), "measured_samples": len(t), "matched": int(match.matched.sum()),
@@ -197,7 +197,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     # --- feeds (at the matched times only) ---------------------------------------------------------------
     ok = match.matched
     tq = np.where(ok, match.t_ns, t[0])
-    feeds = feed_at(t, axes[cols], tq, smoothing=cfg.smoothing)
+    feeds = feed_at_checked(t, pos, cols, tq, period_ns=timing.period_ns, smoothing=cfg.smoothing)
     path_feed, feed_from = _path_feed(recording, cfg, feeds, tq)
     report["feed_source"] = feed_from
     points = _points_table(cl, match, feeds, path_feed, span)
