@@ -93,6 +93,8 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
     # number characters: + - . 0-9 (bytes 43..57 except , and /)
     is_num = (b - np.uint8(_PLUS) <= _D0 + 9 - _PLUS) & (b != ord(",")) & (b != _SLASH)
     bnd = np.flatnonzero(~is_num)      # letters, newlines and special characters end a number
+    digits = b[is_num]
+    del is_num
     bcls = _CLASS[b[bnd]]
     unsupported: list[tuple[int, str, str]] = []
     skip: list[int] = []
@@ -135,7 +137,8 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
     is_nl = bcls == _NEWLINE
     wline = (np.cumsum(is_nl) - is_nl)[k_letter]  # newlines before each letter
     wletter = (b[wstart] - _A).astype(np.uint8)
-    values = _numbers(b[is_num], length, b, wstart)
+    values = _numbers(digits, length, b, wstart)
+    del digits
     bad_value = np.isnan(values)
 
     flow = np.zeros(0, dtype=np.int64)

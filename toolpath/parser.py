@@ -217,6 +217,11 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         k = int(np.flatnonzero(counts > 1)[0])
         raise R.error(k // 26, "word repeated on one line", LETTERS[k % 26])
 
+    m_rows, m_codes = row_of[is_m], m_int[is_m]
+    # the word arrays are in W now: let them go (million-block programs)
+    del letter, value, row_of, g10, m_int, is_g, is_m, other
+    tok.line = tok.letter = tok.value = R.row_of = None
+
     # -- modal state -------------------------------------------------------------------------------
     modal = {g: _ffill(groups[g], groups[g] >= 0, DEFAULTS[g]) for g in DEFAULTS}
     unit = np.where(modal["units"] == 200, MM_PER_INCH, 1.0)
@@ -377,10 +382,10 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     spindle = _ffill(W[S["S"]], has[S["S"]], 0.0)
     mcodes = _strings(n)
     stop = np.zeros(n, dtype=bool)
-    if is_m.any():
-        ms = pd.Series([f"M{int(v)}" for v in m_int[is_m]]).groupby(row_of[is_m]).agg(" ".join)
+    if len(m_rows):
+        ms = pd.Series([f"M{int(v)}" for v in m_codes]).groupby(m_rows).agg(" ".join)
         mcodes = _strings(n, ms.index.to_numpy(), ms.to_numpy())
-        stop[row_of[is_m][np.isin(m_int[is_m], STOP_M)]] = True
+        stop[m_rows[np.isin(m_codes, STOP_M)]] = True
     comment = _strings(n)
     if tok.comments:
         lines = np.fromiter(tok.comments.keys(), dtype=np.int64)
@@ -415,7 +420,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         "stop": stop,
     })
     assert list(blocks.columns[:len(BLOCK_COLUMNS)]) == list(BLOCK_COLUMNS)
-    metadata = _metadata(tok, W[S["O"]], has[S["O"]], m_int[is_m], row_of[is_m], is_motion, R, file,
+    metadata = _metadata(tok, W[S["O"]], has[S["O"]], m_codes, m_rows, is_motion, R, file,
                          warnings)
     for u in R.unsupported:
         warnings.append(f"line {u.line}: skipped {u.code} ({u.reason})")
