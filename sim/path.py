@@ -169,7 +169,7 @@ def projected_limits(delta: np.ndarray, length: np.ndarray, vel: np.ndarray, acc
     """Path speed and acceleration at which the first axis reaches its limit, per straight move
     (RS274 canon: each axis' time d_i / v_i, the slowest one sets the move's limit)."""
     ratio = np.abs(delta) / np.where(length > EPS_LEN, length, 1.0)[:, None]
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", over="ignore"):
         v_axis = np.min(np.where(ratio > 1e-12, vel / ratio, np.inf), axis=1)
         a_axis = np.min(np.where(ratio > 1e-12, acc / ratio, np.inf), axis=1)
     return v_axis, a_axis
