@@ -67,3 +67,15 @@ def _shortcut_bound(pts: np.ndarray) -> float:
     """Blend arcs shorten the path, so the time bound is the straight end-to-end distance at the
     fastest axis speed."""
     return float(np.linalg.norm(pts[-1])) / 50.0
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(steps=polylines, tol=st.sampled_from([0.001, 0.01, 0.1]), feed=st.sampled_from([300, 1500, 6000]))
+def test_fir_keeps_axis_speeds_and_ends_where_programmed(steps, tol, feed):
+    pts = np.cumsum(np.array(steps), axis=0)
+    res = simulate(block_table(pts, feed_mm_min=feed, tol_mm=tol), PROFILE,
+                   mechanisms={"fir": {"t1_s": 0.05, "t2_s": 0.01}})
+    pos = res.series[["x_mm", "y_mm", "z_mm"]].to_numpy()
+    assert np.allclose(pos[-1], pts[-1], atol=1e-6)
+    vel = np.abs(np.diff(pos, axis=0)) / 0.001
+    assert (vel <= np.array([50.0, 40.0, 20.0]) * 1.001 + 1e-9).all()  # averages of bounded pulses
