@@ -100,6 +100,19 @@ def block_times(row_of_piece: np.ndarray, start: np.ndarray, end: np.ndarray, n_
     return b_start, b_end
 
 
+def cover_motion(b_start: np.ndarray, b_end: np.ndarray, m_start: float, m_end: float) -> tuple[np.ndarray, np.ndarray]:
+    """Stretch the first block back to the motion start and the last one to the motion end, so the
+    block durations add up to the cycle time when a filter delays and spreads the motion."""
+    b_start, b_end = b_start.copy(), b_end.copy()
+    ran = np.flatnonzero(~np.isnan(b_start))
+    if len(ran):
+        first = ran[np.argmin(b_start[ran])]
+        last = ran[np.argmax(b_end[ran])]
+        b_start[first] = min(b_start[first], m_start)
+        b_end[last] = max(b_end[last], m_end)
+    return b_start, b_end
+
+
 def trajectory_from_plan(plan: Plan, pieces: Pieces, blocks: Blocks, dt_s: float) -> Trajectory:
     # during a parabolic blend both pieces move; the executing block changes halfway through the
     # overlap (LinuxCNC reports whichever segment is faster, which swaps at the middle)

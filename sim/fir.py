@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from feedlog.profile import MachineProfile
-from feedlog.sim.context import Context, Trajectory, block_times, time_grid
+from feedlog.sim.context import Context, Trajectory, block_times, cover_motion, time_grid
 from feedlog.sim.mechanism import Mechanism
 from feedlog.sim.path import Pieces
 
@@ -152,5 +152,6 @@ class FirInterpolator(Mechanism):
         moving = pc.length > 0
         m_start = float(t0[moving].min()) if moving.any() else 0.0
         m_end = float((t0 + dur)[moving].max() + td) if moving.any() else 0.0
+        b_start, b_end = cover_motion(b_start, b_end, m_start, m_end)
         return Trajectory(sample, block_start_s=b_start, block_end_s=b_end,
                           motion_start_s=m_start, motion_end_s=m_end)

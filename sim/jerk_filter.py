@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from feedlog.profile import MachineProfile
-from feedlog.sim.context import Context, Trajectory, hold_end
+from feedlog.sim.context import Context, Trajectory, cover_motion, hold_end
 from feedlog.sim.fir import moving_average
 from feedlog.sim.mechanism import Mechanism
 
@@ -68,7 +68,8 @@ class JerkFilter(Mechanism):
             return t, pos, new_speed, row
 
         smoothed = longer.map(smooth)
-        return Trajectory(smoothed._sampler, block_start_s=trajectory.block_start_s + tj / 2,
-                          block_end_s=trajectory.block_end_s + tj / 2,
-                          motion_start_s=trajectory.motion_start_s, motion_end_s=trajectory.motion_end_s + tj,
-                          plan=trajectory.plan)
+        m_end = trajectory.motion_end_s + tj
+        b_start, b_end = cover_motion(trajectory.block_start_s + tj / 2, trajectory.block_end_s + tj / 2,
+                                      trajectory.motion_start_s, m_end)
+        return Trajectory(smoothed._sampler, block_start_s=b_start, block_end_s=b_end,
+                          motion_start_s=trajectory.motion_start_s, motion_end_s=m_end, plan=trajectory.plan)

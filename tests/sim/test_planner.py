@@ -218,3 +218,11 @@ def test_consumed_short_line_runs_at_arc_speed(plain, gcode):
     assert res.notes["blend_arcs"] == 2 and res.notes["consumed_lines"] == 1
     mid = res.series[(res.series["x_mm"] > 19.5) & (res.series["x_mm"] < 21.0)]
     assert mid["feed_mm_min"].min() > 300  # never crawls through the short middle block
+
+
+@pytest.mark.parametrize("mechs", [["lookahead", "blend_arc"], ["fir"], ["lookahead", "jerk_filter"], ["cam"]])
+def test_block_durations_add_up_to_the_cycle_time(plain, gcode, mechs):
+    res = simulate(gcode(_zigzag(seed=5).format(tol=0.05, feed=3000)), plain, mechanisms=mechs)
+    b = res.blocks
+    assert b["duration_s"].sum() == pytest.approx(res.cycle_time_s, abs=1e-6)
+    assert (b["t_start_ns"].to_numpy()[1:] == b["t_end_ns"].to_numpy()[:-1]).all()
