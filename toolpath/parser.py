@@ -347,7 +347,9 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     f_here = has[S["F"]]
     inverse_time = modal["feed_mode"] == 930
     f_mm = W[S["F"]] * unit
-    modal_feed = _ffill(f_mm, f_here & ~inverse_time, np.nan)
+    # LinuxCNC forgets the feed when the feed mode changes: G93 -> G94 needs a new F
+    mode_change = np.r_[False, modal["feed_mode"][1:] != modal["feed_mode"][:-1]]
+    modal_feed = _ffill(np.where(f_here, f_mm, np.nan), (f_here | mode_change) & ~inverse_time, np.nan)
     feed_move = is_motion & (motion_mode != 0)
     lin_len = length
     rot_len = np.sqrt(((end[3:] - start[3:]) ** 2).sum(axis=0)) if has[[S[c] for c in "ABC"]].any() \

@@ -116,6 +116,8 @@ def test_dwell_inverse_time_and_orientation_vectors():
     assert b["dwell_s"].tolist() == [0, 0.5, 0, 0, 0]
     assert b["feed_mm_min"][2] == pytest.approx(20.0)  # 10 mm in 1/2 min
     assert b["inverse_time"].tolist() == [False, False, True, False, False]
+    with pytest.raises(ProgramError, match="feed"):  # G93 -> G94 forgets F, as LinuxCNC does
+        parse_program("G1 X1 F100\nG93 G1 X2 F1\nG94 G1 X3\n")
     assert np.isnan(b["ori_k"][0])
     assert b.loc[3, ["ori_i", "ori_j", "ori_k"]].tolist() == [0, 0, 1]
     assert b.loc[4, ["ori_i", "ori_j", "ori_k"]].tolist() == [0, 0, 1]  # modal once given

@@ -23,32 +23,50 @@ pytestmark = pytest.mark.skipif(RS274 is None, reason="LinuxCNC's rs274 interpre
                                                       "(apt-get install linuxcnc-uspace)")
 ROOT = Path(__file__).resolve().parents[2]
 SHARED = ROOT.parent / "shared" / "linuxcnc"
-_CALL = re.compile(r"(STRAIGHT_TRAVERSE|STRAIGHT_FEED|ARC_FEED|SELECT_PLANE)\(([^)]*)\)")
+_CALL = re.compile(r"(STRAIGHT_TRAVERSE|STRAIGHT_FEED|ARC_FEED|SELECT_PLANE|SET_FEED_RATE|"
+                   r"SET_MOTION_CONTROL_MODE|SET_NAIVECAM_TOLERANCE)\(([^)]*)\)")
+_MODES = {"CANON_CONTINUOUS": "continuous", "CANON_EXACT_PATH": "exact_path", "CANON_EXACT_STOP": "exact_stop"}
 # ARC_FEED(first_end, second_end, first_centre, second_centre, rotation, normal_end, a, b, c)
 _PLANE_AXES = {"CANON_PLANE_XY": (0, 1, 2), "CANON_PLANE_XZ": (2, 0, 1), "CANON_PLANE_YZ": (1, 2, 0)}
 
 
-def rs274_moves(path: Path) -> list[tuple[str, np.ndarray, np.ndarray | None, int]]:
-    """(kind, end x y z a b c, centre x y z or None, rotation) per canonical motion call."""
+def rs274_moves(path: Path) -> list[dict]:
+    """One dict per canonical motion call: kind, end (x y z a b c), centre (x y z, NaN off-plane) and
+    rotation of arcs, and the feed rate and path-control state in force."""
     path = path.resolve()
     out = subprocess.run([RS274, "-g", str(path)], capture_output=True, text=True, timeout=60,
                          cwd=path.parent).stdout
     moves, plane = [], _PLANE_AXES["CANON_PLANE_XY"]
+    state = {"feed": 0.0, "mode": "continuous", "tol": 0.0, "merge": 0.0}
     for name, args in _CALL.findall(out):
         if name == "SELECT_PLANE":
             plane = _PLANE_AXES[args.strip()]
             continue
-        vals = [float(v) for v in args.split(",")]
-        if name != "ARC_FEED":
-            moves.append(("rapid" if name == "STRAIGHT_TRAVERSE" else "linear", np.array(vals[:6]), None, 0))
+        if name == "SET_FEED_RATE":
+            state["feed"] = float(args)
             continue
-        end = np.zeros(6)
-        centre = np.full(3, np.nan)
-        u, v, w = plane
-        end[u], end[v], end[w] = vals[0], vals[1], vals[5]
-        end[3:] = vals[6:9]
-        centre[u], centre[v] = vals[2], vals[3]
-        moves.append(("arc", end, centre, int(vals[4])))
+        if name == "SET_MOTION_CONTROL_MODE":
+            parts = [a.strip() for a in args.split(",")]
+            state["mode"] = _MODES[parts[0]]
+            state["tol"] = float(parts[1]) if len(parts) > 1 else 0.0
+            continue
+        if name == "SET_NAIVECAM_TOLERANCE":
+            state["merge"] = float(args)
+            continue
+        vals = [float(v) for v in args.split(",")]
+        move = dict(state)
+        if name != "ARC_FEED":
+            move.update(kind="rapid" if name == "STRAIGHT_TRAVERSE" else "linear", end=np.array(vals[:6]),
+                        centre=None, rotation=0)
+        else:
+            end = np.zeros(6)
+            centre = np.full(3, np.nan)
+            u, v, w = plane
+            end[u], end[v], end[w] = vals[0], vals[1], vals[5]
+            end[3:] = vals[6:9]
+            centre[u], centre[v] = vals[2], vals[3]
+            move.update(kind="arc", end=end, centre=centre, rotation=int(vals[4]))
+        moves.append(move)
     return moves
 
 
@@ -57,17 +75,23 @@ def assert_same_as_rs274(path: Path, tol: float = 2e-4) -> int:
     ours = parse_program(path).motion
     assert len(ours) == len(ref), f"{len(ours)} motion blocks, rs274 has {len(ref)}"
     ends = ours[["x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"]].to_numpy()
-    for k, (kind, end, centre, rotation) in enumerate(ref):
+    for k, mv in enumerate(ref):
         row = ours.iloc[k]
-        assert np.allclose(ends[k], end, atol=tol), (k, ends[k], end)
-        if kind == "arc":
+        assert np.allclose(ends[k], mv["end"], atol=tol), (k, ends[k], mv["end"])
+        if mv["kind"] == "arc":
             sign = 1 if row.kind == "arc_ccw" else -1
-            assert sign * int(row.turns) == rotation, (k, row.kind, row.turns, rotation)
+            assert sign * int(row.turns) == mv["rotation"], (k, row.kind, row.turns, mv["rotation"])
             c = row[["cx_mm", "cy_mm", "cz_mm"]].to_numpy(dtype=float)
-            known = ~np.isnan(centre)
-            assert np.allclose(c[known], centre[known], atol=tol), (k, c, centre)
+            known = ~np.isnan(mv["centre"])
+            assert np.allclose(c[known], mv["centre"][known], atol=tol), (k, c, mv["centre"])
         else:
-            assert row.kind == kind, (k, row.kind, kind)
+            assert row.kind == mv["kind"], (k, row.kind, mv["kind"])
+        if row.kind != "rapid" and not row.inverse_time:
+            assert row.feed_mm_min == pytest.approx(mv["feed"], abs=1e-4), (k, row.feed_mm_min, mv["feed"])
+        assert row.path_mode == mv["mode"], (k, row.path_mode, mv["mode"])
+        if mv["mode"] == "continuous":  # LinuxCNC prints 0 for G64 without P
+            assert np.nan_to_num(row.tol_mm) == pytest.approx(mv["tol"], abs=1e-6), (k, row.tol_mm, mv["tol"])
+            assert np.nan_to_num(row.merge_tol_mm) == pytest.approx(mv["merge"], abs=1e-4), k
     return len(ref)
 
 
@@ -111,6 +135,11 @@ def arc_mixes(draw):
             words.insert(0, "G90.1" if absolute_ijk else "G91.1")
             c = centre if absolute_ijk else centre - pos
             words += [f"{'IJK'[u]}{c[u]:.4f}", f"{'IJK'[v]}{c[v]:.4f}"]
+        if draw(st.booleans()):
+            words.append(f"F{draw(st.integers(1, 5000))}")
+        if draw(st.booleans()):  # own line: P on an arc line means turns
+            lines.append(draw(st.sampled_from(["G61", "G61.1", "G64", "G64 P0.02", "G64 P0.1 Q0",
+                                               "G64 P0.005 Q0.003"])))
         lines.append(" ".join(words))
         pos = end
         if draw(st.booleans()):
