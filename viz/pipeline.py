@@ -165,10 +165,14 @@ def _measured(run: RecordingRun) -> None:
         run.measured_s, run.measured_source = finite_or_none(value), "align"
         return
     if run.data is not None and run.data.blocks["measured_s"].notna().any():
-        # align unavailable: the span of the blocks seen in the recording's line stream
-        b = run.data.measured[run.data.measured["block"] >= 0]["t_ns"]
-        run.measured_s = (int(b.iloc[-1]) - int(b.iloc[0])) / 1e9
-        run.measured_source = "line stream"
+        # not aligned: the span of the motion blocks seen in the recording's line stream
+        block = run.data.measured["block"]
+        program = run.gathered.program if run.gathered else None
+        inside = block.isin(program.motion["block"]) if program is not None else block >= 0
+        if inside.any():
+            t = run.data.measured.loc[inside, "t_ns"]
+            run.measured_s = (int(t.iloc[-1]) - int(t.iloc[0])) / 1e9
+            run.measured_source = "line stream"
 
 
 def _cam(run: RecordingRun) -> None:
@@ -181,14 +185,12 @@ def _cam(run: RecordingRun) -> None:
         return
     if g.program is None:
         return
-    try:
+    def cam_from_features() -> float:
         features = stage_function("block_features")(g.program, g.profile)
         dwell = float(np.nansum(g.program.blocks["dwell_s"].to_numpy())) if "dwell_s" in g.program.blocks else 0.0
-        run.cam_s = float(np.nansum(features["nominal_time_s"].to_numpy())) + dwell
-    except StageMissing as exc:
-        run.notes.append(f"CAM time not available: {exc}")
-    except FeedlogError as exc:
-        run.errors.append(f"CAM time failed: {exc}")
+        return float(np.nansum(features["nominal_time_s"].to_numpy())) + dwell
+
+    run.cam_s = _guarded(run, "CAM time", cam_from_features)
 
 
 def _guarded(run: RecordingRun, what: str, fn: Callable[[], Any]) -> Any:

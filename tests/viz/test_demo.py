@@ -132,3 +132,23 @@ def test_demo_trains_keeps_the_models_and_predicts_every_recording(recordings_di
     # the block-time overlay carries the model's per-block prediction
     content = rrd_content(out / "rerun" / "square_b.rrd")
     assert content["/blocks/mlp"]["rows"] == 4
+
+
+def test_demo_without_align_measures_from_the_line_stream_and_says_so(recordings_dir, tmp_path, monkeypatch,
+                                                                      capsys):
+    from feedlog.viz import stages
+
+    monkeypatch.setitem(stages.STAGE_FUNCTIONS, "align_recording", ("feedlog.align", "no_such_function"))
+    out = tmp_path / "demo"
+    assert main(["demo", "--recordings", str(recordings_dir), "--out", str(out), "--detail-plots", "0",
+                 "--json"]) == 0
+    rows = {r["recording"]: r for r in json.loads(capsys.readouterr().out)}
+    for name in ("square_a", "square_b"):
+        # first to last sample of the motion blocks: within one sample period of the true span
+        assert rows[name]["measured_s"] == pytest.approx(syn.cycle_time_s(), abs=2e-3)
+    report = (out / "report.md").read_text()
+    assert "- align: **not available** — feedlog.align.no_such_function is not available" in report
+    assert "measured cycle time taken from the program-line stream" in report and "square_a, square_b" in report
+    # training needs aligned tables: it says so instead of training on something else
+    assert "training skipped: no recording could be aligned" in report
+    assert not (out / "models").exists() or not list((out / "models").glob("*.pt"))
