@@ -22,7 +22,7 @@ import pandas as pd
 import pyarrow as pa
 
 from feedlog.errors import ProgramError
-from feedlog.toolpath import arcs
+from feedlog.toolpath.arcwords import ArcWords, resolve_arcs
 from feedlog.toolpath.lexer import Tokens, lex
 from feedlog.toolpath.program import Program, Unsupported
 from feedlog.toolpath.schema import (ARC_CCW, ARC_CW, BLOCK_COLUMNS, CONTINUOUS, DWELL, END_COLUMNS,
@@ -66,7 +66,6 @@ _GEO_LUT = np.array([c in "XYZABCIJKRPQ" for c in LETTERS])
 _M_LUT = np.array([m in M_CODES for m in range(200)] + [False])
 PATH_MODE_OF = {610: EXACT_PATH, 611: EXACT_STOP, 640: CONTINUOUS}
 KIND_OF_MOTION = {0: RAPID, 10: LINEAR, 20: ARC_CW, 30: ARC_CCW}
-RADIUS_TOL_MM, RADIUS_TOL_REL = 0.002, 0.001  # start vs end radius mismatch allowed on I/J/K arcs
 
 
 def _ffill(values: np.ndarray, present: np.ndarray, initial) -> np.ndarray:
@@ -284,52 +283,16 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     plane = modal["plane"] // 10
     if is_arc.any():
         a = np.flatnonzero(is_arc)
-        p_turns = W[S["P"], a]
-        bad = ~np.isnan(p_turns) & ((p_turns < 1) | (p_turns != np.rint(p_turns)))
-        if bad.any():
-            raise R.error(a[bad][0], "arc P (turns) must be a positive integer", f"P{p_turns[bad][0]:g}")
-        turns[a] = np.where(np.isnan(p_turns), 1, p_turns).astype(np.int16)
-        idx = arcs.plane_index(plane[a])
-        s_uvw = arcs.to_plane(start[:3, a].T, idx)
-        e_uvw = arcs.to_plane(end[:3, a].T, idx)
         ijk_rows = [S["I"], S["J"], S["K"]]
-        ijk = np.nan_to_num(W[np.ix_(ijk_rows, a)].T) * unit[a, None]
-        ijk_has = has[np.ix_(ijk_rows, a)].T
-        off_uvw = arcs.to_plane(ijk, idx)
-        has_uvw = arcs.to_plane(ijk_has, idx)
-        ccw = motion_mode[a] == 30
-        use_r = has[S["R"], a]
-        if (use_r & has_uvw[:, :2].any(axis=1)).any():
-            raise R.error(a[use_r & has_uvw[:, :2].any(axis=1)][0], "arc with both R and I/J/K", "R")
-        if has_uvw[:, 2].any():
-            k = np.flatnonzero(has_uvw[:, 2])[0]
-            word = "IJK"[int(idx[k, 2])]
-            raise R.error(a[k], f"{word} word names the normal axis of the arc's plane G{plane[a[k]]}", word)
-        if (~use_r & ~has_uvw[:, :2].any(axis=1)).any():
-            raise R.error(a[~use_r & ~has_uvw[:, :2].any(axis=1)][0], "arc needs R or centre words", "G2/G3")
-        c_uv = np.where((modal["arc_distance"][a] == 901)[:, None], off_uvw[:, :2], s_uvw[:, :2] + off_uvw[:, :2])
-        if use_r.any():
-            rr = W[S["R"], a[use_r]] * unit[a[use_r]]
-            c_r, ok = arcs.centre_from_radius(s_uvw[use_r, :2], e_uvw[use_r, :2], rr, ccw[use_r])
-            if not ok.all():
-                k = a[use_r][~ok][0]
-                raise R.error(k, "arc radius is shorter than half the chord (or start equals end)",
-                              f"R{W[S['R'], k]:g}")
-            c_uv[use_r] = c_r
-        r0 = np.hypot(*(s_uvw[:, :2] - c_uv).T)
-        r1 = np.hypot(*(e_uvw[:, :2] - c_uv).T)
-        mism = np.abs(r1 - r0) > np.maximum(RADIUS_TOL_MM, RADIUS_TOL_REL * r0)
-        if mism.any():
-            k = a[mism][0]
-            raise R.error(k, f"arc end radius {r1[mism][0]:.4f} differs from start radius "
-                             f"{r0[mism][0]:.4f} mm", "G3" if motion_mode[k] == 30 else "G2")
-        if (r0 <= 0).any():
-            raise R.error(a[r0 <= 0][0], "arc of zero radius", "G2/G3")
-        swept = arcs.sweep(s_uvw[:, :2], e_uvw[:, :2], c_uv, ccw, turns[a])
-        length[a] = arcs.arc_length(r0, r1, swept, e_uvw[:, 2] - s_uvw[:, 2])
-        centre[:, a] = arcs.from_plane(np.column_stack([c_uv, s_uvw[:, 2]]), idx).T
-        radius[a] = r0
-        sweep_deg[a] = np.degrees(swept)
+        words = ArcWords(start=start[:3, a].T, end=end[:3, a].T, plane=plane[a], ccw=motion_mode[a] == 30,
+                         ijk=W[np.ix_(ijk_rows, a)].T * unit[a, None], radius=W[S["R"], a] * unit[a],
+                         turns=W[S["P"], a], absolute_centre=modal["arc_distance"][a] == 901)
+        geo = resolve_arcs(words, lambda k, message, code: R.error(a[k], message, code))
+        turns[a] = geo.turns
+        length[a] = geo.length
+        centre[:, a] = geo.centre.T
+        radius[a] = geo.radius
+        sweep_deg[a] = np.degrees(geo.sweep)
 
     # -- orientation vectors (five-axis CL data) ---------------------------------------------------
     ori = np.full((n, 3), np.nan)
