@@ -73,10 +73,13 @@ def _expand(blocks: pd.DataFrame, chord_tol_mm: float) -> tuple[np.ndarray, np.n
     return src, end, frac
 
 
-def linearize(program: Program, chord_tol_mm: float) -> Program:
-    """A copy of `program` whose arcs are G1 chords within `chord_tol_mm`; every chord keeps its
-    arc's `block` and `line` (so `block` is no longer unique) and `segment` numbers the chords."""
+def linearize(program: Program | pd.DataFrame, chord_tol_mm: float) -> Program:
+    """A copy of `program` (a Program or its block table) whose arcs are G1 chords within
+    `chord_tol_mm`; every chord keeps its arc's `block` and `line` (so `block` is no longer unique)
+    and `segment` numbers the chords."""
     _check_tol(chord_tol_mm)
+    if isinstance(program, pd.DataFrame):
+        program = Program(blocks=program)
     blocks = program.blocks
     src, end, _ = _expand(blocks, chord_tol_mm)
     out = blocks.iloc[src].reset_index(drop=True)

@@ -119,6 +119,7 @@ def test_linearize_keeps_blocks_lines_and_the_g18_arc_direction():
     assert arc["length_mm"].sum() == pytest.approx(5 * math.pi, rel=1e-3)
     assert lin.blocks[["x0_mm", "z0_mm"]].iloc[1:].to_numpy() == pytest.approx(
         lin.blocks[["x_mm", "z_mm"]].iloc[:-1].to_numpy())
+    assert linearize(p.blocks, 0.01).blocks.equals(lin.blocks)  # a bare block table works too
     lines_only = parse_program("G1 X1 F1\nY1\n")
     assert linearize(lines_only, 0.01).blocks.drop(columns="segment").equals(lines_only.blocks)
 
