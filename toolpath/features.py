@@ -41,8 +41,6 @@ DEFAULT_PROFILE = "linuxcnc-xyz"
 STOP_MCODES = ("M0", "M1", "M2", "M6", "M30", "M60")
 _STOP_RE = r"\bM(?:" + "|".join(c[1:] for c in STOP_MCODES) + r")\b"
 EPS = 1e-9
-_NEEDED = ("block", "line", "kind", *START_COLUMNS, *END_COLUMNS, "plane", "cx_mm", "cy_mm", "cz_mm",
-           "sweep_deg", "length_mm", "feed_mm_min", "tol_mm", "ori_i", "ori_j", "ori_k")
 
 
 def _unit(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -113,6 +111,20 @@ def _orientation(m: dict[str, np.ndarray], prefix: str, kin: str) -> np.ndarray:
     return np.tile([0.0, 0.0, 1.0], (len(a), 1))
 
 
+class _Columns(dict):
+    """Columns of the motion rows as numpy arrays, gathered on first use (three-axis programs never
+    touch the rotary and orientation columns)."""
+
+    def __init__(self, table: pd.DataFrame, rows: np.ndarray) -> None:
+        super().__init__()
+        self.table, self.rows = table, rows
+
+    def __missing__(self, name: str) -> np.ndarray:
+        values = self.table[name].to_numpy()[self.rows]
+        self[name] = values
+        return values
+
+
 def _kinematics(table: pd.DataFrame, profile: MachineProfile | None) -> str:
     if profile is not None and profile.kinematics.type != "xyz":
         return {"xyzac-trt": "ac", "xyzbc-trt": "bc"}[profile.kinematics.type]
@@ -145,7 +157,7 @@ def block_features(program, profile: MachineProfile | str | None = None) -> pd.D
             rest_row[with_m] |= pd.Series(mc[with_m]).str.contains(_STOP_RE, regex=True).to_numpy()
     rest_count = np.cumsum(rest_row)
     mi = np.flatnonzero(is_motion)
-    m = {c: table[c].to_numpy()[mi] for c in _NEEDED if c in table.columns}
+    m = _Columns(table, mi)
     n = len(mi)
     rc = rest_count[mi]
     stop_before = np.r_[True, rc[1:] != rc[:-1]] if n else np.zeros(0, bool)
@@ -163,8 +175,9 @@ def block_features(program, profile: MachineProfile | str | None = None) -> pd.D
 
     # tool orientation: I J K where given, else rotary positions (Chien Eq. 7), else +Z
     kin = _kinematics(table, kin_profile)
-    given = np.column_stack([m["ori_i"], m["ori_j"], m["ori_k"]])
-    has_given = ~np.isnan(given).any(axis=1)
+    any_given = bool(table["ori_i"].notna().any())
+    given = np.column_stack([m["ori_i"], m["ori_j"], m["ori_k"]]) if any_given else np.full((n, 3), np.nan)
+    has_given = ~np.isnan(given).any(axis=1) if any_given else np.zeros(n, dtype=bool)
     if kin == "none" and not has_given.any():  # three-axis: the tool never turns
         ori_arc = ori_start = ori_end = np.zeros(n)
     else:
@@ -195,7 +208,7 @@ def block_features(program, profile: MachineProfile | str | None = None) -> pd.D
     with np.errstate(divide="ignore", invalid="ignore"):
         t_rapid = length / prof.rapid_mm_min * 60.0
         time_len = length
-        if any((m[f"{ax}_deg"] != 0).any() or (m[f"{ax}0_deg"] != 0).any() for ax in "abc"):
+        if any((table[f"{ax}_deg"].to_numpy() != 0).any() for ax in "abc"):
             rot = np.column_stack([m[f"{ax}_deg"] - m[f"{ax}0_deg"] for ax in "abc"])
             time_len = np.where(tcp_moving, length, np.sqrt(np.einsum("ij,ij->i", rot, rot)))
             for j, ax in enumerate("abc"):
