@@ -37,10 +37,10 @@ class FinalConfig(ModelConfig):
     layers: int = 1
     crop_blocks: int = 0
     length_tolerance: float = 0.05
-    crops: int = 300
-    batch_size: int = 16
-    epochs: int = 150
-    patience: int = 20
+    crops: int = 128
+    batch_size: int = 32
+    epochs: int = 30
+    patience: int = 6
 
     presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 20, "patience": 6, "crops": 64,
                                                               "hidden": 16}}

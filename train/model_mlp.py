@@ -38,7 +38,7 @@ class MLPConfig(ModelConfig):
     # beyond Sun Table 1: the path tolerance, fixed in Sun's trials but varied across our recordings
     extra_inputs: tuple[str, ...] = ("tol_eff_mm",)
 
-    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 80, "patience": 15}}
+    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 60, "patience": 12, "batch_size": 512}}
 
     def __post_init__(self) -> None:
         super().__post_init__()
