@@ -3,7 +3,7 @@
 The lexer yields (line, letter, value) words. Here they are scattered into one row per source line,
 modal state (units, distance mode, plane, motion mode, feed, path mode, ...) is propagated with a
 vectorised forward fill, absolute positions come from a cumulative sum of incremental moves reset at
-every absolute word, and arcs are resolved for all rows at once (toolpath.arcs).
+every absolute word, and arcs are resolved for all rows at once (toolpath.arcwords).
 
 Order of execution within a line follows RS274/NGC: feed mode and F, S, M codes, dwell, plane, units,
 path control, distance modes, then motion; so `G20 G91 G1 X1 F10` moves 25.4 mm at 254 mm/min.
@@ -340,7 +340,8 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     merge_here = np.where(g64, np.where(has[S["Q"]], q_val, p_val), np.nan)
     tol = _ffill(tol_here, path_here, np.nan)
     merge = _ffill(merge_here, path_here, np.nan)
-    path_code = np.select([modal["path"] == 610, modal["path"] == 611], [0, 1], 2).astype(np.int8)
+    path_code = np.select([modal["path"] == g for g in PATH_MODE_OF],
+                          [PATH_MODES.index(m) for m in PATH_MODE_OF.values()], -1).astype(np.int8)
     dwell = np.where(is_dwell, W[S["P"]], 0.0)
     if (dwell < 0).any():
         raise R.error(int(np.flatnonzero(dwell < 0)[0]), "negative dwell time", "P")
