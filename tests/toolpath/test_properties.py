@@ -132,3 +132,25 @@ def test_any_text_only_ever_raises_program_error(text):
         parse_program(text + "\n")
     except ProgramError:
         pass
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(linear_programs(), st.data())
+def test_lenient_mode_lists_every_unsupported_code_and_keeps_the_rest(case, data):
+    text, ends, _ = case
+    lines = text.splitlines()
+    extra = data.draw(st.lists(st.tuples(st.integers(1, len(lines)),
+                                         st.sampled_from(["M98 P100", "G28", "U5", "#5=1", "G41 D1"])),
+                               max_size=4, unique_by=lambda t: t[0]))
+    out = list(lines)
+    for at, code in sorted(extra, reverse=True):
+        out.insert(at, code)  # on a line of its own: the moves stay as they were
+    p = parse_program("\n".join(out) + "\n", lenient=True)
+    listed = {u.line for u in p.unsupported}
+    inserted_lines = sorted(at for at, _ in extra)
+    expected = {at + 1 + sum(1 for other in inserted_lines if other < at) for at in inserted_lines}
+    assert listed == expected
+    assert np.allclose(p.motion[["x_mm", "y_mm", "z_mm"]].to_numpy(), ends, atol=1e-9)
+    if extra:
+        with pytest.raises(ProgramError):
+            parse_program("\n".join(out) + "\n")
