@@ -45,23 +45,6 @@ REGISTRY: dict[str, str] = {
     "jerk_filter": "feedlog.sim.jerk_filter:JerkFilter",
 }
 
-# Controller families whose measured behaviour needs mechanism settings beyond the profile's limits.
-# A profile's own [sim.<name>] tables win over these. Matched against `profile.controller`.
-CONTROLLER_PRESETS: dict[str, dict[str, dict[str, Any]]] = {
-    "linuxcnc": {
-        # task -> motion queue feeds ~600 blocks/s: the floor fitted to dense002q0.ngc (5.466 s)
-        "block_time": {"enabled": True, "min_block_time_s": 0.00167},
-        # canon (emccanon.cc getStraightAcceleration) projects the axis limits only; the TRAJ
-        # MAX_LINEAR_ACCELERATION does not cap a coordinated move
-        "lookahead": {"path_acc_max_mm_s2": float("inf")},
-        # LinuxCNC plans in axis (program) coordinates; joint limits do not slow the feed
-        "trunnion": {"limit_joints": False},
-        # the interpreter merges nearly collinear lines within G64 Q (Q defaults to P)
-        "naive_cam": {"enabled": True},
-    },
-}
-
-
 @dataclass
 class Mechanism:
     """Base class. Subclasses are dataclasses whose fields are unit-named parameters."""
@@ -133,31 +116,19 @@ def mechanism_class(name: str) -> type[Mechanism]:
     return getattr(importlib.import_module(module_name), class_name)
 
 
-def _preset(profile: MachineProfile) -> dict[str, dict[str, Any]]:
-    controller = profile.controller.lower()
-    merged: dict[str, dict[str, Any]] = {}
-    for family, tables in CONTROLLER_PRESETS.items():
-        if family in controller:
-            for name, table in tables.items():
-                merged.setdefault(name, {}).update(table)
-    return merged
-
-
 MechanismSpec = Mapping[str, Any] | Sequence[str] | None
 
 
 def resolve_mechanisms(profile: MachineProfile, mechanisms: MechanismSpec = None) -> list[Mechanism]:
     """The mechanisms that run, in chain order, with their parameters.
 
-    Parameter layers (later wins): class defaults from the profile, the controller preset, the
+    Parameter layers (later wins): class defaults from the profile, the
     profile's `[sim.<name>]` table, then `mechanisms`. `mechanisms` is either a sequence of names
     (exactly those run; the default interpolator is added when none is named) or a mapping
     `name -> {param: value}` / `name -> True/False` applied on top of the profile; switching on an
     interpolator or a corner law there switches off the others of its kind.
     """
     tables: dict[str, dict[str, Any]] = {}
-    for name, table in _preset(profile).items():
-        tables.setdefault(name, {}).update(table)
     for name, table in profile.sim.items():
         if not isinstance(table, Mapping):
             raise SimulationError(f"profile {profile.name!r}: [sim.{name}] must be a table, got {table!r}")

@@ -54,11 +54,14 @@ def test_profile_sim_tables_switch_and_parameterise(plain):
     assert fo.override == 0.8
 
 
-def test_linuxcnc_preset_applies_to_linuxcnc_profiles_only(plain):
+def test_linuxcnc_profiles_switch_on_their_measured_mechanisms(plain):
     from feedlog.profile import load_profile
 
     lcnc = {m.name: m for m in resolve_mechanisms(load_profile("linuxcnc-xyz"))}
     assert lcnc["block_time"].min_block_time_s == pytest.approx(0.00167)
+    assert "naive_cam" in lcnc
+    five = {m.name: m for m in resolve_mechanisms(load_profile("linuxcnc-xyzac"))}
+    assert five["trunnion"].limit_joints is False
     assert "block_time" not in {m.name for m in resolve_mechanisms(plain)}
 
 
