@@ -15,7 +15,7 @@ linear joints further, so the feed drops further (the trend of Chien Tables 4 an
 With `limit_joints` the per-joint velocity and acceleration limits of the profile (x, y, z, a, c)
 cap every block's feed, using the joint motion per unit path length sampled at `samples_per_block`
 points along the block. LinuxCNC plans in program (axis) coordinates and does not do this (its
-preset sets `limit_joints = false`). Blocks that carry tool orientation vectors (ori_i/j/k, CL data)
+profile sets `[sim.trunnion] limit_joints = false`). Blocks that carry tool orientation vectors (ori_i/j/k, CL data)
 get their A/C from Eq. 7 when `orientation_from_vectors` is set.
 """
 
