@@ -14,7 +14,9 @@ Two sources (Chien et al. 2024 train on per-CL-line "block cycle times"):
   the last ends at motion end.
 
 Motion span (cycle time = end - start): from the positions themselves. Motion starts in the first
-sampling interval in which any axis moves by more than `still_mm` and ends in the last. At high rates
+sampling interval at whose end an axis is more than `still_mm` away from its starting rest position,
+and ends in the last interval before every axis settles within `still_mm` of its final rest position
+(noise-free data: the first and last sample-to-sample change; noisy data: `still_mm` from `rest_noise`). At high rates
 the interval edges are used (motion starts at the last sample at rest, ends at the first sample at
 rest); when samples are sparse (5 Hz) the moment inside the interval is estimated from the distance
 moved in it, the mean speed of the neighbouring interval and the acceleration limit (from rest with
@@ -54,26 +56,61 @@ def _time_from_rest(d: float, v: float, acc: float) -> float:
     return d / v + v / (2 * acc)
 
 
+def rest_noise(t_ns: np.ndarray, positions: np.ndarray, *, probe_s: float = 0.1, bound_mm: float = 0.1) -> float:
+    """Robust standard deviation (1.4826 x MAD, worst axis) of the positions at rest at the start and at
+    the end: the samples of the first (last) `probe_s` that stay within `bound_mm` of the first (last)
+    sample, where a logger normally sees the machine standing. 0 for clean commanded positions."""
+    t = np.asarray(t_ns, dtype=np.int64)
+    p = np.asarray(positions, dtype=np.float64)
+    head = max(int(np.searchsorted(t, t[0] + int(probe_s * 1e9))), 1)
+    tail = min(int(np.searchsorted(t, t[-1] - int(probe_s * 1e9))), len(t) - 1)
+    spread = []
+    for part in (p[:head], p[tail:][::-1]):
+        near = np.abs(part - part[0]).max(axis=1) <= bound_mm
+        run = part[: int(np.argmin(near)) if not near.all() else len(part)]
+        if len(run) < 3:
+            continue
+        dev = np.abs(run - np.median(run, axis=0))
+        spread.append(1.4826 * np.median(dev, axis=0).max())
+    return float(min(spread)) if spread else 0.0
+
+
 def motion_span(t_ns: np.ndarray, positions: np.ndarray, *, still_mm: float = 1e-6,
                 acc_mm_s2: float = np.inf, sparse_ns: int = 5_000_000) -> MotionSpan:
-    """First motion to end of motion. `positions` (n, k) in mm (and deg for rotary columns);
-    intervals longer than `sparse_ns` get the sub-interval estimate described in the module doc."""
+    """First motion to end of motion. `positions` (n, k) in mm (and deg for rotary columns); the tool
+    moves once any axis is more than `still_mm` away from where it rested at the start (with
+    still_mm > 1e-6: the median of the leading samples within 2 still_mm of the first), and has stopped
+    once every axis stays within
+    `still_mm` of where it rests at the end; for noise-free data that is the first and last
+    sample-to-sample change. Intervals longer than `sparse_ns` get the sub-interval estimate described
+    in the module doc."""
     t = np.asarray(t_ns, dtype=np.int64)
     p = np.asarray(positions, dtype=np.float64)
     if len(t) < 2:
         raise AlignmentError(f"motion span needs at least 2 samples, got {len(t)}")
-    step = np.abs(np.diff(p, axis=0)).max(axis=1)
-    moving = np.flatnonzero(step > still_mm)
-    if len(moving) == 0:
+    # rest positions: the first and last sample; with noise, the median of the leading (trailing) run
+    # of samples within 2 x still_mm of the first (last) one
+    ref0, ref1 = p[0], p[-1]
+    if still_mm > 1e-6:
+        near0 = np.abs(p - p[0]).max(axis=1) <= 2 * still_mm
+        near1 = np.abs(p - p[-1]).max(axis=1) <= 2 * still_mm
+        run0 = int(np.argmin(near0)) if not near0.all() else len(p)
+        run1 = int(np.argmin(near1[::-1])) if not near1.all() else len(p)
+        ref0 = np.median(p[:max(run0, 1)], axis=0)
+        ref1 = np.median(p[len(p) - max(run1, 1):], axis=0)
+    away0 = np.flatnonzero(np.abs(p - ref0).max(axis=1) > still_mm)
+    away1 = np.flatnonzero(np.abs(p - ref1).max(axis=1) > still_mm)
+    if len(away0) == 0 or len(away1) == 0:
         raise AlignmentError(f"the recording never moves (no axis changes by more than {still_mm} mm)")
-    i0, i1 = int(moving[0]), int(moving[-1])
+    i0 = max(int(away0[0]) - 1, 0)                  # last sample at rest before motion
+    i1 = min(int(away1[-1]), len(t) - 2)            # last sample before the final rest
 
     def chord(i: int) -> float:  # straight distance moved in interval i
-        return float(np.linalg.norm(p[i + 1, :3] - p[i, :3])) if p.shape[1] >= 3 else float(step[i])
+        return float(np.linalg.norm(p[i + 1, :3] - p[i, :3]))
 
     t_start, t_end = int(t[i0]), int(t[i1 + 1])
     dt0 = t[i0 + 1] - t[i0]
-    if dt0 > sparse_ns and i0 + 1 < len(step):
+    if dt0 > sparse_ns and i0 + 2 < len(t):
         nxt = i0 + 1
         v = chord(nxt) / ((t[nxt + 1] - t[nxt]) / 1e9)
         tau = _time_from_rest(chord(i0), max(v, chord(i0) / (dt0 / 1e9)), acc_mm_s2)

@@ -26,7 +26,7 @@ import numpy as np
 import pandas as pd
 
 from feedlog.align.blocks import (NO_TIME, MotionSpan, blocks_from_geometry, blocks_from_lines, compare_blocks,
-                                  leave_times, motion_span, split_merged)
+                                  leave_times, motion_span, rest_noise, split_merged)
 from feedlog.align.clock import event_offset, shift_stream
 from feedlog.align.feed import LINEAR, ROTARY, FeedSmoothing, feed_at_checked
 from feedlog.align.match import MatchConfig, match_cl_points
@@ -41,7 +41,8 @@ from feedlog.toolpath.schema import MOTION_KINDS, RAPID
 BOUNDARIES = ("auto", "pass", "leave")
 FEED_SOURCES = ("auto", "stream", "positions")
 STRAIGHT = ("linear", RAPID)
-SPARSE_NS = 5_000_000  # sampling periods above this count as sparse (5 Hz logging, not a servo trace)
+SPARSE_NS = 5_000_000
+REST_NOISE_K = 6.0  # standstill threshold in robust standard deviations of the position noise at rest  # sampling periods above this count as sparse (5 Hz logging, not a servo trace)
 
 
 @dataclass(frozen=True)
@@ -58,8 +59,10 @@ class AlignConfig:
     boundary: str = "auto"           # geometric block end: pass (closest approach to the end point),
                                      # leave (where the tool leaves a straight block into a blend),
                                      # auto: leave when positions are sampled every <= 5 ms, else pass
-    on_path_mm: float = 1e-6         # "on the block's segment" for `leave` (raise for noisy positions)
-    still_mm: float = 1e-6           # per-sample motion below this is standstill
+    on_path_mm: float = 1e-6         # "on the block's segment" for `leave` (at least 2 x the position
+                                     # quantum; raise for noisy positions)
+    still_mm: float | None = None    # distance from a rest position that counts as motion; None:
+                                     # REST_NOISE_K x the noise at rest (blocks.rest_noise), >= 1e-6 mm
     sync_lines: bool = False         # remove the line stream's clock offset (estimated from geometry)
     model_span: bool = True          # sparse data: place motion start/end inside their sampling interval
                                      # with feedlog.sim's trajectory of the program (needs a profile)
@@ -73,7 +76,7 @@ class AlignConfig:
             raise AlignmentError(f"boundary must be one of {', '.join(BOUNDARIES)}, got {self.boundary!r}")
         if self.feed_source not in FEED_SOURCES:
             raise AlignmentError(f"feed_source must be one of {', '.join(FEED_SOURCES)}, got {self.feed_source!r}")
-        if not (self.on_path_mm > 0 and self.still_mm >= 0 and self.chord_tol_mm > 0):
+        if not (self.on_path_mm > 0 and (self.still_mm is None or self.still_mm >= 0) and self.chord_tol_mm > 0):
             raise AlignmentError(f"need on_path_mm > 0, still_mm >= 0, chord_tol_mm > 0; got {self.on_path_mm}, "
                                  f"{self.still_mm}, {self.chord_tol_mm}")
 
@@ -111,6 +114,15 @@ def _program(recording: Recording, program: Program | str | Path | None) -> Prog
         raise AlignmentError(f"{recording.source or 'recording'}: no program given and none attached "
                              "(program.ngc); pass one with --program")
     return parse_program(text, name=f"{Path(recording.source).stem or 'recording'}:program.ngc")
+
+
+def position_quantum(pos: np.ndarray, *, samples: int = 100_000) -> float:
+    """The smallest non-zero step of any linear axis (over an evenly strided subset): the encoder or
+    fieldbus resolution of quantised positions, ~0 for floating-point commanded positions."""
+    step = max(1, len(pos) // samples)
+    d = np.abs(np.diff(pos[::step, :3], axis=0)) if step > 1 else np.abs(np.diff(pos[:, :3], axis=0))
+    nz = d[d > 0]
+    return float(nz.min()) if len(nz) else 0.0
 
 
 def _acc_limit(profile: MachineProfile | None) -> float:
@@ -160,7 +172,11 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
         report["warnings"].append(f"{cfg.positions}: {timing.gaps} gap(s), largest {timing.largest_gap_ns / 1e6:.1f} ms; "
                                   "matches and feeds across a gap use the straight chord over it")
 
-    span = motion_span(t, pos, still_mm=cfg.still_mm, acc_mm_s2=_acc_limit(prof))
+    probe_s = max(0.1, 5 * timing.period_ns / 1e9)  # enough samples at rest at both ends
+    still = cfg.still_mm if cfg.still_mm is not None else min(0.05, max(1e-6, REST_NOISE_K * rest_noise(
+        t, pos, probe_s=probe_s)))
+    report["still_mm"] = still
+    span = motion_span(t, pos, still_mm=still, acc_mm_s2=_acc_limit(prof))
     refined = None
     if timing.period_ns > SPARSE_NS and prof is not None and cfg.model_span:
         span, refined = _refine_with_sim(span, t, xyz, prog, prof, report)
@@ -180,7 +196,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     kind = cl["kind"].astype(str).to_numpy()
     check = np.ones(len(cl), dtype=bool) if cfg.check_rapids else (kind != RAPID)
     labels = [f"block {b} (line {ln})" for b, ln in zip(blk, cl["line"].to_numpy())]
-    mcfg = MatchConfig(tol_mm=float(tolerance.max()), window_mm=cfg.window_mm, still_mm=cfg.still_mm)
+    mcfg = MatchConfig(tol_mm=float(tolerance.max()), window_mm=cfg.window_mm, still_mm=still)
     rapid_mm_min = prof.rapid_mm_min if prof is not None else np.nan
     speed = np.where(kind == RAPID, rapid_mm_min, cl["feed_mm_min"].to_numpy(dtype=np.float64)) / 60.0
     match = match_cl_points(cl[list(LINEAR)].to_numpy(dtype=np.float64), t, xyz, s_mm=cl["s_mm"].to_numpy(),
@@ -219,7 +235,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
         p0 = motion[["x0_mm", "y0_mm", "z0_mm"]].to_numpy(dtype=np.float64)
         p1 = motion[["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=np.float64)
         leave = leave_times(t, xyz, np.where(straight, p0, np.nan), np.where(straight, p1, np.nan),
-                            match.index[end_idx], on_path_mm=cfg.on_path_mm)
+                            match.index[end_idx], on_path_mm=max(cfg.on_path_mm, 2 * position_quantum(pos)))
     geo = blocks_from_geometry(motion, match.t_ns[end_idx], match.t_depart_ns[end_idx], span=span,
                                end_leave_ns=leave)
     geo["source"] = "geometry"
@@ -244,14 +260,31 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
 
 def _refine_with_sim(span: MotionSpan, t: np.ndarray, xyz: np.ndarray, prog: Program, prof: MachineProfile,
                      report: dict[str, Any]) -> tuple[MotionSpan, str | None]:
+    model = _model_profile(prof)
     try:
         from feedlog.sim import simulate  # noqa: PLC0415 - only sparse recordings need the model
-        sim = simulate(prog, prof)
+        sim = simulate(prog, model)
     except (ImportError, FeedlogError) as exc:
         report["warnings"].append(f"no model for sub-sample motion start/end ({exc}); kinematic estimate used")
         return span, None
     series = sim.series
-    return refine_span(span, t, xyz, series["t_ns"].to_numpy(), series[list(LINEAR)].to_numpy()), f"sim:{prof.name}"
+    source = f"sim:{model.name}" + ("" if model is prof else " (shipped profile's sim settings)")
+    return refine_span(span, t, xyz, series["t_ns"].to_numpy(), series[list(LINEAR)].to_numpy()), source
+
+
+def _model_profile(prof: MachineProfile) -> MachineProfile:
+    """The profile to simulate with: `prof`, or, when it carries no `[sim]` settings (e.g. a profile
+    attached by an older recorder), the shipped profile of the same name with the same axes, whose
+    `[sim]` tables hold feedlog's fitted mechanism settings for that machine."""
+    if prof.sim:
+        return prof
+    try:
+        shipped = load_profile(prof.name)
+    except FeedlogError:
+        return prof
+    if shipped.sim and shipped.axes == prof.axes and shipped.kinematics == prof.kinematics:
+        return shipped
+    return prof
 
 
 class _Laps:
