@@ -28,6 +28,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="hold out this recording for testing (repeatable; overrides the manifest)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--epochs", type=int, help="override every model's maximum number of epochs")
+    parser.add_argument("--sim-augment", type=int, default=0, metavar="N",
+                        help="add N simulated training programs per machine (feedlog.sim; not for the hybrid)")
     parser.add_argument("--overwrite", action="store_true", help="replace existing checkpoints and results")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bars")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
@@ -44,7 +46,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"{len(tables)} aligned recording(s): {n_train} for training, {len(tables) - n_train} held out")
     overrides = {m: {"epochs": args.epochs} for m in models} if args.epochs else None
     results = train_and_evaluate(tables, out_dir=args.outdir, models=models, seed=args.seed, preset=args.preset,
-                                 overrides=overrides, overwrite=args.overwrite, progress=not args.quiet)
+                                 overrides=overrides, overwrite=args.overwrite, sim_augment=args.sim_augment,
+                                 progress=not args.quiet)
     if args.json:
         doc = {"results": results.to_dict(orient="records"), "summary": results.attrs.get("summary", {})}
         print(json.dumps(doc, indent=1, default=str))

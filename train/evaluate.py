@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from feedlog.errors import FeedlogError, ModelError
+from feedlog.train.augment import simulated_tables
 from feedlog.train.checkpoint import save_checkpoint
 from feedlog.train.dataset import TARGET, ProgramTable, fingerprint
 from feedlog.train.model_final import FinalBiLSTM
@@ -45,12 +46,15 @@ def _with_sim(tables: Sequence[ProgramTable], log: Callable[[str], None]) -> lis
 def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
                        models: Sequence[str] = DEFAULT_MODELS, seed: int = 0, preset: str = "full",
                        overrides: dict[str, dict[str, Any]] | None = None, overwrite: bool = False,
-                       progress: bool = True, log: Callable[[str], None] | None = None) -> pd.DataFrame:
+                       sim_augment: int = 0, progress: bool = True,
+                       log: Callable[[str], None] | None = None) -> pd.DataFrame:
     """Fit `models` on the 'train' tables, save `<out_dir>/<model>.pt`, evaluate on the 'test' tables.
 
     `preset` "quick" trains the small, fast variants (the demo's); `overrides` maps a model name to
     config fields. A model that cannot be trained here (the hybrid without a simulator) is skipped
     and said so; the returned frame's `attrs["summary"]` holds per-model training reports.
+    `sim_augment` > 0 adds that many simulated training programs per training machine
+    (`augment.simulated_tables`) to the data of every model but the hybrid.
     """
     log = log or (lambda msg: print(msg, file=sys.stderr))
     for name in models:
@@ -74,6 +78,14 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
     sim_train = sim_test = None
     if "hybrid" in models:
         sim_train, sim_test = _with_sim(train, log), _with_sim(test, log)
+    augmented = list(train)
+    if sim_augment > 0:
+        profiles = {t.profile.name: t.profile for t in train if t.profile is not None}
+        if not profiles:
+            raise ModelError("--sim-augment needs the training recordings' machine profiles (from the manifest)")
+        for i, prof in enumerate(profiles.values()):
+            augmented += simulated_tables(prof, n_programs=sim_augment, seed=seed * 100 + i)
+        log(f"added {len(augmented) - len(train)} simulated training program(s)")
     rows = [_base_row(t) for t in test]
     if sim_test is not None:
         for row, t in zip(rows, sim_test):
@@ -82,7 +94,7 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
     block_preds = {t.name: t.blocks[["block", "line", TARGET]].copy() for t in test}
     summary: dict[str, Any] = {}
     for name in models:
-        fit_on, test_on = train, test
+        fit_on, test_on = augmented, test
         if name == "hybrid":
             if sim_train is None or sim_test is None:
                 summary[name] = {"skipped": "the simulation could not run on every recording"}
