@@ -36,6 +36,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="feed differentiation window (default: max(sample period, 4 ms))")
     parser.add_argument("--sync-lines", action="store_true",
                         help="estimate and remove the line stream's clock offset against the positions")
+    parser.add_argument("--work-offset", type=float, nargs=3, metavar=("X", "Y", "Z"), default=(0.0, 0.0, 0.0),
+                        help="program origin in the recorded frame, mm (the G54 offset a G10 L2 set)")
+    parser.add_argument("--lenient", action="store_true",
+                        help="skip unsupported program codes (reported in report.json) instead of failing")
     parser.add_argument("--jobs", "-j", type=int, default=None, help="worker processes (default: all cores)")
     parser.add_argument("--overwrite", action="store_true", help="replace existing output files")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
@@ -44,7 +48,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     config = AlignConfig(tol_mm=args.tol_mm, check_rapids=args.check_rapids, boundary=args.boundary,
                          feed_source=args.feed_source, sync_lines=args.sync_lines,
-                         smoothing=FeedSmoothing(window_s=args.feed_window_s))
+                         smoothing=FeedSmoothing(window_s=args.feed_window_s),
+                         work_offset_mm=tuple(args.work_offset), lenient=args.lenient)
     if args.jobs is not None and args.jobs < 1:
         raise FeedlogError(f"--jobs must be >= 1, got {args.jobs}")
     items = align_many(args.recordings, args.outdir, program=args.program, profile=args.profile, config=config,

@@ -68,6 +68,9 @@ class AlignConfig:
                                      # with feedlog.sim's trajectory of the program (needs a profile)
     window_mm: float | None = None   # match search window (see MatchConfig)
     smoothing: FeedSmoothing = field(default_factory=FeedSmoothing)
+    work_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)  # program origin in the measured frame
+                                     # (G54 set by G10 L2 on the machine): added to every CL point
+    lenient: bool = False            # parse the program leniently (unsupported codes skipped, reported)
 
     def __post_init__(self) -> None:
         if not self.tol_mm > 0:
@@ -76,6 +79,8 @@ class AlignConfig:
             raise AlignmentError(f"boundary must be one of {', '.join(BOUNDARIES)}, got {self.boundary!r}")
         if self.feed_source not in FEED_SOURCES:
             raise AlignmentError(f"feed_source must be one of {', '.join(FEED_SOURCES)}, got {self.feed_source!r}")
+        if len(self.work_offset_mm) != 3 or not np.isfinite(self.work_offset_mm).all():
+            raise AlignmentError(f"work_offset_mm needs three finite values, got {self.work_offset_mm!r}")
         if not (self.on_path_mm > 0 and (self.still_mm is None or self.still_mm >= 0) and self.chord_tol_mm > 0):
             raise AlignmentError(f"need on_path_mm > 0, still_mm >= 0, chord_tol_mm > 0; got {self.on_path_mm}, "
                                  f"{self.still_mm}, {self.chord_tol_mm}")
@@ -104,16 +109,16 @@ def _profile(recording: Recording, profile: MachineProfile | str | Path | None) 
     return None
 
 
-def _program(recording: Recording, program: Program | str | Path | None) -> Program:
+def _program(recording: Recording, program: Program | str | Path | None, lenient: bool) -> Program:
     if isinstance(program, Program):
         return program
     if program is not None:
-        return parse_program(Path(program))
+        return parse_program(Path(program), lenient=lenient)
     text = recording.program_text
     if text is None:
         raise AlignmentError(f"{recording.source or 'recording'}: no program given and none attached "
                              "(program.ngc); pass one with --program")
-    return parse_program(text, name=f"{Path(recording.source).stem or 'recording'}:program.ngc")
+    return parse_program(text, lenient=lenient, name=f"{Path(recording.source).stem or 'recording'}:program.ngc")
 
 
 def position_quantum(pos: np.ndarray, *, samples: int = 100_000) -> float:
@@ -159,12 +164,12 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     cfg = replace(config or AlignConfig(), **overrides) if overrides else (config or AlignConfig())
     lap = _Laps()
     prof = _profile(recording, profile)
-    prog = _program(recording, program)
+    prog = _program(recording, program, cfg.lenient)
     axes, cols, pos = _positions(recording, cfg)
     t = axes["t_ns"].to_numpy(dtype=np.int64)
     xyz = pos[:, :3]
     report: dict[str, Any] = {"recording": recording.source, "program": prog.name, "config": _config_dict(cfg),
-                              "warnings": []}
+                              "warnings": [f"program: {w}" for w in prog.warnings]}
     lap("inputs")
     timing = stream_timing(t, name=cfg.positions)
     report["timing"] = {cfg.positions: timing.as_dict()}
@@ -186,6 +191,8 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     lap("motion_span")
     # --- CL points and the constrained match -------------------------------------------------------
     cl = cl_points(prog, chord_tol_mm=cfg.chord_tol_mm).reset_index(drop=True)
+    offset = np.asarray(cfg.work_offset_mm, dtype=np.float64)
+    cl_xyz = cl[list(LINEAR)].to_numpy(dtype=np.float64) + offset  # program -> measured (machine) frame
     lap("cl_points")
     if len(cl) < 2:
         raise AlignmentError(f"{prog.name}: the program has no motion to align")
@@ -195,11 +202,12 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     tolerance = cfg.tol_mm + np.nan_to_num(p_tol, nan=0.0)
     kind = cl["kind"].astype(str).to_numpy()
     check = np.ones(len(cl), dtype=bool) if cfg.check_rapids else (kind != RAPID)
+    check &= kind != "start"  # the parser's assumed initial position is not a programmed point
     labels = [f"block {b} (line {ln})" for b, ln in zip(blk, cl["line"].to_numpy())]
     mcfg = MatchConfig(tol_mm=float(tolerance.max()), window_mm=cfg.window_mm, still_mm=still)
     rapid_mm_min = prof.rapid_mm_min if prof is not None else np.nan
     speed = np.where(kind == RAPID, rapid_mm_min, cl["feed_mm_min"].to_numpy(dtype=np.float64)) / 60.0
-    match = match_cl_points(cl[list(LINEAR)].to_numpy(dtype=np.float64), t, xyz, s_mm=cl["s_mm"].to_numpy(),
+    match = match_cl_points(cl_xyz, t, xyz, s_mm=cl["s_mm"].to_numpy(),
                             config=mcfg, tolerance=tolerance, check=check, labels=labels, speed_mm_s=speed,
                             period_ns=timing.period_ns)
     lap("match")
@@ -232,8 +240,8 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     leave = None
     if boundary == "leave":
         straight = motion["kind"].astype(str).isin(STRAIGHT).to_numpy()[:, None]
-        p0 = motion[["x0_mm", "y0_mm", "z0_mm"]].to_numpy(dtype=np.float64)
-        p1 = motion[["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=np.float64)
+        p0 = motion[["x0_mm", "y0_mm", "z0_mm"]].to_numpy(dtype=np.float64) + offset
+        p1 = motion[["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=np.float64) + offset
         leave = leave_times(t, xyz, np.where(straight, p0, np.nan), np.where(straight, p1, np.nan),
                             match.index[end_idx], on_path_mm=max(cfg.on_path_mm, 2 * position_quantum(pos)))
     geo = blocks_from_geometry(motion, match.t_ns[end_idx], match.t_depart_ns[end_idx], span=span,
