@@ -58,7 +58,8 @@ class Tokens:
     line: np.ndarray          # int64, line index of each word
     letter: np.ndarray        # uint8, 0..25 for A..Z
     value: np.ndarray         # float64
-    comments: dict[int, str] = field(default_factory=dict)   # line index -> comment text
+    comment_lines: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # sorted, unique
+    comment_text: pa.Array = field(default_factory=lambda: pa.array([], pa.string()))  # one per line
     percent: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # lines holding `%`
     block_delete: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     unsupported: list[tuple[int, str, str]] = field(default_factory=list)  # (line index, code, why)
@@ -78,7 +79,7 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
     def fail(i: int, message: str, code: str | None = None) -> ProgramError:
         return ProgramError(message, file=file, line=int(i) + 1, code=code or line_text(i)[:40])
 
-    data, comments = _strip_comments(data)
+    data, comment_lines, comment_text = _strip_comments(data)
 
     # -- code: upper case, no blanks; lines keep their newline ------------------------------------
     b = np.frombuffer(data.translate(_UPPER, _BLANKS), dtype=np.uint8)
@@ -87,8 +88,7 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
     line_start = np.r_[0, nl + 1]
     code_len = np.r_[nl, len(b)] - line_start
     has_code = code_len > 0
-    if comments:
-        has_code[list(comments)] = True
+    has_code[comment_lines] = True
     rows = np.flatnonzero(has_code)
     # number characters: + - . 0-9 (bytes 43..57 except , and /)
     is_num = (b - np.uint8(_PLUS) <= _D0 + 9 - _PLUS) & (b != ord(",")) & (b != _SLASH)
@@ -161,7 +161,7 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
         wline, wletter, values = wline[keep], wletter[keep], values[keep]
 
     return Tokens(n_lines=n_lines, rows=rows, line=wline.astype(np.int64), letter=wletter,
-                  value=values, comments=comments, percent=pct_lines.astype(np.int64),
+                  value=values, comment_lines=comment_lines, comment_text=comment_text, percent=pct_lines.astype(np.int64),
                   block_delete=bd_lines.astype(np.int64), unsupported=unsupported)
 
 
@@ -184,13 +184,21 @@ def _numbers(digits: np.ndarray, length: np.ndarray, b: np.ndarray, wstart: np.n
         return _parse_numbers(b, _CLASS[b], wstart, length)
 
 
-def _strip_comments(data: bytes) -> tuple[bytes, dict[int, str]]:
-    """Blank out comments (same length, so positions and lines stay); line index -> comment text.
-    Only the lines holding `(`, `)` or `;` are looked at (bytes.find, no pass in Python per line)."""
+def _strip_comments(data: bytes) -> tuple[bytes, np.ndarray, pa.Array]:
+    """Blank out comments (same length, so positions and lines stay). Returns the blanked text, the
+    lines holding comments (sorted) and their comment text (several on a line joined by a space).
+
+    Programs whose comments are all `( ... )`, one or more per line, are handled with array
+    operations; `;` comments or malformed parentheses go line by line (bytes.find, then a regex on
+    the lines that hold a mark)."""
+    if b"(" not in data and b";" not in data and b")" not in data:
+        return data, np.zeros(0, np.int64), pa.array([], pa.string())
+    if b";" not in data:
+        fast = _paren_comments(data)
+        if fast is not None:
+            return fast
     marks = (b"(", b";", b")")
     nxt = [data.find(m) for m in marks]
-    if max(nxt) < 0:
-        return data, {}
     comments: dict[int, str] = {}
     pieces: list[bytes] = []
     cursor = line_no = counted_to = 0
@@ -212,7 +220,44 @@ def _strip_comments(data: bytes) -> tuple[bytes, dict[int, str]]:
             cursor = m.end()
         nxt = [p if p < 0 or p >= hi else data.find(mark, hi) for p, mark in zip(nxt, marks)]
     pieces.append(data[cursor:])
-    return b"".join(pieces), comments
+    lines = np.fromiter(comments.keys(), dtype=np.int64, count=len(comments))
+    return b"".join(pieces), lines, pa.array(list(comments.values()), pa.string())
+
+
+def _paren_comments(data: bytes) -> tuple[bytes, np.ndarray, pa.Array] | None:
+    """Array path for `( ... )` comments: None unless every `(` has its `)` on the same line with no
+    parenthesis in between (anything else goes the line-by-line way, which reports errors)."""
+    src = np.frombuffer(data, dtype=np.uint8)
+    opens, closes = np.flatnonzero(src == _OPEN), np.flatnonzero(src == _CLOSE)
+    if len(opens) != len(closes) or not (opens < closes).all() or not (closes[:-1] < opens[1:]).all():
+        return None
+    nl = np.flatnonzero(src == _LF)
+    line = np.searchsorted(nl, opens)
+    if not (np.searchsorted(nl, closes) == line).all():
+        return None
+    length = closes - opens - 1
+    delta = np.zeros(len(src) + 1, dtype=np.int8)
+    delta[opens + 1] += 1
+    delta[closes] -= 1
+    inside = np.cumsum(delta[:-1], dtype=np.int8) > 0
+    offsets = np.zeros(len(opens) + 1, dtype=np.int32)
+    np.cumsum(length, out=offsets[1:])
+    text = pa.StringArray.from_buffers(len(opens), pa.py_buffer(offsets), pa.py_buffer(src[inside].tobytes()))
+    try:
+        text.validate(full=True)  # UTF-8 check; comments could cut a character in odd input
+    except pa.ArrowInvalid:
+        return None
+    text = pc.utf8_trim_whitespace(text)
+    if len(line) > 1 and (line[1:] == line[:-1]).any():  # several comments on a line: join them
+        joined: dict[int, str] = {}
+        for i, piece in zip(line.tolist(), text.to_pylist()):
+            joined[i] = f"{joined[i]} {piece}" if i in joined else piece
+        line = np.fromiter(joined.keys(), dtype=np.int64, count=len(joined))
+        text = pa.array(list(joined.values()), pa.string())
+    blanked = src.copy()
+    blanked[inside] = ord(" ")
+    blanked[opens] = blanked[closes] = ord(" ")
+    return blanked.tobytes(), line.astype(np.int64), text
 
 
 def _parse_numbers(cb: np.ndarray, cls: np.ndarray, wstart: np.ndarray, length: np.ndarray) -> np.ndarray:

@@ -353,9 +353,11 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         mcodes = _strings(n, ms.index.to_numpy(), ms.to_numpy())
         stop[m_rows[np.isin(m_codes, STOP_M)]] = True
     comment = _strings(n)
-    if tok.comments:
-        lines = np.fromiter(tok.comments.keys(), dtype=np.int64)
-        comment = _strings(n, np.searchsorted(tok.rows, lines), list(tok.comments.values()))
+    if len(tok.comment_lines):
+        codes = np.zeros(n, dtype=np.int32)
+        codes[np.searchsorted(tok.rows, tok.comment_lines)] = np.arange(1, len(tok.comment_lines) + 1)
+        texts = pa.concat_arrays([pa.array([""], pa.string()), tok.comment_text])
+        comment = pd.array(texts.take(pa.array(codes)), dtype="string")
 
     blocks = pd.DataFrame({
         "file": _strings(n, fill=file),
@@ -400,8 +402,8 @@ def _metadata(tok: Tokens, o_value, o_has, m_codes, m_rows, is_motion, R: _Rows,
     o_rows = np.flatnonzero(o_has)
     if len(o_rows):
         meta["program_number"] = int(o_value[o_rows[0]])
-    if tok.comments:
-        meta["title"] = tok.comments[min(tok.comments)]
+    if len(tok.comment_lines):
+        meta["title"] = tok.comment_text[0].as_py()
     ends = m_rows[np.isin(m_codes, PROGRAM_END)]
     if len(ends):
         meta["end_line"] = int(R.rows[ends.min()]) + 1

@@ -226,3 +226,13 @@ def test_byte_order_mark_crlf_and_text_after_the_end(tmp_path):
     assert any("closing '%'" in w for w in p.warnings)
     q = parse_program("G1 X1 F1\nM30\nG1 X3\n")
     assert any("program end" in w for w in q.warnings)
+
+
+@pytest.mark.parametrize("tail", ["", "\nG1 X9 ; semicolon comment forces the line-by-line path"])
+def test_paren_comments_several_per_line_and_unicode(tail):
+    p = parse_program(f"G1 X1 F1 (a) (b é)\n( c )\nG1(mid)X2\n{tail}")
+    b = p.blocks
+    assert b["comment"].tolist()[:3] == ["a b é", "c", "mid"]
+    assert b["x_mm"].tolist()[:3] == [1, 1, 2]
+    with pytest.raises(ProgramError, match="comment"):
+        parse_program("G1 X1 F1 (a (b) c)\n" + tail)
