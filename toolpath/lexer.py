@@ -134,6 +134,9 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
         lines = np.setdiff1d(np.searchsorted(nl, starts[lonely & (runs > 0)] + 1), skip)
         if len(lines):
             raise fail(lines[0], "number without a word letter")
+        # only on skipped lines (lenient): keep just the words' own number characters
+        first = np.cumsum(length) - length
+        digits = b[np.repeat(wstart + 1 - first, length) + np.arange(int(length.sum()))]
     is_nl = bcls == _NEWLINE
     wline = (np.cumsum(is_nl) - is_nl)[k_letter]  # newlines before each letter
     wletter = (b[wstart] - _A).astype(np.uint8)

@@ -236,3 +236,9 @@ def test_paren_comments_several_per_line_and_unicode(tail):
     assert b["x_mm"].tolist()[:3] == [1, 1, 2]
     with pytest.raises(ProgramError, match="comment"):
         parse_program("G1 X1 F1 (a (b) c)\n" + tail)
+
+
+def test_lenient_skipped_parameter_line_does_not_shift_later_numbers():
+    p = parse_program("G21 F100\n#5=1 [2]\nG90 G0 X1.5\nG1 X2.25 Y-3\n", lenient=True)
+    assert [(u.line, u.code) for u in p.unsupported] == [(2, "#5=1 [2]")]
+    assert p.motion[["x_mm", "y_mm"]].to_numpy().tolist() == [[1.5, 0], [2.25, -3]]
