@@ -57,9 +57,9 @@ def _time_from_rest(d: float, v: float, acc: float) -> float:
 
 
 def rest_noise(t_ns: np.ndarray, positions: np.ndarray, *, probe_s: float = 0.1, bound_mm: float = 0.1) -> float:
-    """Robust standard deviation (1.4826 x MAD, worst axis) of the positions at rest at the start and at
-    the end: the samples of the first (last) `probe_s` that stay within `bound_mm` of the first (last)
-    sample, where a logger normally sees the machine standing. 0 for clean commanded positions."""
+    """Robust standard deviation of the position noise (worst axis): 1.4826 x MAD of the second
+    differences / sqrt(6), over the samples of the first (last) `probe_s` that stay within `bound_mm` of
+    the first (last) sample, where a logger normally sees the machine standing. 0 for clean positions."""
     t = np.asarray(t_ns, dtype=np.int64)
     p = np.asarray(positions, dtype=np.float64)
     head = max(int(np.searchsorted(t, t[0] + int(probe_s * 1e9))), 1)
@@ -68,10 +68,14 @@ def rest_noise(t_ns: np.ndarray, positions: np.ndarray, *, probe_s: float = 0.1,
     for part in (p[:head], p[tail:][::-1]):
         near = np.abs(part - part[0]).max(axis=1) <= bound_mm
         run = part[: int(np.argmin(near)) if not near.all() else len(part)]
-        if len(run) < 3:
-            continue
-        dev = np.abs(run - np.median(run, axis=0))
-        spread.append(1.4826 * np.median(dev, axis=0).max())
+        if len(run) >= 5:
+            # second differences: white noise of std s gives std s*sqrt(6); a smooth start (constant
+            # acceleration) gives a constant that the median removes, so motion is not taken for noise
+            d2 = np.diff(run, n=2, axis=0)
+            dev = np.abs(d2 - np.median(d2, axis=0))
+            spread.append(1.4826 * np.median(dev, axis=0).max() / np.sqrt(6.0))
+        elif len(run) >= 2:  # sparse data: a few samples at rest, far from any moving one
+            spread.append(1.4826 * np.median(np.abs(run - np.median(run, axis=0)), axis=0).max())
     return float(min(spread)) if spread else 0.0
 
 
@@ -109,6 +113,12 @@ def motion_span(t_ns: np.ndarray, positions: np.ndarray, *, still_mm: float = 1e
         return float(np.linalg.norm(p[i + 1, :3] - p[i, :3]))
 
     t_start, t_end = int(t[i0]), int(t[i1 + 1])
+    if still_mm > 1e-6 and np.isfinite(acc_mm_s2) and acc_mm_s2 > 0:
+        # with a noise threshold the tool is seen moving only once it is still_mm away: it started
+        # (stopped) sqrt(2 still_mm / acc) before (after) that, accelerating from rest
+        tau = int(np.sqrt(2 * still_mm / acc_mm_s2) * 1e9)
+        t_start = max(int(t[i0 + 1]) - tau, int(t[0]))
+        t_end = min(int(t[i1]) + tau, int(t[-1]))
     dt0 = t[i0 + 1] - t[i0]
     if dt0 > sparse_ns and i0 + 2 < len(t):
         nxt = i0 + 1

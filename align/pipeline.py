@@ -59,7 +59,7 @@ class AlignConfig:
     boundary: str = "auto"           # geometric block end: pass (closest approach to the end point),
                                      # leave (where the tool leaves a straight block into a blend),
                                      # auto: leave when positions are sampled every <= 5 ms, else pass
-    on_path_mm: float = 1e-6         # "on the block's segment" for `leave` (at least 2 x the position
+    on_path_mm: float = 1e-6         # "on the block's segment" for `leave` (at least still_mm and 2 x the position
                                      # quantum; raise for noisy positions)
     still_mm: float | None = None    # distance from a rest position that counts as motion; None:
                                      # REST_NOISE_K x the noise at rest (blocks.rest_noise), >= 1e-6 mm
@@ -243,7 +243,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
         p0 = motion[["x0_mm", "y0_mm", "z0_mm"]].to_numpy(dtype=np.float64) + offset
         p1 = motion[["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=np.float64) + offset
         leave = leave_times(t, xyz, np.where(straight, p0, np.nan), np.where(straight, p1, np.nan),
-                            match.index[end_idx], on_path_mm=max(cfg.on_path_mm, 2 * position_quantum(pos)))
+                            match.index[end_idx], on_path_mm=max(cfg.on_path_mm, 2 * position_quantum(pos), still))
     geo = blocks_from_geometry(motion, match.t_ns[end_idx], match.t_depart_ns[end_idx], span=span,
                                end_leave_ns=leave)
     geo["source"] = "geometry"
