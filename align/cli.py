@@ -24,8 +24,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--outdir", required=True, help="output folder; one subfolder per recording")
     parser.add_argument("--json", action="store_true", help="print cycle time and block times as JSON")
     parser.add_argument("--tol-mm", type=float, default=AlignConfig.tol_mm,
-                        help="allowed CL point distance on top of the block's G64 P (default %(default)s; "
-                             "sparse data such as 5 Hz needs several mm)")
+                        help="allowed CL point distance on top of the block's G64 P (default %(default)s); "
+                             "sparse data add half the distance travelled per sample automatically")
     parser.add_argument("--check-rapids", action="store_true", help="apply the tolerance to rapid moves too")
     parser.add_argument("--boundary", choices=BOUNDARIES, default="auto",
                         help="geometric block end: closest approach to the end point (pass), start of the "
