@@ -32,14 +32,15 @@ def error_pct(predicted: float, measured: float) -> float:
     return float("nan") if not measured else 100.0 * (predicted - measured) / measured
 
 
-def _with_sim(tables: Sequence[ProgramTable], log: Callable[[str], None]) -> list[ProgramTable] | None:
-    out = []
+def _with_sim(tables: Sequence[ProgramTable], log: Callable[[str], None]) -> list[ProgramTable | None]:
+    """Each table with its simulated block times, or None where the simulation cannot run (said so)."""
+    out: list[ProgramTable | None] = []
     for t in tables:
         try:
             out.append(attach_sim(t))
         except FeedlogError as exc:
             log(f"simulation unavailable for {t.name}: {exc}")
-            return None
+            out.append(None)
     return out
 
 
@@ -75,7 +76,8 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
         raise ModelError(f"no held-out recording runs on a trained machine ({', '.join(sorted(machines))})")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    sim_train = sim_test = None
+    sim_train: list[ProgramTable | None] = []
+    sim_test: list[ProgramTable | None] = [None] * len(test)
     if "hybrid" in models:
         sim_train, sim_test = _with_sim(train, log), _with_sim(test, log)
     augmented = list(train)
@@ -87,20 +89,21 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
             augmented += simulated_tables(prof, n_programs=sim_augment, seed=seed * 100 + i)
         log(f"added {len(augmented) - len(train)} simulated training program(s)")
     rows = [_base_row(t) for t in test]
-    if sim_test is not None:
+    if any(t is not None for t in sim_test):
         for row, t in zip(rows, sim_test):
-            row["sim_s"] = float(t.blocks[SIM_COLUMN].sum())
+            row["sim_s"] = float("nan") if t is None else float(t.blocks[SIM_COLUMN].sum())
             row["sim_err_pct"] = error_pct(row["sim_s"], row["measured_s"])
     block_preds = {t.name: t.blocks[["block", "line", TARGET]].copy() for t in test}
     summary: dict[str, Any] = {}
     for name in models:
-        fit_on, test_on = augmented, test
+        fit_on, test_on = augmented, list(test)
         if name == "hybrid":
-            if sim_train is None or sim_test is None:
-                summary[name] = {"skipped": "the simulation could not run on every recording"}
+            # the hybrid trains on the recordings the simulation could run and predicts only those
+            fit_on, test_on = [t for t in sim_train if t is not None], sim_test
+            if not fit_on or all(t is None for t in test_on):
+                summary[name] = {"skipped": "the simulation could not run on the training or test recordings"}
                 log(f"{name}: skipped (no simulation)")
                 continue
-            fit_on, test_on = sim_train, sim_test
         config = make_config(name, preset=preset, **{"seed": seed, **(overrides or {}).get(name, {})})
         cls = model_class(name)
         model = cls(config, target_lengths=[len(t.blocks) for t in test]) if cls is FinalBiLSTM else cls(config)
@@ -113,6 +116,10 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
         path = save_checkpoint(model, out / f"{name}.pt", overwrite=overwrite)
         notes: list[str] = []
         for row, t in zip(rows, test_on):
+            if t is None:
+                row[f"{name}_s"] = row[f"{name}_err_pct"] = float("nan")
+                notes.append(f"{row['recording']}: not predicted (no simulation)")
+                continue
             pred = model.predict(t)
             row[f"{name}_s"] = pred.cycle_time_s
             row[f"{name}_err_pct"] = error_pct(pred.cycle_time_s, row["measured_s"])
@@ -120,10 +127,11 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
             if pred.durations_s is not None:
                 block_preds[t.name][f"{name}_s"] = pred.durations_s
         errs = np.abs([r[f"{name}_err_pct"] for r in rows])
+        errs = errs[np.isfinite(errs)]
         summary[name] = {"checkpoint": str(path), "train_s": round(train_s, 2), "fingerprint": model.fingerprint[:16],
                          "mean_abs_err_pct": float(np.mean(errs)), "max_abs_err_pct": float(np.max(errs)),
                          "report": model.report, "notes": notes}
-        log(f"{name}: trained in {train_s:.1f} s, mean |error| {np.mean(errs):.2f} % on {len(rows)} test recording(s)")
+        log(f"{name}: trained in {train_s:.1f} s, mean |error| {np.mean(errs):.2f} % on {len(errs)} test recording(s)")
     results = pd.DataFrame(rows)
     results.attrs["summary"] = summary
     results.attrs["not_evaluated"] = {t.name: f"machine {t.profile.name} has no training recording" for t in unseen}
@@ -166,9 +174,10 @@ def format_results(results: pd.DataFrame, *, markdown: bool = False) -> str:
     for _, r in results.iterrows():
         cells = [str(r["recording"]), f"{r['feed_mm_min']:.0f}", f"{r['tol_mm']:g}", str(int(r["blocks"])),
                  f"{r['measured_s']:.3f}"]
-        cells += [f"{r[f'{n}_s']:.3f} ({r[f'{n}_err_pct']:+.2f} %)" for n in names]
+        cells += [f"{r[f'{n}_s']:.3f} ({r[f'{n}_err_pct']:+.2f} %)" if np.isfinite(r[f"{n}_s"]) else "n/a"
+                  for n in names]
         body.append(cells)
-    body.append(["mean |error|", "", "", "", ""] + [f"{np.mean(np.abs(results[f'{n}_err_pct'])):.2f} %" for n in names])
+    body.append(["mean |error|", "", "", "", ""] + [f"{np.nanmean(np.abs(results[f'{n}_err_pct'])):.2f} %" for n in names])
     if markdown:
         lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
         return "\n".join(lines + ["| " + " | ".join(c) + " |" for c in body])

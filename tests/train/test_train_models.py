@@ -149,3 +149,15 @@ def test_inputs_are_clipped_to_the_training_range():
     n = Normaliser.fit(np.array([[0.0], [1.0], [2.0]]))
     assert n.apply(np.array([[100.0]]))[0, 0] == pytest.approx(n.apply(np.array([[2.0]]))[0, 0])
     assert Normaliser.fit(np.array([[0.0], [2.0]]), bounds=False).lo is None
+
+
+def test_hybrid_skips_only_the_recordings_it_cannot_simulate(tmp_path):
+    tables = synthetic_set(n_train=2, n_test=2, n_blocks=80, seed=2)
+    lost = tables[-1]
+    tables[-1] = ProgramTable(lost.name, lost.blocks.drop(columns=["sim_duration_s"]), split="test")
+    notes: list[str] = []
+    results = train_and_evaluate(tables, out_dir=tmp_path, models=["hybrid"], preset="quick",
+                                 overrides={"hybrid": TINY["hybrid"]}, progress=False, log=notes.append)
+    assert np.isfinite(results["hybrid_err_pct"].iloc[0]) and np.isnan(results["hybrid_err_pct"].iloc[1])
+    assert any("simulation unavailable for test-3" in n for n in notes)
+    assert "test-3: not predicted (no simulation)" in results.attrs["summary"]["hybrid"]["notes"]
