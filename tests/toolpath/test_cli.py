@@ -73,3 +73,13 @@ def test_lenient_json_stays_valid_json_when_feeds_are_missing(tmp_path, capsys):
     s = run_json(capsys, str(prog), "--lenient")
     assert s["blocks_without_time"] == 1 and s["cam_time_s"] == pytest.approx(1 / 6000 * 60 + 1.0)
     assert any("feed" in w for w in s["warnings"])
+
+
+def test_five_axis_cl_data_with_orientation_vectors(capsys):
+    path = EXAMPLES / "fiveaxis_cl_ijk.ngc"
+    s = run_json(capsys, str(path))
+    assert s["five_axis"] and s["blocks"] == 75 and s["warnings"] == []
+    from feedlog.toolpath import block_features, parse_program
+    f = block_features(parse_program(path))
+    cut = f.iloc[2:-1]  # the ring: orientation leans 5-25 deg toward the centre and keeps turning
+    assert (cut["ori_arc_deg"] > 0.4).all() and (cut["sin_rot"].between(0.08, 0.43)).all()
