@@ -36,7 +36,7 @@ from feedlog.errors import AlignmentError, FeedlogError
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import MachineProfile, load_profile
 from feedlog.toolpath import Program, block_features, cl_points, parse_program
-from feedlog.toolpath.schema import MOTION_KINDS, RAPID
+from feedlog.toolpath.schema import RAPID
 
 BOUNDARIES = ("auto", "pass", "leave")
 FEED_SOURCES = ("auto", "stream", "positions")
