@@ -6,7 +6,8 @@
 
 Models (registry: `model_names()`, `make_model(name, preset=..., **overrides)`): `mlp` (Sun et al.
 per-axis MLP), `bilstm-block` and `bilstm-final` (Chien et al. Fig. 7 and 8), `bilstm-r` (Lee et
-al.), `hybrid` (simulation + learned residual). See docs/train.md.
+al.), `hybrid` (simulation + learned residual). `SeriesModel` is BiLSTM-R on dense series (any target
+channel per sample). See docs/train.md.
 """
 
 from feedlog.train.checkpoint import load_checkpoint, save_checkpoint
@@ -15,7 +16,8 @@ from feedlog.train.evaluate import DEFAULT_MODELS, format_results, train_and_eva
 from feedlog.train.load import load_aligned, load_many
 from feedlog.train.predict import Prediction, predict_program
 from feedlog.train.registry import MODELS, Model, ModelConfig, make_config, make_model, model_names
+from feedlog.train.series import SeriesConfig, SeriesModel
 
 __all__ = ["DEFAULT_MODELS", "MODELS", "Model", "ModelConfig", "Prediction", "ProgramTable", "fingerprint",
            "format_results", "load_aligned", "load_checkpoint", "load_many", "make_config", "make_model",
-           "model_names", "predict_program", "save_checkpoint", "train_and_evaluate"]
+           "model_names", "predict_program", "save_checkpoint", "SeriesConfig", "SeriesModel", "train_and_evaluate"]
