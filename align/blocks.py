@@ -188,20 +188,46 @@ NO_TIME = np.iinfo(np.int64).min
 SHORT_LEAVE_SAMPLES = 64
 
 
+def _last_on(t, p, rows, start, hi, a, d, on_path_mm):
+    """Per row: the index of the last sample in [start, hi[row]] within on_path_mm of the segment
+    a[i] + u d[i] (u in [0, 1]), -1 when none."""
+    n = len(t)
+    out = np.full(len(rows), -1, dtype=np.int64)
+    if not len(rows):
+        return out
+    width = int((hi[rows] - start).max()) + 1
+    for sel in np.array_split(np.arange(len(rows)), max(1, len(rows) * width // 2_000_000 + 1)):
+        part, st = rows[sel], start[sel]
+        idx = st[:, None] + np.arange(width)[None, :]
+        valid = idx <= hi[part, None]
+        idx = np.minimum(idx, n - 1)
+        w = p[idx] - a[sel, None, :]
+        dv = d[sel, None, :]
+        dd = (dv * dv).sum(axis=2)
+        u = np.clip(np.where(dd > 0, (w * dv).sum(axis=2) / np.where(dd > 0, dd, 1.0), 0.0), 0.0, 1.0)
+        dist = np.sqrt(((w - u[..., None] * dv) ** 2).sum(axis=2))
+        out[sel] = np.where(valid & (dist <= on_path_mm), idx, -1).max(axis=1)
+    return out
+
+
 def leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndarray, seg_end: np.ndarray,
-                end_index: np.ndarray, *, on_path_mm: float = 1e-4, search_s: float = 0.5) -> np.ndarray:
+                end_index: np.ndarray, *, on_path_mm: float = 1e-4, search_s: float = 0.5,
+                merge_back: int = 32) -> np.ndarray:
     """Per straight block k (segment seg_start[k] -> seg_end[k], NaN rows skipped): the time of the
     first sample off the segment (farther than `on_path_mm`) after the last sample on it, among the
     samples after the previous block's end match and up to this block's end match `end_index[k]`
-    (fractional sample index, non-decreasing), at most `search_s` before it. NO_TIME where no such
-    sample is on the segment. This is where a corner blend begins."""
+    (fractional sample index, non-decreasing), at most `search_s` before it. This is where a corner
+    blend begins. A block with no sample on its own segment may have been merged with up to
+    `merge_back` straight blocks before it into one move (LinuxCNC G64 Q: the planner runs a straight
+    line from the first block's start to the last block's end): the chords seg_start[k - m] -> seg_end[k]
+    are tried in turn. NO_TIME where neither finds a sample on the path."""
     t = np.asarray(t_ns, dtype=np.int64)
     p = np.asarray(positions, dtype=np.float64)[:, :3]
     a = np.asarray(seg_start, dtype=np.float64)
-    d = np.asarray(seg_end, dtype=np.float64) - a
+    b = np.asarray(seg_end, dtype=np.float64)
     n, k = len(t), len(a)
     out = np.full(k, NO_TIME, dtype=np.int64)
-    ok = np.isfinite(end_index) & np.isfinite(a).all(axis=1) & np.isfinite(d).all(axis=1)
+    ok = np.isfinite(end_index) & np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
     if not ok.any() or n < 2:
         return out
     hi = np.maximum.accumulate(np.where(np.isfinite(end_index), np.ceil(np.nan_to_num(end_index, nan=0.0)), 0))
@@ -211,29 +237,28 @@ def leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndarray, 
     lo = np.concatenate([[0], hi[:-1] + 1])
     lo = np.maximum(lo, hi - int(np.ceil(search_s * 1e9 / period)) + 1)
     rows = np.flatnonzero(ok & (hi >= lo))
-    # first the last few samples before each end (a blend is short), then the whole window where needed
-    for first_try in (True, False):
-        if not len(rows):
+    # own segment: first the last few samples before each end (a blend is short), then the whole window
+    short = np.maximum(lo[rows], hi[rows] - SHORT_LEAVE_SAMPLES + 1)
+    last = _last_on(t, p, rows, short, hi, a[rows], b[rows] - a[rows], on_path_mm)
+    retry = (last < 0) & (short > lo[rows])
+    if retry.any():
+        r = rows[retry]
+        last[retry] = _last_on(t, p, r, lo[r], hi, a[r], b[r] - a[r], on_path_mm)
+    found = last >= 0
+    out[rows[found]] = t[np.minimum(last[found] + 1, n - 1)]
+    # merged moves: chords from an earlier straight block's start to this block's end
+    todo = rows[~found]
+    bad_before = np.cumsum(~ok)  # straight blocks k-m..k <=> no non-straight block in between
+    for m in range(1, merge_back + 1):
+        todo = todo[todo - m >= 0]
+        todo = todo[bad_before[todo] - bad_before[todo - m] == 0] if len(todo) else todo
+        if not len(todo):
             break
-        start = np.maximum(lo[rows], hi[rows] - SHORT_LEAVE_SAMPLES + 1) if first_try else lo[rows]
-        width = int((hi[rows] - start).max()) + 1
-        missed = []
-        for sel in np.array_split(np.arange(len(rows)), max(1, len(rows) * width // 2_000_000 + 1)):
-            part, st = rows[sel], start[sel]
-            idx = st[:, None] + np.arange(width)[None, :]
-            valid = idx <= hi[part, None]
-            idx = np.minimum(idx, n - 1)
-            w = p[idx] - a[part, None, :]
-            dv = d[part, None, :]
-            dd = (dv * dv).sum(axis=2)
-            u = np.clip(np.where(dd > 0, (w * dv).sum(axis=2) / np.where(dd > 0, dd, 1.0), 0.0), 0.0, 1.0)
-            dist = np.sqrt(((w - u[..., None] * dv) ** 2).sum(axis=2))
-            last_on = np.where(valid & (dist <= on_path_mm), idx, -1).max(axis=1)
-            found = last_on >= 0
-            out[part[found]] = t[np.minimum(last_on[found] + 1, n - 1)]
-            # not found in the short window, and the window did not already cover all of it: try again
-            missed.append(part[~found & (st > lo[part])])
-        rows = np.concatenate(missed) if first_try and missed else np.empty(0, dtype=np.int64)
+        ca = a[todo - m]
+        last = _last_on(t, p, todo, lo[todo], hi, ca, b[todo] - ca, on_path_mm)
+        hit = last >= 0
+        out[todo[hit]] = t[np.minimum(last[hit] + 1, n - 1)]
+        todo = todo[~hit]
     return out
 
 
