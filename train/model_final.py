@@ -42,7 +42,7 @@ class FinalConfig(ModelConfig):
     epochs: int = 30
     patience: int = 6
 
-    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 20, "patience": 6, "crops": 64,
+    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 15, "patience": 5, "crops": 48,
                                                               "hidden": 16}}
 
     def __post_init__(self) -> None:
