@@ -2,16 +2,19 @@
 
     program = parse_program("part.ngc")          # Program: .blocks, .motion, .warnings, ...
     features = block_features(program, "linuxcnc-xyz")
-    points = cl_points(program, chord_tol_mm=0.001)
+    points = cl_points(program, chord_tol_mm=0.001)                    # program (work) coordinates
+    measured_frame = cl_points(program, chord_tol_mm=0.001, frame="machine")  # + work offsets
+    machine_blocks = to_machine(program.blocks)  # block table in machine coordinates
     segments = linearize(program, 0.001)         # arcs as G1 chords
     summary = summarize(program, load_profile("linuxcnc-xyz"))  # what `feedlog program` prints
 """
 
 from feedlog.toolpath.features import block_features
 from feedlog.toolpath.linearize import cl_points, linearize
+from feedlog.toolpath.offsets import to_machine
 from feedlog.toolpath.parser import parse_program
 from feedlog.toolpath.program import Program, Unsupported
 from feedlog.toolpath.summary import extents, summarize
 
 __all__ = ["Program", "Unsupported", "block_features", "cl_points", "extents", "linearize", "parse_program",
-           "summarize"]
+           "summarize", "to_machine"]

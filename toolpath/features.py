@@ -35,7 +35,8 @@ from feedlog.profile import MachineProfile, load_profile
 from feedlog.toolpath import arcs
 from feedlog.toolpath.program import (K_ARC_CCW, K_ARC_CW, K_DWELL, K_RAPID, kind_codes,
                                       kind_column)
-from feedlog.toolpath.schema import END_COLUMNS, FEATURE_COLUMNS, START_COLUMNS
+from feedlog.toolpath.offsets import WORK_OFFSET_COLUMNS
+from feedlog.toolpath.schema import END_COLUMNS, FEATURE_COLUMNS, OFFSET_FEATURE_COLUMNS, START_COLUMNS
 
 DEFAULT_PROFILE = "linuxcnc-xyz"
 STOP_MCODES = ("M0", "M1", "M2", "M6", "M30", "M60")
@@ -132,6 +133,16 @@ def _kinematics(table: pd.DataFrame, profile: MachineProfile | None) -> str:
     return "ac" if moved["a"] else "bc" if moved["b"] else "none"
 
 
+def _work_offsets(table: pd.DataFrame, rows: np.ndarray) -> np.ndarray | None:
+    """(len(rows), 6) work offsets of the motion rows; None when the table has none or all are 0."""
+    if not all(c in table.columns for c in WORK_OFFSET_COLUMNS):
+        return None
+    cols = [table[c].to_numpy(dtype=np.float64) for c in WORK_OFFSET_COLUMNS]
+    if not any(col.any() for col in cols):
+        return None
+    return np.column_stack([col[rows] for col in cols])
+
+
 def block_features(program, profile: MachineProfile | str | None = None) -> pd.DataFrame:
     """Geometry features per motion block of `program` (a Program or its block table).
 
@@ -159,6 +170,11 @@ def block_features(program, profile: MachineProfile | str | None = None) -> pd.D
     mi = np.flatnonzero(is_motion)
     m = _Columns(table, mi)
     n = len(mi)
+    work = _work_offsets(table, mi)
+    if work is not None and work[:, 3:].any():  # rotary work offsets: orientation from machine angles
+        for j, ax in enumerate("abc"):
+            m[f"{ax}_deg"] = m[f"{ax}_deg"] + work[:, 3 + j]
+            m[f"{ax}0_deg"] = m[f"{ax}0_deg"] + work[:, 3 + j]
     rc = rest_count[mi]
     stop_before = np.r_[True, rc[1:] != rc[:-1]] if n else np.zeros(0, bool)
     # a program stop on the block's own line happens after its motion
@@ -235,6 +251,7 @@ def block_features(program, profile: MachineProfile | str | None = None) -> pd.D
         "vx_nom_mm_min": v[:, 0], "vy_nom_mm_min": v[:, 1], "vz_nom_mm_min": v[:, 2],
         "ax_nom_mm_s2": acc[:, 0], "ay_nom_mm_s2": acc[:, 1], "az_nom_mm_s2": acc[:, 2],
         "corner_cos_end": -np.cos(np.radians(corner_end)),
+        **{c: (work[:, j] if work is not None else np.zeros(n)) for j, c in enumerate(OFFSET_FEATURE_COLUMNS)},
     })
     assert tuple(out.columns[:len(FEATURE_COLUMNS)]) == FEATURE_COLUMNS
     return out

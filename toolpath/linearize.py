@@ -12,6 +12,7 @@ import pandas as pd
 
 from feedlog.errors import FeedlogError
 from feedlog.toolpath import arcs
+from feedlog.toolpath.offsets import WORK_OFFSET_COLUMNS
 from feedlog.toolpath.program import K_ARC_CCW, K_ARC_CW, Program, kind_codes
 from feedlog.toolpath.schema import ARC_CCW, ARC_CW, AXES, END_COLUMNS, LINEAR, MOTION_KINDS, START_COLUMNS
 
@@ -84,6 +85,9 @@ def linearize(program: Program | pd.DataFrame, chord_tol_mm: float) -> Program:
     src, end, _ = _expand(blocks, chord_tol_mm)
     out = blocks.iloc[src].reset_index(drop=True)
     start = np.vstack([blocks[list(START_COLUMNS)].to_numpy()[:1], end[:-1]]) if len(end) else end
+    if len(src):  # a block's first chord starts at the block's start (its own work coordinates)
+        first_chord = np.r_[True, src[1:] != src[:-1]]
+        start[first_chord] = blocks[list(START_COLUMNS)].to_numpy()[src[first_chord]]
     out[list(END_COLUMNS)] = end
     out[list(START_COLUMNS)] = start
     was_arc = out["kind"].isin([ARC_CW, ARC_CCW]).to_numpy()
@@ -100,21 +104,39 @@ def linearize(program: Program | pd.DataFrame, chord_tol_mm: float) -> Program:
                    unsupported=list(program.unsupported), metadata=meta)
 
 
-def cl_points(program: Program, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM) -> pd.DataFrame:
+FRAMES = ("program", "machine")
+
+
+def cl_points(program: Program | pd.DataFrame, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM, *,
+              frame: str = "program") -> pd.DataFrame:
     """Ordered cutter-location points: the start point (block -1), then the end of every motion
     block, arcs as chord end points within `chord_tol_mm`.
 
-    Columns: `block`, `line`, `kind`, `x_mm` ... `c_deg`, `ori_i/j/k`, `feed_mm_min`, `s_mm`
-    (cumulative TCP path length along the chords).
+    `frame="program"`: positions in program (work) coordinates, as in the block table, each point in
+    the coordinates of its block; `frame="machine"`: program + the block's work offset (`wx_mm` ...
+    `wc_deg`), what a controller's axis positions show. Columns: `block`, `line`, `kind`, `x_mm` ...
+    `c_deg`, `ori_i/j/k`, `feed_mm_min`, `s_mm` (cumulative TCP path length along the chords, measured
+    in machine coordinates, so a change of work offset between blocks is no jump), `wx_mm` ... `wc_deg`
+    (the block's work offset; the start point takes the first motion block's).
     """
     _check_tol(chord_tol_mm)
+    if frame not in FRAMES:
+        raise FeedlogError(f"frame must be one of {FRAMES}, got {frame!r}")
     blocks = getattr(program, "blocks", program)
     kc = kind_codes(blocks["kind"])
     m = blocks[(kc >= 0) & (kc <= K_ARC_CCW)]
     src, end, _ = _expand(m, chord_tol_mm)
     names = [f"{a}_{'mm' if a in 'xyz' else 'deg'}" for a in AXES]
     pts = np.vstack([m[list(START_COLUMNS)].to_numpy()[:1], end]) if len(m) else np.zeros((0, 6))
-    step = np.linalg.norm(np.diff(pts[:, :3], axis=0), axis=1)
+    if all(c in m.columns for c in WORK_OFFSET_COLUMNS) and len(m):
+        w_blk = m[list(WORK_OFFSET_COLUMNS)].to_numpy(dtype=np.float64)
+        work = np.vstack([w_blk[:1], w_blk[src]])
+    else:
+        work = np.zeros_like(pts)
+    machine = pts + work
+    step = np.linalg.norm(np.diff(machine[:, :3], axis=0), axis=1)
+    if frame == "machine":
+        pts = machine
     out = pd.DataFrame(pts, columns=names)
     block = m["block"].to_numpy()[src]
     line = m["line"].to_numpy()[src]
@@ -127,4 +149,6 @@ def cl_points(program: Program, chord_tol_mm: float = DEFAULT_CHORD_TOL_MM) -> p
         vals = m[col].to_numpy()[src]
         out[col] = np.r_[vals[:1], vals] if len(m) else []
     out["s_mm"] = np.r_[0.0, np.cumsum(step)] if len(m) else []
+    for j, col in enumerate(WORK_OFFSET_COLUMNS):
+        out[col] = work[:, j]
     return out

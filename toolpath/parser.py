@@ -24,10 +24,11 @@ import pyarrow as pa
 from feedlog.errors import ProgramError
 from feedlog.toolpath.arcwords import ArcWords, resolve_arcs
 from feedlog.toolpath.lexer import Tokens, lex
+from feedlog.toolpath.offsets import G10, G92_1, SYSTEM_OF, AxisWords, Event, resolve_offsets
 from feedlog.toolpath.program import Program, Unsupported
 from feedlog.toolpath.schema import (ARC_CCW, ARC_CW, BLOCK_COLUMNS, CONTINUOUS, DWELL, END_COLUMNS,
-                                     EXACT_PATH, EXACT_STOP, KINDS, LINEAR, NONE, PATH_MODES, RAPID,
-                                     START_COLUMNS)
+                                     EXACT_PATH, EXACT_STOP, KINDS, LINEAR, NONE, OFFSET_COLUMNS, PATH_MODES,
+                                     RAPID, START_COLUMNS)
 from feedlog.units import MM_PER_INCH
 
 # G code (x10, so G90.1 -> 901) -> modal group. Codes not listed are unsupported.
@@ -39,11 +40,14 @@ G_GROUPS: dict[int, str] = {
     901: "arc_distance", 911: "arc_distance",
     930: "feed_mode", 940: "feed_mode",
     610: "path", 611: "path", 640: "path",
-    40: "dwell",
+    # non-modal (RS274/NGC group 0): dwell, coordinate system data, axis offsets
+    40: "nonmodal", 100: "nonmodal", 920: "nonmodal", 921: "nonmodal",
+    # work coordinate system selection (toolpath.offsets)
+    540: "coords", 550: "coords", 560: "coords", 570: "coords", 580: "coords", 590: "coords",
+    591: "coords", 592: "coords", 593: "coords",
     # accepted, no effect on the programmed path in program coordinates
     400: "cutter_comp", 430: "tool_length", 490: "tool_length",
-    540: "coords", 550: "coords", 560: "coords", 570: "coords", 580: "coords", 590: "coords",
-    591: "coords", 592: "coords", 593: "coords", 970: "spindle_mode", 980: "retract", 990: "retract",
+    970: "spindle_mode", 980: "retract", 990: "retract",
 }
 _GROUP_NAMES = sorted(set(G_GROUPS.values()))
 _GROUP_LUT = np.full(1000, -1, dtype=np.int64)
@@ -62,7 +66,7 @@ L = {ch: i for i, ch in enumerate(LETTERS)}
 ACCEPTED_LETTERS = set("ABCFGHIJKMNOPQRSTXYZ")
 AXIS_LETTERS = "XYZABC"
 _ACCEPTED_LUT = np.array([c in ACCEPTED_LETTERS for c in LETTERS])
-_GEO_LUT = np.array([c in "XYZABCIJKRPQ" for c in LETTERS])
+_GEO_LUT = np.array([c in "XYZABCIJKRPQL" for c in LETTERS])
 _M_LUT = np.array([m in M_CODES for m in range(200)] + [False])
 PATH_MODE_OF = {610: EXACT_PATH, 611: EXACT_STOP, 640: CONTINUOUS}
 KIND_OF_MOTION = {0: RAPID, 10: LINEAR, 20: ARC_CW, 30: ARC_CCW}
@@ -134,6 +138,29 @@ class _Rows:
         return ~mask
 
 
+def _check_g10(letter: np.ndarray, value: np.ndarray, row_of: np.ndarray, g10: np.ndarray,
+               n: int) -> tuple[np.ndarray, object]:
+    """G10 words that are not `G10 L2|L20 Pn` (n = 0..9) without R: the tool table (L1, L10, L11),
+    rotation (R) and the rest stay unsupported. Returns the mask over words and a code function."""
+    at = np.flatnonzero(g10 == G10)
+    bad = np.zeros(len(letter), dtype=bool)
+    if not len(at):
+        return bad, None
+    per_row = {}
+    for ch in "LPR":
+        col = np.full(n, np.nan)
+        sel = letter == L[ch]
+        col[row_of[sel]] = value[sel]
+        per_row[ch] = col[row_of[at]]
+    lw, pw, rw = per_row["L"], per_row["P"], per_row["R"]
+    ok = np.isin(lw, (2, 20)) & (pw >= 0) & (pw <= 9) & (pw == np.rint(pw)) & np.isnan(rw)
+    bad[at] = ~ok
+    words = {int(k): " ".join(["G10"] + [_word(L[ch], float(v)) for ch, v in zip("LPR", (lw[i], pw[i], rw[i]))
+                                         if not np.isnan(v)])
+             for i, k in enumerate(at)}
+    return bad, words.__getitem__
+
+
 def _word(letter: int, value: float) -> str:
     text = f"{value:.4f}".rstrip("0").rstrip(".")
     return f"{LETTERS[letter]}{text}"
@@ -165,19 +192,26 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     m_int = np.full(len(letter), -1, dtype=np.int16)
     m_int[m_idx] = np.where(m_ok, mf, -1)
     bad_letter = ~_ACCEPTED_LUT[letter]
-    if not (g_ok.all() and m_ok.all() and not bad_letter.any()):
+    has_g10 = bool((g10 == G10).any())
+    if not (g_ok.all() and m_ok.all() and not bad_letter.any()) or has_g10:
         bad_g = np.zeros(len(letter), dtype=bool)
         bad_g[g_idx[~g_ok]] = True
         bad_m = np.zeros(len(letter), dtype=bool)
         bad_m[m_idx[~m_ok]] = True
-        checks = [(bad_g, "unsupported G code", True), (bad_letter, "unsupported word", False),
-                  (bad_m, "unsupported M code", False)]
+        bad_g10, g10_code = _check_g10(letter, value, row_of, g10, n)
+        if has_g10:  # L words belong to G10
+            bad_letter &= ~((letter == L["L"]) & np.isin(row_of, row_of[g10 == G10]))
+        checks = [(bad_g, "unsupported G code", True, code_of),
+                  (bad_g10, "unsupported G10 form (supported: G10 L2 or L20 with P0-P9, no R)", True,
+                   g10_code),
+                  (bad_letter, "unsupported word", False, code_of),
+                  (bad_m, "unsupported M code", False, code_of)]
         if not lenient:  # report the earliest line first
-            firsts = [(int(row_of[mask].min()), i) for i, (mask, _, _) in enumerate(checks) if mask.any()]
+            firsts = [(int(row_of[c[0]].min()), i) for i, c in enumerate(checks) if c[0].any()]
             checks = [checks[i] for _, i in sorted(firsts)]
         keep = np.ones(len(letter), dtype=bool)
-        for mask, message, taints in checks:
-            keep &= R.reject(mask & keep, message, code_of, taints_line=taints)
+        for mask, message, taints, code_fn in checks:
+            keep &= R.reject(mask & keep, message, code_fn, taints_line=taints)
         if R.dirty_rows.any():  # a line with a skipped G code: drop its geometry words too
             keep &= ~(_GEO_LUT[letter] & R.dirty_rows[row_of])
         letter, value, row_of, g10, m_int = letter[keep], value[keep], row_of[keep], g10[keep], m_int[keep]
@@ -225,13 +259,19 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     modal = {g: _ffill(groups[g], groups[g] >= 0, DEFAULTS[g]) for g in DEFAULTS}
     unit = np.where(modal["units"] == 200, MM_PER_INCH, 1.0)
     motion_mode = np.where(modal["motion"] == 800, -1, modal["motion"])
-    is_dwell = groups["dwell"] == 40
+    nonmodal = groups["nonmodal"]
+    is_dwell = nonmodal == 40
+    offset_row = (nonmodal == G10) | (nonmodal >= 920)  # G10, G92, G92.1: axis words are not a move
+    any_offset = bool(offset_row.any())
     axis_cols = [S[c] for c in AXIS_LETTERS]
     has_axis = has[axis_cols].any(axis=0)
+    if any_offset:
+        offset_words = has_axis & offset_row
+        has_axis = has_axis & ~offset_row
     has_ijk = has[[S["I"], S["J"], S["K"]]].any(axis=0)
     linear_mode = (motion_mode == 0) | (motion_mode == 10)
     arc_mode = (motion_mode == 20) | (motion_mode == 30)
-    orient = has_ijk & linear_mode & ~is_dwell
+    orient = has_ijk & linear_mode & ~is_dwell & ~offset_row
     is_motion = (has_axis | orient) & (motion_mode >= 0) & ~is_dwell
 
     def first(mask: np.ndarray, message: str, letters: str) -> None:
@@ -247,6 +287,9 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     first(has_ijk & ~(is_motion & (arc_mode | orient)), "I/J/K without an arc or a five-axis move", "IJK")
     first(has[S["R"]] & ~(is_motion & arc_mode), "R word without an arc", "R")
     first(is_dwell & ~has[S["P"]], "G4 dwell needs a P word (seconds)", "G4")
+    if any_offset:
+        first((nonmodal == 920) & ~offset_words, "G92 needs axis words", "G92")
+        first((nonmodal == G92_1) & offset_words, "axis words with G92.1", AXIS_LETTERS)
 
     kind_code = np.full(n, KINDS.index(NONE), dtype=np.int8)
     for mode, kind in KIND_OF_MOTION.items():
@@ -256,22 +299,15 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
 
     # -- positions ---------------------------------------------------------------------------------
     incremental = modal["distance"] == 910
-    any_incremental = bool(incremental.any())
-    end = np.zeros((6, n))  # axis-major while computing: contiguous rows
-    for j, ch in enumerate(AXIS_LETTERS):
-        if not has[S[ch]].any():
-            continue
-        v = W[S[ch]] * unit if j < 3 else W[S[ch]]
-        set_here = has[S[ch]] & is_motion
-        if not any_incremental:
-            end[j] = _ffill(v, set_here, 0.0)
-            continue
-        delta = np.where(set_here & incremental, v, 0.0)
-        cs = np.cumsum(delta)
-        absolute = set_here & ~incremental
-        end[j] = cs + _ffill(np.where(absolute, v - cs, 0.0), absolute, 0.0)
-    start = np.zeros((6, n))
-    start[:, 1:] = end[:, :-1]
+    coords = groups["coords"]
+    if any_offset:  # work offsets that change (G10, G92): positions through machine coordinates
+        start, end, work, system = _offset_positions(W, has, S, unit, is_motion, incremental, coords,
+                                                     nonmodal, offset_row)
+    else:
+        start, end = _positions(W, has, S, unit, is_motion, incremental)
+        work = None
+        system = (np.ones(n, dtype=np.int8) if not (coords >= 0).any() else
+                  _SYSTEM_LUT[_ffill(coords, coords >= 0, 540)])
 
     # -- arcs --------------------------------------------------------------------------------------
     centre = np.full((3, n), np.nan)
@@ -380,6 +416,8 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         "spindle_rpm": spindle,
         "mcodes": mcodes,
         "comment": comment,
+        **{c: (work[j] if work is not None else np.zeros(n)) for j, c in enumerate(list(OFFSET_COLUMNS)[:6])},
+        "coord_system": system,
         # added columns
         "length_mm": np.where(is_motion, length, 0.0),
         "radius_mm": radius,
@@ -394,6 +432,75 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         warnings.append(f"line {u.line}: skipped {u.code} ({u.reason})")
     return Program(blocks=blocks, path=path, warnings=warnings, unsupported=R.unsupported,
                    metadata=metadata)
+
+
+def _positions(W: np.ndarray, has: np.ndarray, S: dict, unit: np.ndarray, is_motion: np.ndarray,
+               incremental: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end (6, n) of every row, absolute program coordinates, all offsets 0: a forward fill
+    of absolute words, plus a cumulative sum of incremental ones."""
+    n = W.shape[1]
+    any_incremental = bool(incremental.any())
+    end = np.zeros((6, n))  # axis-major while computing: contiguous rows
+    for j, ch in enumerate(AXIS_LETTERS):
+        if not has[S[ch]].any():
+            continue
+        v = W[S[ch]] * unit if j < 3 else W[S[ch]]
+        set_here = has[S[ch]] & is_motion
+        if not any_incremental:
+            end[j] = _ffill(v, set_here, 0.0)
+            continue
+        delta = np.where(set_here & incremental, v, 0.0)
+        cs = np.cumsum(delta)
+        absolute = set_here & ~incremental
+        end[j] = cs + _ffill(np.where(absolute, v - cs, 0.0), absolute, 0.0)
+    start = np.zeros((6, n))
+    start[:, 1:] = end[:, :-1]
+    return start, end
+
+
+_SYSTEM_LUT = np.zeros(1000, dtype=np.int8)
+for _g, _s in SYSTEM_OF.items():
+    _SYSTEM_LUT[_g] = _s
+
+
+def _offset_positions(W: np.ndarray, has: np.ndarray, S: dict, unit: np.ndarray, is_motion: np.ndarray,
+                      incremental: np.ndarray, coords: np.ndarray, nonmodal: np.ndarray,
+                      offset_row: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Start, end (program coordinates), work offset (6, n) and coordinate system per row, for programs
+    with G10/G92: machine position = forward fill of (absolute word + the row's offset) plus the
+    incremental moves; program position = machine - offset (toolpath.offsets)."""
+    n = W.shape[1]
+    values = np.full((6, n), np.nan)
+    absolute = np.zeros((6, n), dtype=bool)
+    cs = np.zeros((6, n))
+    scale = np.vstack([np.broadcast_to(unit, (3, n)), np.ones((3, n))])
+    for j, ch in enumerate(AXIS_LETTERS):
+        if not has[S[ch]].any():
+            continue
+        v = W[S[ch]] * scale[j]
+        set_here = has[S[ch]] & is_motion
+        absolute[j] = set_here & ~incremental
+        values[j] = np.where(absolute[j], v, np.nan)
+        cs[j] = np.cumsum(np.where(set_here & incremental, v, 0.0))
+    ev_rows = np.flatnonzero((coords >= 0) | offset_row)
+    given = W[[S[c] for c in AXIS_LETTERS]][:, ev_rows] * scale[:, ev_rows]
+    lw, pw = W[S["L"], ev_rows], W[S["P"], ev_rows]
+    events = [Event(row=int(r), system=int(_SYSTEM_LUT[coords[r]]) if coords[r] >= 0 else 0,
+                    code=int(nonmodal[r]) if offset_row[r] else -1,
+                    l_word=int(lw[i]) if not np.isnan(lw[i]) else 0,
+                    p_word=int(pw[i]) if not np.isnan(pw[i]) else 0,
+                    values=given[:, i])
+              for i, r in enumerate(ev_rows.tolist())]
+    work, system = resolve_offsets(n, AxisWords(values=values, absolute=absolute, cumsum=cs), events)
+    machine = cs.copy()
+    for j in range(6):
+        if absolute[j].any():
+            machine[j] += _ffill(np.where(absolute[j], values[j] + work[j] - cs[j], 0.0), absolute[j], 0.0)
+    end = machine - work
+    start = np.zeros((6, n))
+    start[:, 1:] = machine[:, :-1]
+    start -= work
+    return start, end, work, system
 
 
 def _metadata(tok: Tokens, o_value, o_has, m_codes, m_rows, is_motion, R: _Rows, file: str,

@@ -52,6 +52,18 @@ BLOCK_COLUMNS: dict[str, object] = {
     "comment": "string",       # comment text on the line ("" when none)
 }
 
+# work offsets (toolpath.offsets): machine position = program position + offset, per row. The parser
+# writes them right after BLOCK_COLUMNS; hand-built tables may leave them out (read as 0).
+OFFSET_COLUMNS: dict[str, object] = {
+    "wx_mm": np.float64,       # active work offset (G54-G59.3 system + G92), 0 when none
+    "wy_mm": np.float64,
+    "wz_mm": np.float64,
+    "wa_deg": np.float64,
+    "wb_deg": np.float64,
+    "wc_deg": np.float64,
+    "coord_system": np.int8,   # active coordinate system: 1 = G54 ... 6 = G59, 7-9 = G59.1-G59.3
+}
+
 # per-block geometry features (toolpath.features), one row per motion block
 FEATURE_COLUMNS = (
     "block", "line", "kind",
@@ -67,3 +79,6 @@ FEATURE_COLUMNS = (
     "vx_nom_mm_min", "vy_nom_mm_min", "vz_nom_mm_min",        # nominal axis feeds (Sun Eq. 5-6)
     "ax_nom_mm_s2", "ay_nom_mm_s2", "az_nom_mm_s2",           # nominal axis accelerations (Sun Eq. 7)
 )
+# appended by block_features after `corner_cos_end`: the workpiece offset [Xo, Yo, Zo] of Chien Eq. 10
+# (Table 1 "WP translation distance to the rotary axis' origin"), i.e. the active work offset
+OFFSET_FEATURE_COLUMNS = ("xo_mm", "yo_mm", "zo_mm")
