@@ -37,7 +37,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sync-lines", action="store_true",
                         help="estimate and remove the line stream's clock offset against the positions")
     parser.add_argument("--work-offset", type=float, nargs=3, metavar=("X", "Y", "Z"), default=(0.0, 0.0, 0.0),
-                        help="program origin in the recorded frame, mm (the G54 offset a G10 L2 set)")
+                        help="extra program origin offset in the recorded frame, mm, for a work offset set "
+                             "on the machine rather than in the program (G10/G54/G92 in it are applied)")
     parser.add_argument("--lenient", action="store_true",
                         help="skip unsupported program codes (reported in report.json) instead of failing")
     parser.add_argument("--jobs", "-j", type=int, default=None, help="worker processes (default: all cores)")

@@ -35,12 +35,13 @@ from feedlog.align.timing import stream_timing
 from feedlog.errors import AlignmentError, FeedlogError
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import MachineProfile, load_profile
-from feedlog.toolpath import Program, block_features, cl_points, parse_program
+from feedlog.toolpath import Program, block_features, cl_points, parse_program, to_machine
 from feedlog.toolpath.schema import RAPID
 
 BOUNDARIES = ("auto", "pass", "leave")
 FEED_SOURCES = ("auto", "stream", "positions")
 STRAIGHT = ("linear", RAPID)
+WORK_OFFSET = ("wx_mm", "wy_mm", "wz_mm")  # toolpath's per-block work offset columns
 SPARSE_NS = 5_000_000
 REST_NOISE_K = 6.0  # standstill threshold in robust standard deviations of the position noise at rest  # sampling periods above this count as sparse (5 Hz logging, not a servo trace)
 
@@ -68,8 +69,9 @@ class AlignConfig:
                                      # with feedlog.sim's trajectory of the program (needs a profile)
     window_mm: float | None = None   # match search window (see MatchConfig)
     smoothing: FeedSmoothing = field(default_factory=FeedSmoothing)
-    work_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)  # program origin in the measured frame
-                                     # (G54 set by G10 L2 on the machine): added to every CL point
+    work_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)  # extra offset of the program origin in
+                                     # the measured frame (one set on the machine, not in the program;
+                                     # the program's own G10/G54/G92 come from toolpath)
     lenient: bool = False            # parse the program leniently (unsupported codes skipped, reported)
 
     def __post_init__(self) -> None:
@@ -191,8 +193,12 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     lap("motion_span")
     # --- CL points and the constrained match -------------------------------------------------------
     cl = cl_points(prog, chord_tol_mm=cfg.chord_tol_mm).reset_index(drop=True)
+    # program (work) coordinates -> the measured (machine) frame: the program's own work offsets
+    # (G10 L2/G54..., toolpath's wx_mm..) plus `work_offset_mm` set on the machine outside the program
     offset = np.asarray(cfg.work_offset_mm, dtype=np.float64)
-    cl_xyz = cl[list(LINEAR)].to_numpy(dtype=np.float64) + offset  # program -> measured (machine) frame
+    cl_xyz = cl[list(LINEAR)].to_numpy(dtype=np.float64) + offset
+    if set(WORK_OFFSET) <= set(cl.columns):
+        cl_xyz = cl_xyz + np.nan_to_num(cl[list(WORK_OFFSET)].to_numpy(dtype=np.float64))
     lap("cl_points")
     if len(cl) < 2:
         raise AlignmentError(f"{prog.name}: the program has no motion to align")
@@ -240,8 +246,9 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     leave = None
     if boundary == "leave":
         straight = motion["kind"].astype(str).isin(STRAIGHT).to_numpy()[:, None]
-        p0 = motion[["x0_mm", "y0_mm", "z0_mm"]].to_numpy(dtype=np.float64) + offset
-        p1 = motion[["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=np.float64) + offset
+        in_machine = to_machine(motion)
+        p0 = in_machine[["x0_mm", "y0_mm", "z0_mm"]].to_numpy(dtype=np.float64) + offset
+        p1 = in_machine[["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=np.float64) + offset
         leave = leave_times(t, xyz, np.where(straight, p0, np.nan), np.where(straight, p1, np.nan),
                             match.index[end_idx], on_path_mm=max(cfg.on_path_mm, 2 * position_quantum(pos), still))
     geo = blocks_from_geometry(motion, match.t_ns[end_idx], match.t_depart_ns[end_idx], span=span,
