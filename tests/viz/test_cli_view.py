@@ -5,8 +5,8 @@ from __future__ import annotations
 from importlib import resources
 
 import pytest
-import synthetic as syn
-from conftest import rrd_content
+from tests.viz import synthetic as syn
+from tests.viz.conftest import rrd_content
 
 from feedlog.cli import main
 from feedlog.ingest import write_recording

@@ -7,8 +7,8 @@ from importlib import resources
 from pathlib import Path
 
 import pytest
-import synthetic as syn
-from conftest import rrd_content
+from tests.viz import synthetic as syn
+from tests.viz.conftest import rrd_content
 
 from feedlog.cli import main
 from feedlog.ingest import write_recording

@@ -6,9 +6,9 @@ import numpy as np
 import pandas as pd
 import pytest
 import rerun as rr
-from conftest import column_values, rrd_content
+from tests.viz.conftest import column_values, rrd_content
 from rerun.chunk import RrdReader
-import synthetic as syn
+from tests.viz import synthetic as syn
 
 from feedlog.viz.overlay import TIMELINE_BLOCK, TIMELINE_PATH, TIMELINE_TIME, log_view, save_view
 from feedlog.viz.prepare import ModelPrediction, ViewInputs, prepare_view

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
-import synthetic as syn
+from tests.viz import synthetic as syn
 
 from feedlog.errors import FeedlogError
 from feedlog.ingest.recording import Recording

@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import rrd_content
+from tests.viz.conftest import rrd_content
 
 from feedlog.cli import main
 from feedlog.ingest import read_recording
