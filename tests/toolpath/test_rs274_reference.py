@@ -24,7 +24,7 @@ pytestmark = pytest.mark.skipif(RS274 is None, reason="LinuxCNC's rs274 interpre
 ROOT = Path(__file__).resolve().parents[2]
 SHARED = ROOT.parent / "shared" / "linuxcnc"
 _CALL = re.compile(r"(STRAIGHT_TRAVERSE|STRAIGHT_FEED|ARC_FEED|SELECT_PLANE|SET_FEED_RATE|"
-                   r"SET_MOTION_CONTROL_MODE|SET_NAIVECAM_TOLERANCE)\(([^)]*)\)")
+                   r"SET_MOTION_CONTROL_MODE|SET_NAIVECAM_TOLERANCE|SET_G5X_OFFSET|SET_G92_OFFSET)\(([^)]*)\)")
 _MODES = {"CANON_CONTINUOUS": "continuous", "CANON_EXACT_PATH": "exact_path", "CANON_EXACT_STOP": "exact_stop"}
 # ARC_FEED(first_end, second_end, first_centre, second_centre, rotation, normal_end, a, b, c)
 _PLANE_AXES = {"CANON_PLANE_XY": (0, 1, 2), "CANON_PLANE_XZ": (2, 0, 1), "CANON_PLANE_YZ": (1, 2, 0)}
@@ -32,13 +32,21 @@ _PLANE_AXES = {"CANON_PLANE_XY": (0, 1, 2), "CANON_PLANE_XZ": (2, 0, 1), "CANON_
 
 def rs274_moves(path: Path) -> list[dict]:
     """One dict per canonical motion call: kind, end (x y z a b c), centre (x y z, NaN off-plane) and
-    rotation of arcs, and the feed rate and path-control state in force."""
+    rotation of arcs, the feed rate and path-control state in force, and the work offset (the active
+    G5x offset plus the G92 offset: machine = end + work; mm programs)."""
     path = path.resolve()
     out = subprocess.run([RS274, "-g", str(path)], capture_output=True, text=True, timeout=60,
                          cwd=path.parent).stdout
     moves, plane = [], _PLANE_AXES["CANON_PLANE_XY"]
     state = {"feed": 0.0, "mode": "continuous", "tol": 0.0, "merge": 0.0}
+    g5x, g92 = np.zeros(6), np.zeros(6)
     for name, args in _CALL.findall(out):
+        if name == "SET_G5X_OFFSET":  # printed for the active system whenever it takes effect
+            g5x = np.array([float(v) for v in args.split(",")[1:]])
+            continue
+        if name == "SET_G92_OFFSET":
+            g92 = np.array([float(v) for v in args.split(",")])
+            continue
         if name == "SELECT_PLANE":
             plane = _PLANE_AXES[args.strip()]
             continue
@@ -54,7 +62,7 @@ def rs274_moves(path: Path) -> list[dict]:
             state["merge"] = float(args)
             continue
         vals = [float(v) for v in args.split(",")]
-        move = dict(state)
+        move = dict(state, work=g5x + g92)
         if name != "ARC_FEED":
             move.update(kind="rapid" if name == "STRAIGHT_TRAVERSE" else "linear", end=np.array(vals[:6]),
                         centre=None, rotation=0)
@@ -78,6 +86,8 @@ def assert_same_as_rs274(path: Path, tol: float = 2e-4) -> int:
     for k, mv in enumerate(ref):
         row = ours.iloc[k]
         assert np.allclose(ends[k], mv["end"], atol=tol), (k, ends[k], mv["end"])
+        work = row[["wx_mm", "wy_mm", "wz_mm", "wa_deg", "wb_deg", "wc_deg"]].to_numpy(dtype=float)
+        assert np.allclose(work, mv["work"], atol=tol), (k, work, mv["work"])
         if mv["kind"] == "arc":
             sign = 1 if row.kind == "arc_ccw" else -1
             assert sign * int(row.turns) == mv["rotation"], (k, row.kind, row.turns, mv["rotation"])
@@ -98,11 +108,56 @@ def assert_same_as_rs274(path: Path, tol: float = 2e-4) -> int:
 # examples/fiveaxis_cl_ijk.ngc is CL data (I J K orientation on G1), which LinuxCNC does not accept
 LINUXCNC_PROGRAMS = sorted(SHARED.glob("*.ngc")) + sorted(p for p in (ROOT / "examples").glob("*.ngc")
                                                           if "_cl_" not in p.name)
+# the recorded five-axis programs that set a work offset (G10 L2 P1 ... G54)
+OFFSET_PROGRAMS = sorted((ROOT / "recordings" / "programs").glob("*offset*.ngc"))
 
 
 @pytest.mark.parametrize("path", LINUXCNC_PROGRAMS, ids=lambda p: p.name)
 def test_programs_match_linuxcnc_interpreter(path):
     assert assert_same_as_rs274(path) > 0
+
+
+@pytest.mark.parametrize("path", OFFSET_PROGRAMS, ids=lambda p: p.name)
+def test_offset_programs_match_linuxcnc_interpreter(path):
+    assert assert_same_as_rs274(path) > 0
+    program = parse_program(path)
+    assert program.motion["wx_mm"].abs().max() > 0  # the offset is really there
+
+
+def test_offset_programs_are_shipped():
+    assert len(OFFSET_PROGRAMS) >= 3
+
+
+@st.composite
+def offset_mixes(draw):
+    """Moves in G90/G91 between G10 L2/L20 (P0-P9, some axes), G54-G59.3 selections, G92 and G92.1."""
+    systems = ["G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3"]
+    lines = ["G21 G90 G94 F600", "G0 X1 Y2 Z3"]
+    num = st.integers(-500, 500).map(lambda v: f"{v / 10:.1f}")
+    for _ in range(draw(st.integers(1, 10))):
+        axes = draw(st.lists(st.sampled_from("XYZAC"), min_size=1, max_size=3, unique=True))
+        words = " ".join(f"{a}{draw(num)}" for a in axes)
+        op = draw(st.sampled_from(["L2", "L20", "select", "G92", "G92.1", "move", "move"]))
+        if op in ("L2", "L20"):
+            lines.append(f"G10 {op} P{draw(st.integers(0, 9))} {words}")
+        elif op == "select":
+            lines.append(draw(st.sampled_from(systems)))
+        elif op == "G92":
+            lines.append(f"G92 {words}")
+        elif op == "G92.1":
+            lines.append("G92.1")
+        else:
+            lines.append(f"{draw(st.sampled_from(['G90', 'G91']))} {draw(st.sampled_from(['G0', 'G1']))} {words}")
+    lines.append("G90 G1 X0")
+    return "\n".join(lines + ["M2"]) + "\n"
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(offset_mixes())
+def test_random_offset_programs_match_linuxcnc_interpreter(tmp_path, text):
+    path = tmp_path / "offsets.ngc"
+    path.write_text(text)
+    assert_same_as_rs274(path)
 
 
 @st.composite
