@@ -48,7 +48,7 @@ def train_net(net: nn.Module, loss_fn: LossFn, *, n_train: int, n_val: int, seed
             best = float(loss_fn(net, None, "val"))
     best_state, best_epoch, stale = copy.deepcopy(net.state_dict()), -1, 0
     train_loss = float("nan")
-    bar = tqdm(range(epochs), desc=desc, disable=not progress, leave=False, unit="epoch")
+    bar = tqdm(range(epochs), desc=desc, disable=None if progress else True, leave=False, unit="epoch")  # None: off when not a terminal
     epoch = 0
     for epoch in bar:
         net.train()
