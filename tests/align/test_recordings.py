@@ -25,7 +25,7 @@ ALL = UNMERGED + ["dense002q0", "circle_f1000_p01", "test_p01", "corners_f1000_p
 # 5 Hz: motion start and end inside their 200 ms interval come from feedlog.sim's trajectory
 EXACT_STOP = ["corners_f3000_g61", "test_g61", "pocket_f1000_g61", "5ax_g61", "circle_b_f3000_g61"]
 CONTINUOUS_5HZ = ["corners_f3000_p001", "test_p001", "circle_f3000_p001", "dense002q0", "freeform_f3000_p001",
-                  "5ax_p001", "pocket_f3000_p001", "test_p01"]
+                  "5ax_p001", "pocket_f3000_p001", "test_p01", "5ax_near_b_f1000_p01_offset"]
 
 
 def _load(name: str) -> Recording:
