@@ -69,7 +69,7 @@ def align_many(recordings: list[str | Path], outdir: str | Path, *, program: str
             cfg, overwrite, with_blocks)
     jobs = max(1, min(jobs or os.cpu_count() or 1, len(names)))
     results: dict[str, BatchItem] = {}
-    bar = tqdm(total=len(names), desc="align", unit="rec", disable=not progress)
+    bar = tqdm(total=len(names), desc="align", unit="rec", disable=None if progress else True)  # None: off when not a terminal
     try:
         if jobs == 1:
             for name in names:

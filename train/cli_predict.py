@@ -1,7 +1,8 @@
 """`feedlog predict PROGRAM --model CKPT [--profile M] [--json] [-o BLOCKS]`: predict a program's cycle time.
 
 Prints `cycle_time_s` and writes the per-block predictions (block, line, kind, nominal_time_s,
-duration_s) to Parquet (or CSV by suffix): BLOCKS, or `<program stem>.<model>.blocks.parquet`.
+duration_s) to Parquet (or CSV by suffix): BLOCKS, or `<program stem>.<model>.blocks.parquet` in the
+current folder (never beside the program, which may sit in a read-only or source folder).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
     if not program.is_file():
         raise ModelError(f"{program}: part program not found")
     pred = predict_program(program, args.model, profile=args.profile, name=program.stem)
-    out = Path(args.output) if args.output else program.with_name(f"{program.stem}.{pred.model}.blocks.parquet")
+    out = Path(args.output) if args.output else Path(f"{program.stem}.{pred.model}.blocks.parquet")
     if out.exists() and not args.overwrite:
         raise ModelError(f"{out} exists; use --overwrite to replace it")
     if out.suffix == ".csv":

@@ -46,7 +46,7 @@ def test_load_many_reads_split_and_profile_from_the_manifest(tmp_path):
         load_many([tmp_path])
 
 
-def test_train_then_predict(tmp_path, capsys, examples_dir):
+def test_train_then_predict(tmp_path, capsys, examples_dir, monkeypatch):
     aligned = _write_aligned(tmp_path)
     out = tmp_path / "models"
     argv = ["train", str(aligned), "-o", str(out), "--models", "mlp,bilstm-block", "--epochs", "3", "-q"]
@@ -62,8 +62,13 @@ def test_train_then_predict(tmp_path, capsys, examples_dir):
 
     program = tmp_path / "pocket.ngc"
     program.write_text((examples_dir / "pocket.ngc").read_text())
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
     assert main(["predict", str(program), "--model", str(out / "bilstm-block.pt"), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
+    assert (work / "pocket.bilstm-block.blocks.parquet").is_file()  # the current folder, not beside the program
+    assert not (tmp_path / "pocket.bilstm-block.blocks.parquet").exists()
     blocks = pd.read_parquet(doc["blocks_file"])
     assert doc["model"] == "bilstm-block" and doc["profile"] == "linuxcnc-xyz"
     from feedlog.toolpath import parse_program
