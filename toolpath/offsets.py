@@ -35,8 +35,8 @@ WORK_OFFSET_COLUMNS = tuple(c for c in OFFSET_COLUMNS if c != "coord_system")  #
 
 @dataclass
 class AxisWords:
-    """Per-axis motion words, machine-independent: `values[j]` program value in mm/deg (NaN where the
-    row has no word for axis j), `incremental[j]` rows moving axis j by a G91 delta."""
+    """Per-axis motion words (axis-major, (6, n)): `values` the program value in mm/deg of absolute
+    words (NaN elsewhere), `absolute` where they are, `cumsum` the running sum of G91 deltas."""
 
     values: np.ndarray       # (6, n)
     absolute: np.ndarray     # (6, n) bool: an absolute motion word for the axis on this row

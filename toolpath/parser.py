@@ -482,10 +482,12 @@ def _offset_positions(W: np.ndarray, has: np.ndarray, S: dict, unit: np.ndarray,
         absolute[j] = set_here & ~incremental
         values[j] = np.where(absolute[j], v, np.nan)
         cs[j] = np.cumsum(np.where(set_here & incremental, v, 0.0))
-    ev_rows = np.flatnonzero((coords >= 0) | offset_row)
+    selected = _ffill(coords, coords >= 0, 540)
+    switch = (coords >= 0) & (selected != np.r_[540, selected[:-1]])  # re-selecting the active one is no event
+    ev_rows = np.flatnonzero(switch | offset_row)
     given = W[[S[c] for c in AXIS_LETTERS]][:, ev_rows] * scale[:, ev_rows]
     lw, pw = W[S["L"], ev_rows], W[S["P"], ev_rows]
-    events = [Event(row=int(r), system=int(_SYSTEM_LUT[coords[r]]) if coords[r] >= 0 else 0,
+    events = [Event(row=int(r), system=int(_SYSTEM_LUT[coords[r]]) if switch[r] else 0,
                     code=int(nonmodal[r]) if offset_row[r] else -1,
                     l_word=int(lw[i]) if not np.isnan(lw[i]) else 0,
                     p_word=int(pw[i]) if not np.isnan(pw[i]) else 0,
