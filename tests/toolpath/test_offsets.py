@@ -5,6 +5,8 @@ so the next block starts at (previous machine point - new offset) in program coo
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -165,3 +167,29 @@ def test_offset_rows_are_not_motion():
     b = parse_program("G1 X1 F100\nG10 L2 P1 X3 Y4\nG92 Z1\nG92.1\n").blocks
     assert b["kind"].tolist() == ["linear", "none", "none", "none"]
     assert b["length_mm"].tolist() == [1.0, 0.0, 0.0, 0.0]
+
+
+RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
+RECORDED = sorted(RECORDINGS.glob("*offset*.mcap"))
+
+
+@pytest.mark.parametrize("path", RECORDED, ids=lambda p: p.stem)
+def test_machine_frame_cl_points_lie_on_the_linuxcnc_recording(path):
+    """LinuxCNC's recorded axis positions are machine coordinates: the program's CL points plus the G54
+    offset must lie on the measured path (within the G64 P blend tolerance); in program coordinates they
+    are off by the offset."""
+    from scipy.spatial import cKDTree
+
+    from feedlog.ingest import read_recording
+
+    program = parse_program(RECORDINGS / "programs" / f"{path.stem}.ngc")
+    measured = read_recording(path).streams["axes"][["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=float)
+    tree = cKDTree(measured)
+    tol = float(np.nan_to_num(program.motion["tol_mm"].max()))
+    offset = float(np.linalg.norm(program.motion[["wx_mm", "wy_mm", "wz_mm"]].to_numpy()[-1]))
+    for frame, check in (("machine", lambda d: d.max() <= tol + 0.01),
+                         ("program", lambda d: np.median(d) > offset / 4)):
+        cl = cl_points(program, chord_tol_mm=0.001, frame=frame)
+        feed = (cl["kind"] != "start") & (cl["kind"] != "rapid")
+        dist, _ = tree.query(cl.loc[feed, ["x_mm", "y_mm", "z_mm"]].to_numpy())
+        assert check(dist), (frame, dist.max(), np.median(dist))
