@@ -10,6 +10,7 @@ import numpy as np
 from feedlog.profile import MachineProfile
 from feedlog.toolpath.features import block_features
 from feedlog.toolpath import arcs
+from feedlog.toolpath.offsets import WORK_OFFSET_COLUMNS, to_machine
 from feedlog.toolpath.program import K_ARC_CCW, K_ARC_CW, Program, kind_codes
 from feedlog.toolpath.schema import END_COLUMNS, MOTION_KINDS, RAPID, START_COLUMNS
 
@@ -58,6 +59,23 @@ def extents(program: Program) -> dict[str, list[float]]:
             if j < 3 or lo[j] != 0 or hi[j] != 0}
 
 
+SYSTEM_NAMES = ("", "G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
+
+
+def work_offsets(program: Program) -> list[dict[str, Any]]:
+    """The work offsets in force on motion blocks, in order of first use: coordinate system, offset per
+    axis (only axes with one), number of blocks. Empty when every offset is 0 or the table has none."""
+    m = program.motion
+    if not len(m) or not all(c in m.columns for c in WORK_OFFSET_COLUMNS) \
+            or not m[list(WORK_OFFSET_COLUMNS)].to_numpy().any():
+        return []
+    cols = [*WORK_OFFSET_COLUMNS, "coord_system"]
+    counts = m.groupby(cols, sort=False).size()
+    return [{"coord_system": SYSTEM_NAMES[int(key[-1])],
+             "offset": {c: float(v) for c, v in zip(WORK_OFFSET_COLUMNS, key[:-1]) if v != 0},
+             "blocks": int(n)} for key, n in counts.items()]
+
+
 def summarize(program: Program, profile: MachineProfile) -> dict[str, Any]:
     """Summary of `program` on `profile`: CAM time is sum(L/F) over feed moves, rapids at the profile's
     rapid rate, plus dwells (no acceleration, no blending: what a CAM system estimates)."""
@@ -69,6 +87,7 @@ def summarize(program: Program, profile: MachineProfile) -> dict[str, Any]:
     feed = feed[np.isfinite(feed)]
     dwell_s = float(b["dwell_s"].sum())
     bbox = extents(program)
+    offsets = work_offsets(program)
     tol = feats["tol_mm"].to_numpy()
     return {
         "file": program.name,
@@ -87,6 +106,8 @@ def summarize(program: Program, profile: MachineProfile) -> dict[str, Any]:
         "path_modes": sorted(str(m) for m in program.motion["path_mode"].unique()),
         "tol_mm": [_num(np.nanmin(tol)), _num(np.nanmax(tol))] if np.isfinite(tol).any() else None,
         "units": sorted(str(u) for u in b["units"].unique()),
+        "work_offsets": offsets,
+        "bbox_machine": extents(Program(blocks=to_machine(b))) if offsets else None,
         "five_axis": bool(b["ori_i"].notna().any() or (b[["a_deg", "b_deg", "c_deg"]] != 0).any(axis=None)),
         "warnings": list(program.warnings),
         "unsupported": [{"line": u.line, "code": u.code, "reason": u.reason} for u in program.unsupported],
@@ -106,6 +127,11 @@ def format_summary(s: dict[str, Any]) -> str:
     ]
     for col, (lo, hi) in s["bbox"].items():
         lines.append(f"  {col:<12} {lo:.4f} .. {hi:.4f}")
+    for w in s.get("work_offsets") or []:
+        axes = " ".join(f"{c[1].upper()}{v:g}" for c, v in w["offset"].items())
+        lines.append(f"  work offset  {w['coord_system']} {axes} ({w['blocks']} blocks)")
+    for col, (lo, hi) in (s.get("bbox_machine") or {}).items():
+        lines.append(f"  machine {col[0]:<4} {lo:.4f} .. {hi:.4f}")
     if s["feed_mm_min"]:
         lines.append(f"  feed         {s['feed_mm_min'][0]:g} .. {s['feed_mm_min'][1]:g} mm/min")
     tol = s["tol_mm"]

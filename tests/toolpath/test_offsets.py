@@ -193,3 +193,19 @@ def test_machine_frame_cl_points_lie_on_the_linuxcnc_recording(path):
         feed = (cl["kind"] != "start") & (cl["kind"] != "rapid")
         dist, _ = tree.query(cl.loc[feed, ["x_mm", "y_mm", "z_mm"]].to_numpy())
         assert check(dist), (frame, dist.max(), np.median(dist))
+
+
+def test_summary_lists_work_offsets_and_the_machine_bbox():
+    from feedlog.profile import load_profile
+    from feedlog.toolpath import summarize
+
+    p = parse_program("G10 L2 P2 X100 Y-5\nG0 X0 Y0\nG1 X10 F100\nG55\nG1 X0\nG1 Y2\n")
+    s = summarize(p, load_profile("linuxcnc-xyz"))
+    assert s["work_offsets"] == [{"coord_system": "G54", "offset": {}, "blocks": 2},
+                                 {"coord_system": "G55", "offset": {"wx_mm": 100.0, "wy_mm": -5.0}, "blocks": 2}]
+    # machine path: 0 -> 10 (G54), then G55 starts at program X-90 Y5, goes to X0 (machine 100), Y2 (machine -3)
+    assert s["bbox_machine"]["x_mm"] == pytest.approx([0.0, 100.0])
+    assert s["bbox_machine"]["y_mm"] == pytest.approx([-3.0, 0.0])
+    assert s["bbox"]["x_mm"] == pytest.approx([-90.0, 10.0])  # program coordinates, each block in its own
+    plain = summarize(parse_program("G1 X1 F10\n"), load_profile("linuxcnc-xyz"))
+    assert plain["work_offsets"] == [] and plain["bbox_machine"] is None
