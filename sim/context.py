@@ -90,8 +90,13 @@ def block_times(row_of_piece: np.ndarray, start: np.ndarray, end: np.ndarray, n_
     b_end = np.full(n_rows, -np.inf)
     # pieces are in time order, so a block's first piece has its start and its last piece its end
     if len(row_of_piece):
-        first = np.unique(row_of_piece, return_index=True)[1]
-        last = len(row_of_piece) - 1 - np.unique(row_of_piece[::-1], return_index=True)[1]
+        if np.all(row_of_piece[1:] >= row_of_piece[:-1]):  # the usual case: blocks in order, no sort
+            change = np.flatnonzero(row_of_piece[1:] != row_of_piece[:-1]) + 1
+            first = np.concatenate(([0], change))
+            last = np.append(change - 1, len(row_of_piece) - 1)
+        else:
+            first = np.unique(row_of_piece, return_index=True)[1]
+            last = len(row_of_piece) - 1 - np.unique(row_of_piece[::-1], return_index=True)[1]
         rows = row_of_piece[first]
         b_start[rows] = np.minimum(b_start[rows], start[first])
         b_end[row_of_piece[last]] = np.maximum(b_end[row_of_piece[last]], end[last])

@@ -29,6 +29,17 @@ _PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}  # plane axis 1, plane a
 EPS_LEN = 1e-9
 
 
+def rows(values: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """values[index] along the first axis (np.take: several times faster than fancy indexing for
+    (n, k) arrays)."""
+    return values.take(index, axis=0)
+
+
+def linear_columns(lin: list[int]) -> slice | list[int]:
+    """The linear axis columns as a slice when they are the leading ones (a view, no copy)."""
+    return slice(0, len(lin)) if lin == list(range(len(lin))) else lin
+
+
 @dataclass
 class Blocks:
     """Per-block arrays (n rows). Positions have one column per profile axis (`axes`)."""
@@ -63,8 +74,8 @@ class Blocks:
     def take(self, index: np.ndarray) -> Blocks:
         """The rows `index` (arrays and `extra` columns alike)."""
         fields = {k: getattr(self, k) for k in self.__dataclass_fields__ if k not in ("axes", "extra")}
-        return Blocks(axes=self.axes, extra={k: v[index] for k, v in self.extra.items()},
-                      **{k: v[index] for k, v in fields.items()})
+        return Blocks(axes=self.axes, extra={k: rows(v, index) for k, v in self.extra.items()},
+                      **{k: rows(v, index) for k, v in fields.items()})
 
     @property
     def v_max(self) -> np.ndarray:
@@ -100,7 +111,7 @@ class Pieces:
         return len(self.block)
 
     def take(self, index: np.ndarray) -> Pieces:
-        return Pieces(**{k: getattr(self, k)[index] for k in self.__dataclass_fields__})
+        return Pieces(**{k: rows(getattr(self, k), index) for k in self.__dataclass_fields__})
 
     def position(self, index: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """Axis positions (len(index), k) at path parameter sigma within the given pieces."""
@@ -116,15 +127,18 @@ class Pieces:
 
     def tangent_xyz(self, index: np.ndarray, sigma: np.ndarray, lin: list[int]) -> np.ndarray:
         """Unit TCP tangent (len(index), 3) at sigma (zeros where the TCP does not move)."""
-        d = self.dir[index][:, lin]
-        curved = self.radius[index] > 0
+        d = rows(self.dir[:, linear_columns(lin)], index)
+        curved = rows(self.radius, index) > 0
         if curved.any():  # arcs: add the circular part's derivative
             idx = index[curved]
             ang = self.omega[idx] * np.broadcast_to(sigma, index.shape)[curved]
             d[curved] += (self.radius[idx, None] * self.omega[idx, None]
                           * (-np.sin(ang)[:, None] * self.e1[idx] + np.cos(ang)[:, None] * self.e2[idx]))[:, lin]
         norm = np.sqrt(np.einsum("ij,ij->i", d, d))
-        return np.divide(d, norm[:, None], out=np.zeros_like(d), where=norm[:, None] > EPS_LEN)
+        moving = norm > EPS_LEN
+        if moving.all():
+            return d / norm[:, None]
+        return np.divide(d, norm[:, None], out=np.zeros_like(d), where=moving[:, None])
 
 
 def block_table(program) -> pd.DataFrame:
@@ -136,13 +150,6 @@ def block_table(program) -> pd.DataFrame:
     if missing:
         raise SimulationError(f"block table lacks column(s) {', '.join(missing)} (see feedlog/toolpath/schema.py)")
     return table
-
-
-def _labels(column: pd.Series) -> np.ndarray:
-    """String labels of a (usually categorical) column as a numpy array, without a per-row cast."""
-    cat = column if isinstance(column.dtype, pd.CategoricalDtype) else column.astype("category")
-    names = np.asarray([str(c) for c in cat.cat.categories] + [""], dtype=object)
-    return names[cat.cat.codes.to_numpy()]
 
 
 def _codes(column: pd.Series, mapping: dict[str, int]) -> np.ndarray:
@@ -159,49 +166,61 @@ def _where(table: pd.DataFrame, i: int) -> str:
     return f"{file}:{line}" if file else f"line {line}"
 
 
-def _column(table: pd.DataFrame, name: str, default: float) -> np.ndarray:
+def _column(table: pd.DataFrame, name: str, default: float, sel: np.ndarray) -> np.ndarray:
+    """Rows `sel` of a numeric column as float64 (a new array; NaN for missing values)."""
     if name not in table.columns:
-        return np.full(len(table), default, dtype=np.float64)
-    return table[name].to_numpy(dtype=np.float64, na_value=np.nan)
+        return np.full(len(sel), default, dtype=np.float64)
+    return table[name].to_numpy(dtype=np.float64, na_value=np.nan).take(sel)
 
 
 def projected_limits(delta: np.ndarray, length: np.ndarray, vel: np.ndarray, acc: np.ndarray):
     """Path speed and acceleration at which the first axis reaches its limit, per straight move
     (RS274 canon: each axis' time d_i / v_i, the slowest one sets the move's limit)."""
-    ratio = np.abs(delta) / np.where(length > EPS_LEN, length, 1.0)[:, None]
+    safe = np.where(length > EPS_LEN, length, 1.0)
+    v_axis = np.full(len(length), np.inf)
+    a_axis = np.full(len(length), np.inf)
+    # one column at a time: reductions over a short second axis are slow in numpy
     with np.errstate(divide="ignore", over="ignore"):
-        v_axis = np.min(np.where(ratio > 1e-12, vel / ratio, np.inf), axis=1)
-        a_axis = np.min(np.where(ratio > 1e-12, acc / ratio, np.inf), axis=1)
+        for i in range(delta.shape[1]):
+            ratio = np.abs(delta[:, i]) / safe
+            moves = ratio > 1e-12
+            np.minimum(v_axis, np.where(moves, vel[i] / ratio, np.inf), out=v_axis)
+            np.minimum(a_axis, np.where(moves, acc[i] / ratio, np.inf), out=a_axis)
     return v_axis, a_axis
 
 
 def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     """Motion and dwell rows of the block table as `Blocks`, with axis-projected limits."""
     table = block_table(program)
-    kinds = _labels(table["kind"])
     code = _codes(table["kind"], _KIND_CODES)
-    keep = code >= 0
-    t = table.loc[keep]
-    code = code[keep]
+    sel = np.flatnonzero(code >= 0)   # motion and dwell rows (no DataFrame copy: columns are taken)
+    code = code[sel]
+
+    def col(name: str, default: float) -> np.ndarray:
+        return _column(table, name, default, sel)
+
+    def where(i: int) -> str:
+        return _where(table, int(sel[i]))
+
     axes = profile.axis_names
     units = schema.AXIS_UNITS
     for a in schema.AXES:  # an axis the machine does not have must not move
-        if a in axes or f"{a}_{units[a]}" not in t.columns:
+        if a in axes or f"{a}_{units[a]}" not in table.columns:
             continue
-        d = np.abs(_column(t, f"{a}_{units[a]}", np.nan) - _column(t, f"{a}0_{units[a]}", np.nan))
+        d = np.abs(col(f"{a}_{units[a]}", np.nan) - col(f"{a}0_{units[a]}", np.nan))
         bad_axis = (d > 1e-9) & (code != KIND_DWELL)
         if bad_axis.any():
             i = int(np.flatnonzero(bad_axis)[0])
-            raise SimulationError(f"{_where(t, i)}: the program moves axis {a.upper()}, which "
+            raise SimulationError(f"{where(i)}: the program moves axis {a.upper()}, which "
                                   f"machine profile {profile.name!r} does not have (axes: {', '.join(axes)})")
-    p1 = np.column_stack([_column(t, f"{a}_{units[a]}", np.nan) for a in axes])
-    p0 = np.column_stack([_column(t, f"{a}0_{units[a]}", np.nan) for a in axes])
+    p1 = np.column_stack([col(f"{a}_{units[a]}", np.nan) for a in axes])
+    p0 = np.column_stack([col(f"{a}0_{units[a]}", np.nan) for a in axes])
     # unknown start (first move of a program): no motion on that axis
     p0 = np.where(np.isnan(p0), p1, p0)
     bad = np.isnan(p1).any(axis=1) & (code != KIND_DWELL)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise SimulationError(f"{_where(t, i)}: motion block without an end position "
+        raise SimulationError(f"{where(i)}: motion block without an end position "
                               f"for axes {', '.join(axes)}")
     p1 = np.where(np.isnan(p1), p0, p1)
     n, k = p0.shape
@@ -212,18 +231,18 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     rot_len = np.linalg.norm(delta[:, rot], axis=1) if rot else np.zeros(n)
 
     # arcs: centre, plane, signed sweep, helix
-    center = np.column_stack([_column(t, c, np.nan) for c in ("cx_mm", "cy_mm", "cz_mm")])
-    plane = _column(t, "plane", 17).astype(int)
-    turns = np.maximum(_column(t, "turns", 1), 1)
+    center = np.column_stack([col(c, np.nan) for c in ("cx_mm", "cy_mm", "cz_mm")])
+    plane = col("plane", 17).astype(int)
+    turns = np.maximum(col("turns", 1), 1)
     sweep = np.zeros(n)
     radius = np.zeros(n)
     normal_axis = np.full(n, 2, dtype=np.int8)
     is_arc = code == KIND_ARC
-    ccw = kinds[keep] == schema.ARC_CCW
+    ccw = _codes(table["kind"], {schema.ARC_CCW: 1})[sel] == 1
     length = np.where(lin_len > EPS_LEN, lin_len, rot_len)
     for i in np.flatnonzero(is_arc):  # arcs are rare; the per-arc work is a few scalar ops
         if plane[i] not in _PLANES or np.isnan(center[i]).any():
-            raise SimulationError(f"{_where(t, i)}: arc without a centre or plane")
+            raise SimulationError(f"{where(i)}: arc without a centre or plane")
         a1, a2, nrm = _PLANES[plane[i]]
         xyz0, xyz1 = p0[i, lin], p1[i, lin]
         r0 = np.array([xyz0[a1] - center[i, a1], xyz0[a2] - center[i, a2]])
@@ -241,7 +260,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
         normal_axis[i] = nrm
         length[i] = float(np.hypot(radius[i] * d, xyz1[nrm] - xyz0[nrm]))
 
-    feed = _column(t, "feed_mm_min", np.nan) / 60.0
+    feed = col("feed_mm_min", np.nan) / 60.0
     rapid = code == KIND_RAPID
     feed = np.where(rapid, profile.rapid_mm_min / 60.0, feed)
     moving = (length > EPS_LEN) & (code != KIND_DWELL)
@@ -249,7 +268,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     bad_feed = moving & ~(feed > 0)
     if bad_feed.any():
         i = int(np.flatnonzero(bad_feed)[0])
-        raise SimulationError(f"{_where(t, i)}: feed move with no feed rate (F)")
+        raise SimulationError(f"{where(i)}: feed move with no feed rate (F)")
 
     # axis limits projected on the block direction (lines: exact; arcs: the plane axes)
     vel = np.array([profile.axes[a].vel_max for a in axes])
@@ -267,23 +286,23 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     a_max = np.where(np.isfinite(a_axis), a_axis, acc.min())
 
     extra: dict[str, np.ndarray] = {}
-    mode = _labels(t["path_mode"])
-    stop_after = (mode != schema.CONTINUOUS) | (code == KIND_DWELL)
-    exact_path = (mode == schema.EXACT_PATH) & (code != KIND_DWELL)
-    extra["continuous"] = mode == schema.CONTINUOUS
+    mode = _codes(table["path_mode"], {schema.CONTINUOUS: 1, schema.EXACT_PATH: 2})[sel]
+    stop_after = (mode != 1) | (code == KIND_DWELL)
+    exact_path = (mode == 2) & (code != KIND_DWELL)
+    extra["continuous"] = mode == 1
     if n:
         stop_after[-1] = True
         exact_path[-1] = False
-    hold = np.where(code == KIND_DWELL, np.nan_to_num(_column(t, "dwell_s", 0.0)), 0.0)
+    hold = np.where(code == KIND_DWELL, np.nan_to_num(col("dwell_s", 0.0)), 0.0)
     length = np.where(moving, length, 0.0)
-    if all(c in t.columns for c in ("ori_i", "ori_j", "ori_k")):
-        ori = np.column_stack([_column(t, c, np.nan) for c in ("ori_i", "ori_j", "ori_k")])
+    if all(c in table.columns for c in ("ori_i", "ori_j", "ori_k")):
+        ori = np.column_stack([col(c, np.nan) for c in ("ori_i", "ori_j", "ori_k")])
         if not np.isnan(ori).all():
             extra["ori"] = ori
-    return Blocks(axes=axes, block=t["block"].to_numpy(np.int64), line=t["line"].to_numpy(np.int64),
+    return Blocks(axes=axes, block=table["block"].to_numpy(np.int64)[sel], line=table["line"].to_numpy(np.int64)[sel],
                   kind=code, p0=p0, p1=p1, length=length, feed=feed, v_limit=v_limit, a_max=a_max,
-                  stop_after=stop_after, exact_path=exact_path, tol=_column(t, "tol_mm", np.nan),
-                  merge_tol=_column(t, "merge_tol_mm", np.nan), hold_s=hold,
+                  stop_after=stop_after, exact_path=exact_path, tol=col("tol_mm", np.nan),
+                  merge_tol=col("merge_tol_mm", np.nan), hold_s=hold,
                   min_time_s=np.zeros(n), rotary=rot_len > 1e-9, center=center, normal_axis=normal_axis,
                   sweep=sweep, radius=radius, extra=extra)
 

@@ -90,7 +90,7 @@ def simulate(program, profile: MachineProfile | str | Path, *, mechanisms: Mecha
         mech.limit(ctx)
     pieces = build_pieces(ctx.blocks)
     keep = (pieces.length > 0) | (pieces.hold_s > 0)
-    ctx.pieces = pieces.take(np.flatnonzero(keep))
+    ctx.pieces = pieces if keep.all() else pieces.take(np.flatnonzero(keep))
     interpolator = next(m for m in chain if m.kind == "interpolator")
     if interpolator.uses_corner_law:
         for mech in chain:
