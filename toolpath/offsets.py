@@ -126,10 +126,11 @@ def _offsets_of(blocks: pd.DataFrame) -> np.ndarray | None:
     return w if w.any() else None
 
 
-def to_machine(blocks: pd.DataFrame) -> pd.DataFrame:
-    """A copy of a block table with start/end positions and arc centres in machine coordinates
-    (program + work offset `wx_mm` ... `wc_deg`). Tables without offset columns come back unchanged
-    (as a copy); the offset columns themselves are kept."""
+def to_machine(blocks) -> pd.DataFrame:
+    """A copy of a block table (or a Program's) with start/end positions and arc centres in machine
+    coordinates (program + work offset `wx_mm` ... `wc_deg`). Tables without offset columns come back
+    unchanged (as a copy); the offset columns themselves are kept."""
+    blocks = getattr(blocks, "blocks", blocks)
     out = blocks.copy()
     w = _offsets_of(blocks)
     if w is None:

@@ -83,6 +83,7 @@ def test_to_machine_shifts_ends_starts_and_arc_centres_only():
     assert [arc.x0_mm, arc.y0_mm, arc.x_mm, arc.cx_mm, arc.cy_mm] == pytest.approx([100, 50, 110, 105, 50])
     assert arc.radius_mm == pytest.approx(5.0) and arc.length_mm == pytest.approx(5 * np.pi)
     assert p.blocks.loc[2, "x_mm"] == pytest.approx(10.0)  # the program table is untouched
+    assert to_machine(p).equals(m)  # a Program works too
     plain = parse_program("G1 X1 F10\n").blocks
     assert to_machine(plain)[END].equals(plain[END])
     assert to_machine(plain.drop(columns=WORK))[END].equals(plain[END])  # hand-built tables
