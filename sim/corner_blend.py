@@ -33,16 +33,45 @@ import numpy as np
 from feedlog.profile import MachineProfile
 from feedlog.sim.context import Context
 from feedlog.sim.mechanism import Mechanism
-from feedlog.sim.path import Pieces, with_columns
+from feedlog.sim.path import Pieces, rows, with_columns
 
 ACC_RATIO_TANGENTIAL = 0.5
+
+
+def _interleave(a: np.ndarray, b: np.ndarray, pos_a: np.ndarray, pos_b: np.ndarray) -> np.ndarray:
+    """Rows of a at pos_a and rows of b at pos_b of a new array. (n, k) rows are scattered as single
+    k-float elements through a void view: much faster than row-wise fancy indexing."""
+    dtype = np.result_type(a, b)
+    out = np.empty((len(a) + len(b),) + a.shape[1:], dtype=dtype)
+    if a.ndim == 2:
+        row = np.dtype((np.void, dtype.itemsize * a.shape[1]))
+        view = out.view(row).reshape(-1)
+        view[pos_a] = np.ascontiguousarray(a, dtype=dtype).view(row).reshape(-1)
+        view[pos_b] = np.ascontiguousarray(b, dtype=dtype).view(row).reshape(-1)
+    else:
+        out[pos_a] = a
+        out[pos_b] = b
+    return out
+
+
+def _sq_norm(x: np.ndarray) -> np.ndarray:
+    """Squared Euclidean norm of each row."""
+    return np.einsum("ij,ij->i", x, x)
+
+
+def _norm(x: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each row (einsum: faster than np.linalg.norm over a short axis)."""
+    return np.sqrt(_sq_norm(x))
 
 
 def inscribed_limit(binormal: np.ndarray, bounds: np.ndarray) -> np.ndarray:
     """Largest vector magnitude inside the axis box `bounds` for every direction in the plane with
     normal `binormal` (rows): min over axes of bound / |axis projected on the plane|."""
     scale = np.sqrt(np.clip(1.0 - binormal ** 2, 1e-24, None))
-    return np.min(bounds / scale, axis=1)
+    out = np.full(len(binormal), np.inf)
+    for c in range(binormal.shape[1]):  # min over the axes, one column at a time
+        np.minimum(out, bounds[c] / scale[:, c], out=out)
+    return out
 
 
 @dataclass
@@ -89,19 +118,20 @@ class BlendArcCorner(Mechanism):
         cyc = self.servo_period_s
         b = pc.block
         j = np.arange(m - 1)          # junction j: end of piece j / start of piece j + 1
-        b1, b2 = b[j], b[j + 1]
-        u1 = pc.tangent_xyz(j, pc.length[j], lin)
-        u2 = pc.tangent_xyz(j + 1, np.zeros(m - 1), lin)
+        # (arrays at j and j + 1 are the slices [:-1] and [1:]: views, no gathers)
+        b1, b2 = b[:-1], b[1:]
         length = pc.length
+        u1 = pc.tangent_xyz(j, length[:-1], lin)
+        u2 = pc.tangent_xyz(j + 1, np.zeros(m - 1), lin)
         # speeds as LinuxCNC's segments know them: programmed feed, axis caps, one servo cycle
         v_seg = np.minimum(pc.v_max, np.where(length > 0, length / cyc, np.inf))
         v_req = np.minimum(blocks.feed[b], v_seg)
         exact = blocks.stop_after[b1]
         # G61 (exact path) still passes tangent junctions; G61.1, dwells and holds always stop
-        g61 = exact & blocks.exact_path[b1] & (pc.hold_s[j] <= 0)
-        hard = (exact & ~g61) | (pc.hold_s[j] > 0) | (length[j] <= 0) | (length[j + 1] <= 0)
+        g61 = exact & blocks.exact_path[b1] & (pc.hold_s[:-1] <= 0)
+        hard = (exact & ~g61) | (pc.hold_s[:-1] > 0) | (length[:-1] <= 0) | (length[1:] <= 0)
         rotary = blocks.rotary[b1] | blocks.rotary[b2]
-        moves_xyz = (np.linalg.norm(u1, axis=1) > 0) & (np.linalg.norm(u2, axis=1) > 0)
+        moves_xyz = (_sq_norm(u1) > 0) & (_sq_norm(u2) > 0)
         dot = np.clip(np.einsum("ij,ij->i", u1, u2), -1.0, 1.0)
         sharp = moves_xyz & (dot < -math.cos(math.radians(self.sharp_corner_deg)))
         hard |= sharp | (g61 & rotary)
@@ -123,16 +153,18 @@ class BlendArcCorner(Mechanism):
 
         # tangent (kink) check, LinuxCNC tpSetupTangent
         cand = ~hard & ~rotary & moves_xyz
-        v_kink = np.minimum(v_req[j], v_req[j + 1])
-        a_inst = v_kink / cyc + pc.a_max[j + 1]
-        acc_scale = np.max(np.abs(a_inst[:, None] * (u2 - u1)) / acc_bound, axis=1)
+        v_kink = np.minimum(v_req[:-1], v_req[1:])
+        a_inst = v_kink / cyc + pc.a_max[1:]
+        acc_scale = np.zeros(m - 1)
+        for c in range(u1.shape[1]):  # max over the axes, one column at a time
+            np.maximum(acc_scale, np.abs(a_inst * (u2[:, c] - u1[:, c])) / acc_bound[c], out=acc_scale)
         tangent = cand & (acc_scale < self.kink_ratio)
         kink_vel = np.where(acc_scale < self.kink_ratio, v_kink,
                             v_kink * self.kink_ratio / np.maximum(acc_scale, 1e-300))
         reduce = np.where(tangent, acc_scale, self.kink_ratio)
 
         # blend arcs for the remaining continuous-mode line-line corners
-        arc_ok = cand & ~g61 & ~tangent & (pc.radius[j] <= 0) & (pc.radius[j + 1] <= 0)
+        arc_ok = cand & ~g61 & ~tangent & (pc.radius[:-1] <= 0) & (pc.radius[1:] <= 0)
         arcs = self._arcs(pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, arc_ok)
         use_arc = arc_ok & arcs["ok"] & (arcs["v_arc"] >= kink_vel)
         use_kink = cand & ~use_arc & ~(g61 & ~tangent)   # tangent blends, incl. arcs worse than the kink
@@ -141,8 +173,8 @@ class BlendArcCorner(Mechanism):
         # G61 corners that are not tangent stop, but keep LinuxCNC's kink acceleration reduction
         jr = np.flatnonzero(use_kink | (cand & g61 & ~tangent))
         red = np.zeros(m)
-        np.maximum.at(red, jr, reduce[jr])
-        np.maximum.at(red, jr + 1, reduce[jr])
+        red[jr] = reduce[jr]                                  # jr is sorted and unique
+        red[jr + 1] = np.maximum(red[jr + 1], reduce[jr])
         a_max *= 1.0 - red
         # a continuous-mode segment that ends without a blend keeps LinuxCNC's "parabolic" end
         # condition and so half its acceleration (tcGetOverallMaxAccel): the program's last move and
@@ -179,33 +211,35 @@ class BlendArcCorner(Mechanism):
 
     def _arcs(self, pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, ok) -> dict[str, np.ndarray]:
         nominal = blocks.length[pc.block]
-        n1, n2 = nominal[j], nominal[j + 1]
+        n1, n2 = nominal[:-1], nominal[1:]   # junction j: pieces j ([:-1]) and j + 1 ([1:])
         dot = np.clip(np.einsum("ij,ij->i", u1, u2), -1.0, 1.0)
         theta = np.arccos(-dot) / 2.0
         ok = ok & (math.pi / 2 - theta >= 1e-6) & (theta >= 1e-6)
         th = np.where(ok, theta, 0.5)
-        binormal = np.cross(u1, u2)
-        bn = np.linalg.norm(binormal, axis=1)
+        binormal = np.column_stack([u1[:, 1] * u2[:, 2] - u1[:, 2] * u2[:, 1],
+                                    u1[:, 2] * u2[:, 0] - u1[:, 0] * u2[:, 2],
+                                    u1[:, 0] * u2[:, 1] - u1[:, 1] * u2[:, 0]])
+        bn = _norm(binormal)
         binormal = binormal / np.where(bn > 0, bn, 1.0)[:, None]
         a_plane = inscribed_limit(binormal, acc_bound)
         v_plane = inscribed_limit(binormal, vel_bound)
         a_n = a_plane * math.sqrt(1 - ACC_RATIO_TANGENTIAL ** 2)
-        tol1 = blocks.tol[pc.block[j]]
-        tol2 = blocks.tol[pc.block[j + 1]]
+        tol_piece = blocks.tol[pc.block]
+        tol1, tol2 = tol_piece[:-1], tol_piece[1:]
         t1 = np.where(tol1 > 0, tol1, n1 * self.tolerance_ratio)
         t2 = np.where(tol2 > 0, tol2, n2 * self.tolerance_ratio)
         tol = np.minimum(np.minimum(t1, t2), np.minimum(n1, n2) * self.tolerance_ratio)
         phi = math.pi - 2 * th
-        v_goal = np.maximum(v_req[j], v_req[j + 1])
+        v_goal = np.maximum(v_req[:-1], v_req[1:])
         cphi = np.cos(np.minimum(phi, math.pi * 0.49))
-        vm1 = np.minimum(pc.v_max[j], pc.v_max[j + 1] / cphi)
-        vm2 = np.minimum(pc.v_max[j + 1], pc.v_max[j] / cphi)
-        base = np.linalg.norm(u2 * vm2[:, None] - u1 * vm1[:, None], axis=1)
+        vm1 = np.minimum(pc.v_max[:-1], pc.v_max[1:] / cphi)
+        vm2 = np.minimum(pc.v_max[1:], pc.v_max[:-1] / cphi)
+        base = _norm(u2 * vm2[:, None] - u1 * vm1[:, None])
         v_alt = vm1 * vm2 * np.sin(phi) / np.where(base > 0, base, np.inf)
         v_goal = np.minimum(v_goal, np.maximum(v_alt, v_plane))
         d_tol = np.cos(th) * tol / (1 - np.sin(th))
         d_geom = np.minimum(np.minimum(0.5 * n1, 0.5 * n2), d_tol)
-        d_geom = np.minimum(d_geom, np.minimum(pc.length[j], pc.length[j + 1]))
+        d_geom = np.minimum(d_geom, np.minimum(pc.length[:-1], pc.length[1:]))
         r_geom = np.tan(th) * d_geom
         v_plan = np.minimum(np.sqrt(a_n * r_geom), v_goal)
         a_par = 0.5 * a_plane
@@ -243,18 +277,19 @@ class BlendArcCorner(Mechanism):
         na = len(ja)
         theta = arcs["theta"][ja]
         r = arcs["r"][ja]
-        corner = pc.p0[ja] + pc.dir[ja] * pc.length[ja, None]  # corner point (end of the untrimmed line)
-        start = corner - pc.dir[ja] * d[:, None]
-        lin_idx = [0, 1, 2]  # profiles list x, y, z first (feedlog.profile.MachineProfile.axis_names)
+        dir_a = rows(pc.dir, ja)
+        corner = rows(pc.p0, ja) + dir_a * pc.length[ja, None]  # corner point (end of the untrimmed line)
+        start = corner - dir_a * d[:, None]
+        lin_idx = slice(0, 3)  # profiles list x, y, z first (feedlog.profile.MachineProfile.axis_names)
         e2 = np.zeros((na, k))
         e1 = np.zeros((na, k))
-        t1 = u1[ja]
-        t2 = u2[ja]
+        t1 = rows(u1, ja)
+        t2 = rows(u2, ja)
         normal = t2 - t1
-        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        normal /= _norm(normal)[:, None]
         # centre relative to the arc start (LinuxCNC blendFindPoints3): P + n R / sin(theta) - (P - u1 d)
         to_centre = normal * (r / np.sin(theta))[:, None] + t1 * d[:, None]
-        e1[:, lin_idx] = -to_centre / np.linalg.norm(to_centre, axis=1)[:, None]  # centre -> arc start
+        e1[:, lin_idx] = -to_centre / _norm(to_centre)[:, None]  # centre -> arc start
         e2[:, lin_idx] = t1                 # tangent at the arc start
         arc_len = arcs["s"][ja]
         arc_len_full = arc_len + np.where(consumed, length[ja], 0.0)
@@ -271,11 +306,6 @@ class BlendArcCorner(Mechanism):
         has_arc[ja] = 1
         line_pos = np.arange(m) + np.concatenate(([0], np.cumsum(has_arc)[:-1]))
         arc_pos = line_pos[ja] + 1
-        merged = {}
-        for f in Pieces.__dataclass_fields__:
-            a, b = getattr(lines, f), getattr(arcp, f)
-            out = np.empty((m + na,) + a.shape[1:], dtype=np.result_type(a, b))
-            out[line_pos] = a
-            out[arc_pos] = b
-            merged[f] = out
+        merged = {f: _interleave(getattr(lines, f), getattr(arcp, f), line_pos, arc_pos)
+                  for f in Pieces.__dataclass_fields__}
         return Pieces(**merged)
