@@ -197,3 +197,70 @@ def shared_5ax(tolerance: str) -> str:
 
 
 Generator = Callable[[], str]
+
+
+# ---- random CL-line training toolpaths (Chien et al. §2: dedicated training toolpaths) ------------
+
+def _segment_length(rng, feed: float) -> float:
+    """A segment length from a mix of long lines, medium lines and short CL steps.
+
+    At high feed short steps stay >= 0.3 mm so LinuxCNC's per-block feed limit (a block takes at least
+    about one servo period) never sets the speed: under host load that limit is not repeatable.
+    """
+    shortest = 0.3 if feed > 1500 else 0.05
+    u = rng.random()
+    if u < 0.2:
+        return rng.uniform(5.0, 25.0)
+    if u < 0.5:
+        return rng.uniform(1.0, 5.0)
+    return math.exp(rng.uniform(math.log(shortest), math.log(1.0)))
+
+
+def random_cl(feed: float, tolerance: str, *, seed: int, blocks: int, five_axis: bool = False,
+              box_mm: float = 40.0) -> str:
+    """Random CL-line toolpath: runs of equal segments (curves, turning a little at each point) and
+    single lines, with corner angles from 0 to 170 deg between runs, gentle Z changes; in five-axis
+    mode A (-55..0 deg) and C also move by a few degrees per block.
+
+    Deterministic for a given `seed`. Stays within +-`box_mm` of the origin (headings turn back at the
+    walls).
+    """
+    import random
+
+    rng = random.Random(seed)
+    x = y = 0.0
+    z = 0.0
+    a, c = -20.0, 0.0
+    heading = rng.uniform(0, 360)
+    body: list[str] = []
+    while len(body) < blocks:
+        run_len = rng.choice((1, 1, 1, 3, 6, 12, 24))
+        seg = _segment_length(rng, feed)
+        if run_len > 1:
+            seg = min(seg, 3.0)
+        bend = rng.uniform(-20.0, 20.0) if run_len > 1 else 0.0  # per-point turn inside a run
+        # a corner between runs: the path turns by 180 - interior angle
+        heading += rng.choice((-1, 1)) * rng.uniform(10.0, 180.0)
+        dz = rng.uniform(-0.05, 0.05)
+        da = rng.uniform(-3.0, 3.0) if five_axis else 0.0
+        dc = rng.uniform(-6.0, 6.0) if five_axis else 0.0
+        for _ in range(min(run_len, blocks - len(body))):
+            nx = x + seg * math.cos(math.radians(heading))
+            ny = y + seg * math.sin(math.radians(heading))
+            if abs(nx) > box_mm or abs(ny) > box_mm:
+                heading = math.degrees(math.atan2(-y, -x)) + rng.uniform(-60, 60)
+                nx = x + seg * math.cos(math.radians(heading))
+                ny = y + seg * math.sin(math.radians(heading))
+            x, y = nx, ny
+            z = min(5.0, max(-5.0, z + dz * seg))
+            if five_axis:
+                a = min(0.0, max(-55.0, a + da))
+                c += dc
+                body.append(move(x, y, z, a, c))
+            else:
+                body.append(move(x, y, z))
+            heading += bend
+    kind = "five-axis" if five_axis else "3-axis"
+    start = f"G0 X0 Y0 Z0 A{num(-20.0)} C0" if five_axis else "G0 X0 Y0 Z0"
+    return program(f"random CL-line toolpath {kind}, seed {seed}, {blocks} blocks, F{feed:g}", tolerance, feed,
+                   body, start=start, end="G0 Z20" if five_axis else "G0 Z5")

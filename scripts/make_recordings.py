@@ -93,6 +93,16 @@ def catalogue() -> list[Entry]:
         progs.five_axis_near(2000, p01, radius_mm=25.0))
     add("5ax_far_f2000_g61", "five_axis_far", "xyzac", 2000, g61, "train",
         progs.five_axis_far(2000, g61, radius_mm=25.0))
+    # random CL-line training toolpaths (Chien: dedicated training toolpaths at F1000/F3000 and two
+    # tolerances), sized for 20-30 s of motion each
+    for i, (feed, tol, tag, n3, n5) in enumerate((
+            (1000, p001, "p001", 170, 125), (1000, p01, "p01", 250, 170),
+            (3000, p001, "p001", 460, 175), (3000, p01, "p01", 600, 240),
+            (3000, g61, "g61", 320, 190))):
+        add(f"rcl_f{feed}_{tag}", "random_cl", "xyz", feed, tol, "train",
+            progs.random_cl(feed, tol, seed=100 + i, blocks=n3))
+        add(f"rcl5ax_f{feed}_{tag}", "random_cl_5ax", "xyzac", feed, tol, "train",
+            progs.random_cl(feed, tol, seed=200 + i, blocks=n5, five_axis=True))
     # test programs: the shared reference programs, and new geometry of each family
     add("test_p001", "shared_test", "xyz", 3000, p001, "test", progs.shared_test(p001), "test_p001.ngc")
     add("test_p01", "shared_test", "xyz", 3000, p01, "test", progs.shared_test(p01), "test_p01.ngc")
