@@ -48,15 +48,25 @@ def rotary_from_orientation(ori: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def trunnion_joints(xyz: np.ndarray, a_deg: np.ndarray, c_deg: np.ndarray, *, workpiece_offset_mm,
                     rotary_offset_mm) -> np.ndarray:
     """Machine X, Y, Z (n, 3) of workpiece points xyz at table angles A, C (Chien Eq. 10)."""
+    return np.column_stack(trunnion_columns(xyz[:, 0], xyz[:, 1], xyz[:, 2], a_deg, c_deg,
+                                            workpiece_offset_mm=workpiece_offset_mm,
+                                            rotary_offset_mm=rotary_offset_mm))
+
+
+def trunnion_columns(x: np.ndarray, y: np.ndarray, z: np.ndarray, a_deg: np.ndarray, c_deg: np.ndarray, *,
+                     workpiece_offset_mm, rotary_offset_mm) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`trunnion_joints` on separate coordinate arrays of any (equal) shape: machine X, Y, Z."""
+    w = [float(v) for v in workpiece_offset_mm]
+    r = [float(v) for v in rotary_offset_mm]
     a = np.radians(a_deg)
     c = np.radians(c_deg)
-    p = xyz + np.asarray(workpiece_offset_mm, dtype=np.float64)
-    r = np.asarray(rotary_offset_mm, dtype=np.float64)
+    px, py, pz = x + w[0], y + w[1], z + w[2]
     cc, sc = np.cos(c), np.sin(c)
-    q = np.column_stack([cc * p[:, 0] - sc * p[:, 1], sc * p[:, 0] + cc * p[:, 1], p[:, 2]]) + r
+    q0 = (cc * px - sc * py) + r[0]
+    q1 = (sc * px + cc * py) + r[1]
+    q2 = pz + r[2]
     ca, sa = np.cos(a), np.sin(a)
-    out = np.column_stack([q[:, 0], ca * q[:, 1] - sa * q[:, 2], sa * q[:, 1] + ca * q[:, 2]])
-    return out - r
+    return q0 - r[0], (ca * q1 - sa * q2) - r[1], (sa * q1 + ca * q2) - r[2]
 
 
 @dataclass
@@ -116,21 +126,28 @@ class TrunnionKinematics(Mechanism):
                 b.a_max = np.minimum(b.a_max, a_axis)
         if not self.limit_joints or not len(b):
             return
-        n = len(b)
         k = self.samples_per_block
-        f = np.linspace(0.0, 1.0, k + 1)
-        pts = b.p0[:, None, :] + f[None, :, None] * (b.p1 - b.p0)[:, None, :]   # (n, k+1, axes)
-        q = self.joints(pts.reshape(-1, pts.shape[2]), ctx).reshape(n, k + 1, 5)
-        ds = (b.length / k)[:, None, None]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rate = np.abs(np.diff(q, axis=1)) / ds       # joint travel per unit path length
-        rate = np.nan_to_num(rate, nan=0.0, posinf=0.0).max(axis=1)  # (n, 5)
+        f = np.linspace(0.0, 1.0, k + 1)[None, :]
+        delta = b.p1 - b.p0
+        # (n, k + 1) samples along each block, one array per axis (no (n, k+1, axes) stacking)
+        pts = [b.p0[:, i, None] + f * delta[:, i, None] for i in range(delta.shape[1])]
+        xyz = trunnion_columns(pts[0], pts[1], pts[2], pts[ia], pts[ic], workpiece_offset_mm=self.workpiece_offset_mm,
+                               rotary_offset_mm=self.rotary_offset_mm)
+        ds = (b.length / k)[:, None]
         names = ("x", "y", "z", "a", "c")
-        vel = np.array([ctx.profile.axes[a].vel_max for a in names])
-        acc = np.array([ctx.profile.axes[a].acc_max for a in names])
-        with np.errstate(divide="ignore"):
-            v_joint = np.min(np.where(rate > 1e-12, vel / rate, np.inf), axis=1)
-            a_joint = np.min(np.where(rate > 1e-12, acc / rate, np.inf), axis=1)
+        v_joint = np.full(len(b), np.inf)
+        a_joint = np.full(len(b), np.inf)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for name, q in zip(names, (*xyz, pts[ia], pts[ic])):
+                step = np.abs(q[:, 1:] - q[:, :-1]) / ds        # joint travel per unit path length
+                step[~np.isfinite(step)] = 0.0
+                rate = step[:, 0].copy()
+                for i in range(1, k):
+                    np.maximum(rate, step[:, i], out=rate)
+                fast = rate > 1e-12
+                axis = ctx.profile.axes[name]
+                np.minimum(v_joint, np.where(fast, axis.vel_max / rate, np.inf), out=v_joint)
+                np.minimum(a_joint, np.where(fast, axis.acc_max / rate, np.inf), out=a_joint)
         b.v_limit = np.minimum(b.v_limit, v_joint)
         b.a_max = np.minimum(b.a_max, a_joint)
         ctx.notes["joint_feed_limit"] = v_joint
