@@ -16,6 +16,7 @@ import json
 import os
 import re
 import shutil
+import shlex
 import signal
 import subprocess
 import tempfile
@@ -180,8 +181,31 @@ def _workdir(isolate: bool) -> Path:
 
 
 UNSHARE = ["unshare", "--ipc", "--pid", "--mount", "--net", "--uts", "--fork", "--mount-proc"]
-# inside the namespaces: a private /tmp (lock file, NML files) and a loopback that is up
-NAMESPACE_SETUP = "mount -t tmpfs tmpfs /tmp && { command -v ip >/dev/null && ip link set lo up || true; }"
+HOST_TMP = "/run/feedlog-host-tmp"  # where a namespace still sees the host's /tmp
+
+
+def namespace_setup(*keep: str | Path) -> str:
+    """Shell run first inside the namespaces: a private /tmp (lock file, NML files) and a loopback that is up.
+
+    Paths in `keep` that lie under the host's /tmp (a checkout, a venv or a machine config there, as in
+    a CI clone under /tmp) are bound back into the private /tmp, so the session still sees them.
+    """
+    tops = sorted({Path("/tmp", rel.parts[0]) for rel in
+                   (Path(os.path.abspath(p)).relative_to("/tmp") for p in keep
+                    if Path(os.path.abspath(p)).is_relative_to("/tmp")) if rel.parts})
+    steps = []
+    if tops:
+        steps.append(f"mkdir -p {HOST_TMP} && mount --bind /tmp {HOST_TMP}")
+    steps.append("mount -t tmpfs tmpfs /tmp")
+    for top in tops:
+        src = shlex.quote(f"{HOST_TMP}/{top.name}")
+        dst = shlex.quote(str(top))
+        steps.append(f"{{ [ -d {src} ] && mkdir -p {dst} || touch {dst}; }} && mount --bind {src} {dst}")
+    steps.append("{ command -v ip >/dev/null && ip link set lo up || true; }")
+    return " && ".join(steps)
+
+
+NAMESPACE_SETUP = namespace_setup()
 
 
 def isolation_available() -> str | None:
@@ -200,10 +224,10 @@ def isolation_available() -> str | None:
     return None
 
 
-def _launch_command(ini_path: Path, *, isolate: bool) -> list[str]:
+def _launch_command(ini_path: Path, *, isolate: bool, keep: tuple[Path, ...] = ()) -> list[str]:
     if not isolate:
         return ["linuxcnc", "-r", str(ini_path)]
-    return [*UNSHARE, "sh", "-c", f"{NAMESPACE_SETUP} && exec linuxcnc -r '{ini_path}'"]
+    return [*UNSHARE, "sh", "-c", f"{namespace_setup(*keep)} && exec linuxcnc -r {shlex.quote(str(ini_path))}"]
 
 
 def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeout_s: float = 600.0,
@@ -255,7 +279,8 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
         log_path = workdir / "linuxcnc.log"
         t0 = time.monotonic()
         with open(log_path, "w") as log:
-            proc = subprocess.Popen(_launch_command(ini_path, isolate=isolate), cwd=workdir, env=env,
+            command = _launch_command(ini_path, isolate=isolate, keep=(ini.path.parent,))
+            proc = subprocess.Popen(command, cwd=workdir, env=env,
                                     stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
                                     start_new_session=True)
             try:

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from feedlog.ingest import PROGRAM_ATTACHMENT, read_recording
-from feedlog.ingest.linuxcnc_session import NAMESPACE_SETUP, UNSHARE, isolation_available
+from feedlog.ingest.linuxcnc_session import UNSHARE, isolation_available, namespace_setup
 
 pytestmark = pytest.mark.linuxcnc
 
@@ -34,7 +34,9 @@ def test_attach_records_the_running_program_until_it_ends(tmp_path_factory, mach
     args = [sys.executable, str(HERE / "attach_scenario.py"), str(CONFIGS / "xyz.ini"), str(program), str(out),
             str(result)] + (["--machine-uses-integ"] if machine_hal == "uses-integ" else [])
     if os.geteuid() == 0 and isolation_available() is None:
-        cmd = [*UNSHARE, "sh", "-c", NAMESPACE_SETUP + ' && exec "$@"', "sh", *args]
+        # the venv, this checkout and the configs stay visible even when they live under /tmp
+        setup = namespace_setup(sys.prefix, HERE, CONFIGS)
+        cmd = [*UNSHARE, "sh", "-c", setup + ' && exec "$@"', "sh", *args]
     else:
         cmd = args
     try:

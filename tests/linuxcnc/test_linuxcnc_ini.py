@@ -80,3 +80,14 @@ def test_error_line_falls_back_to_the_interpreter_position(tmp_path):
     program.write_text("G21\nG1 X1 F100\n")
     err = program_error({"errors": [{"text": "Bad number format", "read_line": 2}]}, program)
     assert err.line == 2
+
+
+def test_namespace_setup_binds_back_paths_under_tmp_only():
+    from feedlog.ingest.linuxcnc_session import HOST_TMP, namespace_setup
+
+    plain = namespace_setup("/work/main", "/var/tmp/x")
+    assert plain.startswith("mount -t tmpfs tmpfs /tmp") and HOST_TMP not in plain
+    kept = namespace_setup("/tmp/ci/main/.venv", "/tmp/ci/main/recordings/configs", "/tmp/other/file.ini")
+    assert kept.startswith(f"mkdir -p {HOST_TMP} && mount --bind /tmp {HOST_TMP} && mount -t tmpfs tmpfs /tmp")
+    assert kept.count("mount --bind") == 3  # the host /tmp, then /tmp/ci and /tmp/other once each
+    assert f"mount --bind {HOST_TMP}/ci /tmp/ci" in kept and f"mount --bind {HOST_TMP}/other /tmp/other" in kept
