@@ -149,29 +149,148 @@ def _positions(pieces: Pieces, rep: _Repeat, sigma: np.ndarray) -> np.ndarray:
     return pos
 
 
-def sample_plan(plan: Plan, pieces: Pieces, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Positions (len(t), k), path speed and piece index at the regular grid times t (seconds)."""
+def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Concatenated aranges starts[i] .. starts[i] + counts[i] - 1 (no Python loop)."""
+    total = int(counts.sum())
+    if not total:
+        return np.zeros(0, np.int64)
+    nz = counts > 0
+    starts, counts = starts[nz], counts[nz]
+    step = np.ones(total, np.int64)
+    heads = np.concatenate(([0], np.cumsum(counts)[:-1]))
+    step[0] = starts[0]
+    step[heads[1:]] = starts[1:] - (starts[:-1] + counts[:-1] - 1)
+    return np.cumsum(step)
+
+
+def _phases(plan: Plan, pieces: Pieces):
+    """Each piece as four time phases (accelerate, cruise, decelerate, rest), each a quadratic in the
+    time since its start: s = S + tau (V + H tau), speed = V + 2 H tau (+ R while at rest). The phase
+    start values come from `_progress` itself, so the result is the trapezoid of `_progress`."""
     m = len(pieces)
+    t0, ta, tc, td = plan.t0, plan.t_acc, plan.t_cru, plan.t_dec
+    args = (plan.v0, plan.vp, plan.acc, ta, tc, td, pieces.length)
+    s_c, _ = _progress(*args, ta)
+    s_d, _ = _progress(*args, ta + tc)
+    s_end, v_end = _progress(*args, ta + tc + td)
+    zero = np.zeros(m)
+    half_a = np.where(pieces.length > 0, 0.5 * plan.acc, 0.0)
+    start = np.stack([t0, t0 + ta, t0 + ta + tc, t0 + ta + tc + td], axis=1)
+    # the next piece takes over at its start (parabolic blends overlap: see sample_plan)
+    start = np.minimum(start, np.append(t0[1:], np.inf)[:, None])
+    S = np.stack([zero, s_c, s_d, s_end], axis=1)
+    V = np.stack([plan.v0, plan.vp, plan.vp, zero], axis=1)
+    H = np.stack([half_a, zero, -half_a, zero], axis=1)
+    R = np.stack([zero, zero, zero, v_end], axis=1)   # at rest: the speed _progress reports at the end
+    # rounding may carry the deceleration phase a hair past the piece's end, which _progress clamps
+    overshoot = bool((s_d + td * (plan.vp - half_a * td) > pieces.length).any())
+    return start.ravel(), S.ravel(), V.ravel(), H.ravel(), R.ravel(), overshoot
+
+
+def _add_curved(pos: np.ndarray, pieces: Pieces, idx: np.ndarray, sigma: np.ndarray, sel: np.ndarray | None = None) -> None:
+    """Add the circular part of arc pieces to pos (rows sel of the samples, or all)."""
+    curved = pieces.radius > 0
+    if not curved.any():
+        return
+    rows_c = np.flatnonzero(curved.take(idx))
+    if not len(rows_c):
+        return
+    pc = idx.take(rows_c)
+    ang = pieces.omega.take(pc) * sigma.take(rows_c)
+    r = pieces.radius.take(pc)
+    cos1, sin = r * (np.cos(ang) - 1.0), r * np.sin(ang)
+    out_rows = rows_c if sel is None else sel.take(rows_c)
+    for c in range(pos.shape[1]):
+        e1, e2 = pieces.e1[:, c], pieces.e2[:, c]
+        if e1.any() or e2.any():
+            pos[out_rows, c] += cos1 * e1.take(pc) + sin * e2.take(pc)
+
+
+def sample_plan(plan: Plan, pieces: Pieces, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions (len(t), k), path speed and piece index at the regular grid times t (seconds).
+
+    Vectorised over the samples: the piece phases are found by counting grid points per phase
+    (`grid_counts`), one np.repeat gives each sample its phase, and positions are written column
+    by column into a Fortran-ordered array (a DataFrame takes its columns without copying)."""
+    m = len(pieces)
+    n = len(t)
+    k = pieces.p0.shape[1]
     if not m:
-        return np.zeros((len(t), pieces.p0.shape[1])), np.zeros(len(t)), np.zeros(len(t), np.int64)
-    dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
-    counts = grid_counts(plan.t0, len(t), dt)
-    rep = _Repeat(counts)
-    idx = rep(np.arange(m))
-    tau = t - rep(plan.t0)
-    s, v = _progress(rep(plan.v0), rep(plan.vp), rep(plan.acc), rep(plan.t_acc), rep(plan.t_cru),
-                     rep(plan.t_dec), rep(pieces.length), tau)
-    pos = _positions(pieces, rep, s)
-    if plan.overlap_s.any():  # the previous piece may still be finishing its parabolic blend
-        prev = np.concatenate(([0], np.arange(m - 1)))
-        has_prev = np.concatenate(([False], plan.overlap_s[:-1] > 0))
-        tau_prev = t - rep(plan.t0[prev])
-        active = rep(has_prev) & (tau_prev < rep(plan.duration[prev]))
-        if active.any():
-            pp = pieces.take(prev)
-            sub = _Repeat(np.bincount(idx[active], minlength=m))
-            sp, vprev = _progress(sub(plan.v0[prev]), sub(plan.vp[prev]), sub(plan.acc[prev]), sub(plan.t_acc[prev]),
-                                  sub(plan.t_cru[prev]), sub(plan.t_dec[prev]), sub(pp.length), tau_prev[active])
-            pos[active] += _positions(pp, sub, sp) - _positions(pp, sub, sub(pp.length))
-            v[active] += vprev
-    return pos, v, idx
+        return np.zeros((n, k), order="F"), np.zeros(n), np.zeros(n, np.int64)
+    dt = float(t[1] - t[0]) if n > 1 else 1.0
+    start, S, V, H, R, overshoot = _phases(plan, pieces)
+    counts = grid_counts(start, n, dt)
+    g = np.repeat(np.arange(len(start), dtype=np.int32), counts)
+    idx = np.repeat(np.arange(m, dtype=np.int32), counts.reshape(m, 4).sum(axis=1))
+    tau = t - start.take(g)
+    np.maximum(tau, 0.0, out=tau)
+    h = H.take(g)
+    v0 = V.take(g)
+    s = S.take(g) + tau * (v0 + h * tau)
+    speed = v0 + 2.0 * h * tau
+    del h, v0
+    if R.any():
+        speed += R.take(g)
+    np.maximum(speed, 0.0, out=speed)
+    if overshoot:
+        np.minimum(s, pieces.length.take(idx), out=s)
+    del g, tau
+    # parabolic blends: the previous piece may still be finishing its deceleration
+    blend = _overlap(plan, pieces, t, dt, counts.reshape(m, 4).sum(axis=1)) if plan.overlap_s.any() else None
+    pos = np.empty((n, k), order="F")
+    for c in range(k):
+        d = pieces.dir[:, c]
+        if d.any():
+            np.multiply(d.take(idx), s, out=pos[:, c])
+            pos[:, c] += pieces.p0[:, c].take(idx)
+        else:
+            pos[:, c] = pieces.p0[:, c].take(idx)
+        if blend is not None and d.any():
+            pos[:, c] += d.take(blend[0]) * blend[1]
+    _add_curved(pos, pieces, idx, s)
+    if blend is not None:
+        who, rem, vprev, rows, sp = blend
+        speed += vprev
+        if (pieces.radius > 0).take(who.take(rows)).any():  # arcs: circular part at sp minus at the end
+            w = who.take(rows)
+            delta = np.zeros((len(rows), k))
+            _add_curved(delta, pieces, w, sp)
+            end = np.zeros((len(rows), k))
+            _add_curved(end, pieces, w, pieces.length.take(w))
+            pos[rows] += delta - end
+    return pos, speed, idx
+
+
+def _overlap(plan: Plan, pieces: Pieces, t: np.ndarray, dt: float, per_piece: np.ndarray):
+    """Parabolic blends: while piece i runs, piece i - 1 finishes its deceleration. Per sample: the
+    finishing piece (`who`), its position relative to its end point along the path (`rem` <= 0, 0 when
+    none) and its speed; plus the rows concerned and their path parameter on the finishing piece."""
+    n = len(t)
+    nxt = np.flatnonzero(plan.overlap_s[:-1] > 0) + 1      # pieces whose predecessor overlaps
+    prev = nxt - 1
+    first = np.concatenate(([0], np.cumsum(per_piece)[:-1]))
+    end_prev = plan.t0[prev] + plan.duration[prev]
+    # samples of piece i before its predecessor ends (at the boundary both pieces' terms are ~0:
+    # the predecessor's blend end speed is 0 and its end position is where the next piece starts)
+    lim = np.minimum(np.ceil(end_prev / dt - 1e-9).astype(np.int64), first[nxt] + per_piece[nxt])
+    cnt = np.maximum(lim - first[nxt], 0)
+    rows = _ranges(first[nxt], cnt)
+    who_r = np.repeat(prev.astype(np.int32), cnt)
+    # the predecessor is decelerating (the overlap is at most its deceleration time):
+    # s = s_dec + tau (v_p - a tau / 2), speed v_p - a tau, tau since its deceleration began
+    t_dec0 = plan.t0 + plan.t_acc + plan.t_cru
+    s_dec, _ = _progress(plan.v0, plan.vp, plan.acc, plan.t_acc, plan.t_cru, plan.t_dec, pieces.length,
+                         plan.t_acc + plan.t_cru)
+    half_a = np.where(pieces.length > 0, 0.5 * plan.acc, 0.0)
+    tau = t.take(rows) - t_dec0.take(who_r)
+    np.maximum(tau, 0.0, out=tau)
+    vp, h = plan.vp.take(who_r), half_a.take(who_r)
+    sp = np.minimum(s_dec.take(who_r) + tau * (vp - h * tau), pieces.length.take(who_r))
+    v_r = np.maximum(vp - 2.0 * h * tau, 0.0)
+    who = np.zeros(n, np.int32)
+    rem = np.zeros(n)
+    vprev = np.zeros(n)
+    who[rows] = who_r
+    rem[rows] = sp - pieces.length.take(who_r)
+    vprev[rows] = v_r
+    return who, rem, vprev, rows, sp

@@ -103,15 +103,19 @@ def simulate(program, profile: MachineProfile | str | Path, *, mechanisms: Mecha
 
 
 def _series(blocks: Blocks, traj: Trajectory) -> pd.DataFrame:
+    """The samples as a DataFrame. The axis columns are taken without a copy when the positions are
+    Fortran-ordered (as the samplers produce them): the frame shares memory with `traj.pos`."""
     t, pos, speed, row = traj.samples
-    columns: dict[str, Any] = {"t_ns": seconds_to_ns(t)}
-    for i, axis in enumerate(blocks.axes):
-        columns[f"{axis}_{AXIS_UNITS[axis]}"] = pos[:, i]
-    columns["feed_mm_min"] = speed * 60.0
-    empty = np.zeros(len(t), np.int64)
-    columns["block"] = blocks.block[row].astype(np.int64) if len(blocks) else empty
-    columns["line"] = blocks.line[row].astype(np.int64) if len(blocks) else empty
-    return pd.DataFrame(columns)
+    names = [f"{axis}_{AXIS_UNITS[axis]}" for axis in blocks.axes]
+    frame = pd.DataFrame(np.asfortranarray(pos), columns=names, copy=False)
+    frame.insert(0, "t_ns", seconds_to_ns(t))
+    frame["feed_mm_min"] = speed * 60.0
+    if len(blocks):
+        frame["block"] = blocks.block.astype(np.int64, copy=False).take(row)
+        frame["line"] = blocks.line.astype(np.int64, copy=False).take(row)
+    else:
+        frame["block"] = frame["line"] = np.zeros(len(t), np.int64)
+    return frame
 
 
 def _block_table(blocks: Blocks, traj: Trajectory) -> pd.DataFrame:
