@@ -28,12 +28,48 @@ from feedlog.sim.path import Pieces
 
 
 def moving_average(x: np.ndarray, n: int) -> np.ndarray:
-    """Causal moving average over n samples along axis 0, the signal held at x[0] before the start."""
+    """Causal moving average over n samples along axis 0, the signal held at x[0] before the start.
+    Running sums column by column in one reused buffer; 2-D results are Fortran-ordered."""
     if n <= 1:
         return x
-    pad = np.repeat(x[:1], n, axis=0)
-    c = np.cumsum(np.concatenate([pad, x], axis=0), axis=0)
-    return (c[n:] - c[:-n]) / n
+    if x.ndim == 1:
+        return moving_average(x[:, None], n)[:, 0]
+    out = np.empty(x.shape, order="F")
+    buf = np.empty(len(x) + n)
+    for c in range(x.shape[1]):
+        buf[:n] = x[0, c]
+        buf[n:] = x[:, c]
+        np.cumsum(buf, out=buf)
+        np.subtract(buf[n:], buf[:-n], out=out[:, c])
+        out[:, c] /= n
+    return out
+
+
+def path_speed(pos: np.ndarray, lin: list[int], dt: float) -> np.ndarray:
+    """Speed from successive positions (first sample 0): TCP speed, or the rotary axes' speed where
+    only they move (mm/s or deg/s)."""
+    def norm(cols: list[int]) -> np.ndarray:
+        total = np.zeros(len(pos))
+        for c in cols:
+            step = np.diff(pos[:, c], prepend=pos[:1, c])
+            total += step * step
+        return np.sqrt(total) / dt
+
+    speed = norm(lin)
+    rot = [i for i in range(pos.shape[1]) if i not in lin]
+    if rot:
+        rot_only = speed < 1e-9
+        if rot_only.any():
+            speed = np.where(rot_only, norm(rot), speed)
+    return speed
+
+
+def grid_index(t: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """For each grid time t (regular, increasing): the last i with starts[i] <= t (0 before the first);
+    starts non-decreasing. Equals searchsorted(starts, t, 'right') - 1 clipped at 0, via one repeat."""
+    first = np.searchsorted(t, starts, side="left")
+    first[0] = 0
+    return np.repeat(np.arange(len(starts), dtype=np.int32), np.diff(first, append=len(t)))
 
 
 def corner_feed(theta: np.ndarray, tol_mm: np.ndarray, t1: float, t2: float) -> np.ndarray:
@@ -124,28 +160,38 @@ class FirInterpolator(Mechanism):
         n1 = max(int(round(self.t1_s / dt)), 1)
         n2 = max(int(round(self.t2_s / dt)), 1)
         lin = blocks.linear_index
-        last = max(len(pc) - 1, 0)
 
         def sample():
             t = time_grid(raw_end + td, dt)
             if not len(pc):
                 return t, np.repeat(blocks.p0[:1], len(t), axis=0) if len(blocks) else \
                     np.zeros((len(t), len(blocks.axes))), np.zeros(len(t)), np.zeros(len(t), np.int64)
-            idx = np.clip(np.searchsorted(t0, t, side="right") - 1, 0, last)
-            tau = np.clip(t - t0[idx], 0.0, dur[idx])
-            s = (np.minimum(tau, d_s[idx]) * f_s[idx]
-                 + np.clip(tau - d_s[idx], 0.0, d_m[idx]) * feed[idx]
-                 + np.clip(tau - d_s[idx] - d_m[idx], 0.0, d_e[idx]) * f_e[idx])
-            s = np.minimum(s, pc.length[idx])
-            pos = moving_average(moving_average(pc.position(idx, s), n1), n2)
-            step = np.diff(pos, axis=0, prepend=pos[:1])
-            speed = np.linalg.norm(step[:, lin], axis=1) / dt
-            rot_only = speed < 1e-9
-            if rot_only.any() and len(lin) < pos.shape[1]:
-                rot = [i for i in range(pos.shape[1]) if i not in lin]
-                speed = np.where(rot_only, np.linalg.norm(step[:, rot], axis=1) / dt, speed)
-            row_idx = np.clip(np.searchsorted(t0, t - delay, side="right") - 1, 0, last)
-            row = pc.block[row_idx] if len(pc) else np.zeros(len(t), np.int64)
+            # pulses as phases (start zone, middle, end zone, rest) of constant feed: s = S + F tau
+            phase_start = np.maximum.accumulate(np.stack([t0, t0 + d_s, t0 + d_s + d_m, t0 + dur], axis=1).ravel())
+            s_1 = d_s * f_s
+            s_2 = s_1 + d_m * feed
+            s_end = np.minimum(s_2 + d_e * f_e, pc.length)
+            s_phase = np.stack([np.zeros(len(pc)), s_1, s_2, s_end], axis=1).ravel()
+            f_phase = np.stack([f_s, feed, f_e, np.zeros(len(pc))], axis=1).ravel()
+            g = grid_index(t, phase_start)
+            tau = t - phase_start.take(g)
+            np.maximum(tau, 0.0, out=tau)
+            s = s_phase.take(g) + f_phase.take(g) * tau
+            idx = g >> 2
+            np.minimum(s, pc.length.take(idx), out=s)
+            raw = np.empty((len(t), pc.p0.shape[1]), order="F")
+            for c in range(raw.shape[1]):
+                np.multiply(pc.dir[:, c].take(idx), s, out=raw[:, c])
+                raw[:, c] += pc.p0[:, c].take(idx)
+            curved = pc.radius > 0
+            if curved.any():  # arcs: the circular part
+                rows_c = np.flatnonzero(curved.take(idx))
+                arc = pc.position(idx.take(rows_c).astype(np.int64), s.take(rows_c))
+                raw[rows_c] = arc
+            del g, tau, s
+            pos = moving_average(moving_average(raw, n1), n2)
+            speed = path_speed(pos, lin, dt)
+            row = pc.block.take(grid_index(t - delay, t0))
             return t, pos, speed, row
 
         b_start, b_end = block_times(pc.block, t0 + delay, t0 + dur + gap + delay, len(blocks))

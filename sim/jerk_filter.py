@@ -19,7 +19,7 @@ import numpy as np
 
 from feedlog.profile import MachineProfile
 from feedlog.sim.context import Context, Trajectory, cover_motion, hold_end
-from feedlog.sim.fir import moving_average
+from feedlog.sim.fir import moving_average, path_speed
 from feedlog.sim.mechanism import Mechanism
 
 
@@ -58,11 +58,7 @@ class JerkFilter(Mechanism):
 
         def smooth(t, pos, speed, row):
             pos = moving_average(pos, n)
-            step = np.diff(pos, axis=0, prepend=pos[:1])
-            new_speed = np.linalg.norm(step[:, lin], axis=1) / dt
-            if len(lin) < pos.shape[1]:
-                rot = [i for i in range(pos.shape[1]) if i not in lin]
-                new_speed = np.where(new_speed < 1e-9, np.linalg.norm(step[:, rot], axis=1) / dt, new_speed)
+            new_speed = path_speed(pos, lin, dt)
             shift = n // 2  # the executing block follows the group delay
             row = np.concatenate([np.repeat(row[:1], shift), row[:len(row) - shift]]) if shift else row
             return t, pos, new_speed, row
