@@ -123,46 +123,6 @@ def grid_counts(start_s: np.ndarray, n: int, dt_s: float) -> np.ndarray:
     return np.diff(first, append=n)
 
 
-class _Repeat:
-    """Per-piece arrays expanded to per-sample arrays with np.repeat (contiguous runs, no gathers)."""
-
-    def __init__(self, counts: np.ndarray) -> None:
-        self.counts = counts
-
-    def __call__(self, values: np.ndarray) -> np.ndarray:
-        return np.repeat(values, self.counts, axis=0)
-
-
-def _positions(pieces: Pieces, rep: _Repeat, sigma: np.ndarray) -> np.ndarray:
-    pos = rep(pieces.p0) + rep(pieces.dir) * sigma[:, None]
-    curved = pieces.radius > 0
-    if curved.any():
-        mask = rep(curved)
-        idx_c = np.flatnonzero(curved)
-        sub_counts = rep.counts[idx_c]
-        omega = np.repeat(pieces.omega[idx_c], sub_counts)
-        radius = np.repeat(pieces.radius[idx_c], sub_counts)
-        e1 = np.repeat(pieces.e1[idx_c], sub_counts, axis=0)
-        e2 = np.repeat(pieces.e2[idx_c], sub_counts, axis=0)
-        ang = omega * sigma[mask]
-        pos[mask] += radius[:, None] * ((np.cos(ang) - 1.0)[:, None] * e1 + np.sin(ang)[:, None] * e2)
-    return pos
-
-
-def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """Concatenated aranges starts[i] .. starts[i] + counts[i] - 1 (no Python loop)."""
-    total = int(counts.sum())
-    if not total:
-        return np.zeros(0, np.int64)
-    nz = counts > 0
-    starts, counts = starts[nz], counts[nz]
-    step = np.ones(total, np.int64)
-    heads = np.concatenate(([0], np.cumsum(counts)[:-1]))
-    step[0] = starts[0]
-    step[heads[1:]] = starts[1:] - (starts[:-1] + counts[:-1] - 1)
-    return np.cumsum(step)
-
-
 def _phases(plan: Plan, pieces: Pieces):
     """Each piece as four time phases (accelerate, cruise, decelerate, rest), each a quadratic in the
     time since its start: s = S + tau (V + H tau), speed = V + 2 H tau (+ R while at rest). The phase
@@ -187,31 +147,63 @@ def _phases(plan: Plan, pieces: Pieces):
     return start.ravel(), S.ravel(), V.ravel(), H.ravel(), R.ravel(), overshoot
 
 
-def _add_curved(pos: np.ndarray, pieces: Pieces, idx: np.ndarray, sigma: np.ndarray, sel: np.ndarray | None = None) -> None:
-    """Add the circular part of arc pieces to pos (rows sel of the samples, or all)."""
-    curved = pieces.radius > 0
-    if not curved.any():
-        return
-    rows_c = np.flatnonzero(curved.take(idx))
-    if not len(rows_c):
-        return
-    pc = idx.take(rows_c)
-    ang = pieces.omega.take(pc) * sigma.take(rows_c)
-    r = pieces.radius.take(pc)
+class _Blend:
+    """Parabolic blends: while piece i runs, piece i - 1 may still be finishing its deceleration
+    (the overlap is at most its deceleration time). Per piece i, its predecessor's deceleration:
+    s = s_dec + tau (v_p - a tau / 2), speed v_p - a tau, tau since the deceleration began."""
+
+    def __init__(self, plan: Plan, pieces: Pieces) -> None:
+        m = len(pieces)
+        has = np.zeros(m, bool)
+        has[1:] = plan.overlap_s[:-1] > 0
+        self.prev = prev = np.maximum(np.arange(m) - 1, 0)
+        self.until = np.where(has, (plan.t0 + plan.duration).take(prev), -np.inf)
+        s_dec, _ = _progress(plan.v0, plan.vp, plan.acc, plan.t_acc, plan.t_cru, plan.t_dec, pieces.length,
+                             plan.t_acc + plan.t_cru)
+        self.t_dec0 = (plan.t0 + plan.t_acc + plan.t_cru).take(prev)
+        self.s_dec = s_dec.take(prev)
+        self.vp = plan.vp.take(prev)
+        self.half_a = np.where(pieces.length > 0, 0.5 * plan.acc, 0.0).take(prev)
+        self.length = pieces.length.take(prev)
+        self.dir = np.asfortranarray(pieces.dir.take(prev, axis=0))
+
+    def at(self, t: np.ndarray, piece: np.ndarray):
+        """(remaining path <= 0, speed, path parameter, active) of the predecessors at times t."""
+        active = t < self.until.take(piece)
+        if not active.any():
+            return None
+        tau = t - self.t_dec0.take(piece)
+        np.maximum(tau, 0.0, out=tau)
+        vp, h, length = self.vp.take(piece), self.half_a.take(piece), self.length.take(piece)
+        sp = np.minimum(self.s_dec.take(piece) + tau * (vp - h * tau), length)
+        rem = np.where(active, sp - length, 0.0)
+        speed = np.where(active, np.maximum(vp - 2.0 * h * tau, 0.0), 0.0)
+        return rem, speed, sp, active
+
+
+def _add_curved(pos: np.ndarray, pieces: Pieces, piece: np.ndarray, sigma: np.ndarray, rows: np.ndarray,
+                sign: float = 1.0) -> None:
+    """Add (sign times) the circular part of arc pieces `piece[rows]` at `sigma[rows]` to pos[rows]."""
+    pc = piece.take(rows)
+    ang = pieces.omega.take(pc) * sigma.take(rows)
+    r = sign * pieces.radius.take(pc)
     cos1, sin = r * (np.cos(ang) - 1.0), r * np.sin(ang)
-    out_rows = rows_c if sel is None else sel.take(rows_c)
     for c in range(pos.shape[1]):
         e1, e2 = pieces.e1[:, c], pieces.e2[:, c]
         if e1.any() or e2.any():
-            pos[out_rows, c] += cos1 * e1.take(pc) + sin * e2.take(pc)
+            pos[rows, c] += cos1 * e1.take(pc) + sin * e2.take(pc)
+
+
+CHUNK = 1 << 16  # samples evaluated together: the temporaries stay in the CPU cache
 
 
 def sample_plan(plan: Plan, pieces: Pieces, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions (len(t), k), path speed and piece index at the regular grid times t (seconds).
 
-    Vectorised over the samples: the piece phases are found by counting grid points per phase
-    (`grid_counts`), one np.repeat gives each sample its phase, and positions are written column
-    by column into a Fortran-ordered array (a DataFrame takes its columns without copying)."""
+    Vectorised: the trapezoid phases are found by counting grid points per phase (`grid_counts`),
+    one np.repeat gives every sample its phase, and the quadratic of its phase is evaluated in chunks
+    of `CHUNK` samples (np.take of the phase coefficients), positions written column by column into a
+    Fortran-ordered array (a DataFrame takes its columns without copying)."""
     m = len(pieces)
     n = len(t)
     k = pieces.p0.shape[1]
@@ -219,78 +211,53 @@ def sample_plan(plan: Plan, pieces: Pieces, t: np.ndarray) -> tuple[np.ndarray, 
         return np.zeros((n, k), order="F"), np.zeros(n), np.zeros(n, np.int64)
     dt = float(t[1] - t[0]) if n > 1 else 1.0
     start, S, V, H, R, overshoot = _phases(plan, pieces)
-    counts = grid_counts(start, n, dt)
-    g = np.repeat(np.arange(len(start), dtype=np.int32), counts)
-    idx = np.repeat(np.arange(m, dtype=np.int32), counts.reshape(m, 4).sum(axis=1))
-    tau = t - start.take(g)
-    np.maximum(tau, 0.0, out=tau)
-    h = H.take(g)
-    v0 = V.take(g)
-    s = S.take(g) + tau * (v0 + h * tau)
-    speed = v0 + 2.0 * h * tau
-    del h, v0
-    if R.any():
-        speed += R.take(g)
-    np.maximum(speed, 0.0, out=speed)
-    if overshoot:
-        np.minimum(s, pieces.length.take(idx), out=s)
-    del g, tau
-    # parabolic blends: the previous piece may still be finishing its deceleration
-    blend = _overlap(plan, pieces, t, dt, counts.reshape(m, 4).sum(axis=1)) if plan.overlap_s.any() else None
+    g = np.repeat(np.arange(len(start), dtype=np.int32), grid_counts(start, n, dt))
+    idx = g >> 2                                   # four phases per piece
+    blend = _Blend(plan, pieces) if plan.overlap_s.any() else None
+    rest_speed = R.any()
+    curved = pieces.radius > 0
+    any_curved = curved.any()
+    p0 = np.asfortranarray(pieces.p0)
+    direction = np.asfortranarray(pieces.dir)
+    moves = [bool(direction[:, c].any()) for c in range(k)]
     pos = np.empty((n, k), order="F")
-    for c in range(k):
-        d = pieces.dir[:, c]
-        if d.any():
-            np.multiply(d.take(idx), s, out=pos[:, c])
-            pos[:, c] += pieces.p0[:, c].take(idx)
-        else:
-            pos[:, c] = pieces.p0[:, c].take(idx)
-        if blend is not None and d.any():
-            pos[:, c] += d.take(blend[0]) * blend[1]
-    _add_curved(pos, pieces, idx, s)
-    if blend is not None:
-        who, rem, vprev, rows, sp = blend
-        speed += vprev
-        if (pieces.radius > 0).take(who.take(rows)).any():  # arcs: circular part at sp minus at the end
-            w = who.take(rows)
-            delta = np.zeros((len(rows), k))
-            _add_curved(delta, pieces, w, sp)
-            end = np.zeros((len(rows), k))
-            _add_curved(end, pieces, w, pieces.length.take(w))
-            pos[rows] += delta - end
+    speed = np.empty(n)
+    for a in range(0, n, CHUNK):
+        b = min(a + CHUNK, n)
+        gc, ic, tc = g[a:b], idx[a:b], t[a:b]
+        tau = tc - start.take(gc)
+        np.maximum(tau, 0.0, out=tau)
+        h, v0 = H.take(gc), V.take(gc)
+        s = S.take(gc) + tau * (v0 + h * tau)
+        sp = speed[a:b]
+        np.multiply(h, 2.0 * tau, out=sp)
+        sp += v0
+        if rest_speed:
+            sp += R.take(gc)
+        np.maximum(sp, 0.0, out=sp)
+        if overshoot:   # rounding may carry a deceleration a hair past the piece's end
+            np.minimum(s, pieces.length.take(ic), out=s)
+        prev = blend.at(tc, ic) if blend is not None else None
+        if prev is not None:
+            sp += prev[1]
+        for c in range(k):
+            out = pos[a:b, c]
+            if moves[c]:
+                np.multiply(direction[:, c].take(ic), s, out=out)
+                out += p0[:, c].take(ic)
+                if prev is not None:
+                    out += blend.dir[:, c].take(ic) * prev[0]
+            else:
+                p0[:, c].take(ic, out=out)
+        if any_curved:
+            chunk = pos[a:b]
+            rows = np.flatnonzero(curved.take(ic))
+            if len(rows):
+                _add_curved(chunk, pieces, ic, s, rows)
+            if prev is not None:
+                pc = blend.prev.take(ic)
+                rows = np.flatnonzero(prev[3] & curved.take(pc))
+                if len(rows):  # the predecessor is an arc: its circular part at sp minus at its end
+                    _add_curved(chunk, pieces, pc, prev[2], rows)
+                    _add_curved(chunk, pieces, pc, pieces.length.take(pc), rows, sign=-1.0)
     return pos, speed, idx
-
-
-def _overlap(plan: Plan, pieces: Pieces, t: np.ndarray, dt: float, per_piece: np.ndarray):
-    """Parabolic blends: while piece i runs, piece i - 1 finishes its deceleration. Per sample: the
-    finishing piece (`who`), its position relative to its end point along the path (`rem` <= 0, 0 when
-    none) and its speed; plus the rows concerned and their path parameter on the finishing piece."""
-    n = len(t)
-    nxt = np.flatnonzero(plan.overlap_s[:-1] > 0) + 1      # pieces whose predecessor overlaps
-    prev = nxt - 1
-    first = np.concatenate(([0], np.cumsum(per_piece)[:-1]))
-    end_prev = plan.t0[prev] + plan.duration[prev]
-    # samples of piece i before its predecessor ends (at the boundary both pieces' terms are ~0:
-    # the predecessor's blend end speed is 0 and its end position is where the next piece starts)
-    lim = np.minimum(np.ceil(end_prev / dt - 1e-9).astype(np.int64), first[nxt] + per_piece[nxt])
-    cnt = np.maximum(lim - first[nxt], 0)
-    rows = _ranges(first[nxt], cnt)
-    who_r = np.repeat(prev.astype(np.int32), cnt)
-    # the predecessor is decelerating (the overlap is at most its deceleration time):
-    # s = s_dec + tau (v_p - a tau / 2), speed v_p - a tau, tau since its deceleration began
-    t_dec0 = plan.t0 + plan.t_acc + plan.t_cru
-    s_dec, _ = _progress(plan.v0, plan.vp, plan.acc, plan.t_acc, plan.t_cru, plan.t_dec, pieces.length,
-                         plan.t_acc + plan.t_cru)
-    half_a = np.where(pieces.length > 0, 0.5 * plan.acc, 0.0)
-    tau = t.take(rows) - t_dec0.take(who_r)
-    np.maximum(tau, 0.0, out=tau)
-    vp, h = plan.vp.take(who_r), half_a.take(who_r)
-    sp = np.minimum(s_dec.take(who_r) + tau * (vp - h * tau), pieces.length.take(who_r))
-    v_r = np.maximum(vp - 2.0 * h * tau, 0.0)
-    who = np.zeros(n, np.int32)
-    rem = np.zeros(n)
-    vprev = np.zeros(n)
-    who[rows] = who_r
-    rem[rows] = sp - pieces.length.take(who_r)
-    vprev[rows] = v_r
-    return who, rem, vprev, rows, sp
