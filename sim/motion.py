@@ -181,17 +181,25 @@ class _Blend:
         return rem, speed, sp, active
 
 
-def _add_curved(pos: np.ndarray, pieces: Pieces, piece: np.ndarray, sigma: np.ndarray, rows: np.ndarray,
-                sign: float = 1.0) -> None:
-    """Add (sign times) the circular part of arc pieces `piece[rows]` at `sigma[rows]` to pos[rows]."""
-    pc = piece.take(rows)
-    ang = pieces.omega.take(pc) * sigma.take(rows)
-    r = sign * pieces.radius.take(pc)
-    cos1, sin = r * (np.cos(ang) - 1.0), r * np.sin(ang)
-    for c in range(pos.shape[1]):
-        e1, e2 = pieces.e1[:, c], pieces.e2[:, c]
-        if e1.any() or e2.any():
-            pos[rows, c] += cos1 * e1.take(pc) + sin * e2.take(pc)
+class _Arcs:
+    """The circular part of arc pieces, radius ((cos(omega s) - 1) e1 + sin(omega s) e2), with the
+    arc columns prepared once (only axes that arcs move)."""
+
+    def __init__(self, pieces: Pieces) -> None:
+        self.curved = pieces.radius > 0
+        self.omega, self.radius = pieces.omega, pieces.radius
+        self.cols = [c for c in range(pieces.e1.shape[1]) if pieces.e1[:, c].any() or pieces.e2[:, c].any()]
+        self.e1 = {c: np.ascontiguousarray(pieces.e1[:, c]) for c in self.cols}
+        self.e2 = {c: np.ascontiguousarray(pieces.e2[:, c]) for c in self.cols}
+
+    def add(self, pos: np.ndarray, piece: np.ndarray, sigma: np.ndarray, rows: np.ndarray, sign: float = 1.0) -> None:
+        """Add (sign times) the circular part of pieces `piece[rows]` at `sigma[rows]` to pos[rows]."""
+        pc = piece.take(rows)
+        ang = self.omega.take(pc) * sigma.take(rows)
+        r = sign * self.radius.take(pc)
+        cos1, sin = r * (np.cos(ang) - 1.0), r * np.sin(ang)
+        for c in self.cols:
+            pos[rows, c] += cos1 * self.e1[c].take(pc) + sin * self.e2[c].take(pc)
 
 
 CHUNK = 1 << 16  # samples evaluated together: the temporaries stay in the CPU cache
@@ -215,7 +223,8 @@ def sample_plan(plan: Plan, pieces: Pieces, t: np.ndarray) -> tuple[np.ndarray, 
     idx = g >> 2                                   # four phases per piece
     blend = _Blend(plan, pieces) if plan.overlap_s.any() else None
     rest_speed = R.any()
-    curved = pieces.radius > 0
+    arcs = _Arcs(pieces)
+    curved = arcs.curved
     any_curved = curved.any()
     p0 = np.asfortranarray(pieces.p0)
     direction = np.asfortranarray(pieces.dir)
@@ -253,11 +262,11 @@ def sample_plan(plan: Plan, pieces: Pieces, t: np.ndarray) -> tuple[np.ndarray, 
             chunk = pos[a:b]
             rows = np.flatnonzero(curved.take(ic))
             if len(rows):
-                _add_curved(chunk, pieces, ic, s, rows)
+                arcs.add(chunk, ic, s, rows)
             if prev is not None:
                 pc = blend.prev.take(ic)
                 rows = np.flatnonzero(prev[3] & curved.take(pc))
                 if len(rows):  # the predecessor is an arc: its circular part at sp minus at its end
-                    _add_curved(chunk, pieces, pc, prev[2], rows)
-                    _add_curved(chunk, pieces, pc, pieces.length.take(pc), rows, sign=-1.0)
+                    arcs.add(chunk, pc, prev[2], rows)
+                    arcs.add(chunk, pc, pieces.length.take(pc), rows, sign=-1.0)
     return pos, speed, idx
