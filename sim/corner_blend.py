@@ -42,15 +42,21 @@ def _interleave(a: np.ndarray, b: np.ndarray, pos_a: np.ndarray, pos_b: np.ndarr
     """Rows of a at pos_a and rows of b at pos_b of a new array. (n, k) rows are scattered as single
     k-float elements through a void view: much faster than row-wise fancy indexing."""
     dtype = np.result_type(a, b)
-    out = np.empty((len(a) + len(b),) + a.shape[1:], dtype=dtype)
+    zero_a, zero_b = not a.any(), not b.any()   # often all zero (directions of arcs, e1/e2 of lines)
+    shape = (len(a) + len(b),) + a.shape[1:]
+    out = np.zeros(shape, dtype=dtype) if zero_a or zero_b else np.empty(shape, dtype=dtype)
     if a.ndim == 2:
         row = np.dtype((np.void, dtype.itemsize * a.shape[1]))
         view = out.view(row).reshape(-1)
-        view[pos_a] = np.ascontiguousarray(a, dtype=dtype).view(row).reshape(-1)
-        view[pos_b] = np.ascontiguousarray(b, dtype=dtype).view(row).reshape(-1)
+        if not zero_a:
+            view[pos_a] = np.ascontiguousarray(a, dtype=dtype).view(row).reshape(-1)
+        if not zero_b:
+            view[pos_b] = np.ascontiguousarray(b, dtype=dtype).view(row).reshape(-1)
     else:
-        out[pos_a] = a
-        out[pos_b] = b
+        if not zero_a:
+            out[pos_a] = a
+        if not zero_b:
+            out[pos_b] = b
     return out
 
 

@@ -127,27 +127,48 @@ class TrunnionKinematics(Mechanism):
         if not self.limit_joints or not len(b):
             return
         k = self.samples_per_block
-        f = np.linspace(0.0, 1.0, k + 1)[None, :]
         delta = b.p1 - b.p0
-        # (n, k + 1) samples along each block, one array per axis (no (n, k+1, axes) stacking)
-        pts = [b.p0[:, i, None] + f * delta[:, i, None] for i in range(delta.shape[1])]
-        xyz = trunnion_columns(pts[0], pts[1], pts[2], pts[ia], pts[ic], workpiece_offset_mm=self.workpiece_offset_mm,
-                               rotary_offset_mm=self.rotary_offset_mm)
-        ds = (b.length / k)[:, None]
+        ds = b.length / k
         names = ("x", "y", "z", "a", "c")
+        rate = [np.zeros(len(b)) for _ in names]
+        # table angles at the k + 1 sample points of each block: cos/sin at the start, then rotated by
+        # the per-step angle (two multiply-adds per step instead of trigonometry at every point)
+        a_rad, c_rad = np.radians(b.p0[:, ia]), np.radians(b.p0[:, ic])
+        step_a, step_c = np.radians(delta[:, ia]) / k, np.radians(delta[:, ic]) / k
+        ca, sa, cc, sc = np.cos(a_rad), np.sin(a_rad), np.cos(c_rad), np.sin(c_rad)
+        cda, sda, cdc, sdc = np.cos(step_a), np.sin(step_a), np.cos(step_c), np.sin(step_c)
+        w = self.workpiece_offset_mm
+        r = self.rotary_offset_mm
+        prev = None
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for j in range(k + 1):
+                f = j / k
+                if j:
+                    ca, sa = ca * cda - sa * sda, sa * cda + ca * sda
+                    cc, sc = cc * cdc - sc * sdc, sc * cdc + cc * sdc
+                px, py, pz = (b.p0[:, i] + f * delta[:, i] + w[i] for i in range(3))
+                q0 = cc * px - sc * py + r[0]
+                q1 = sc * px + cc * py + r[1]
+                q2 = pz + r[2]
+                cur = (q0 - r[0], (ca * q1 - sa * q2) - r[1], (sa * q1 + ca * q2) - r[2])
+                if prev is not None:
+                    for out, q, q_prev in zip(rate, cur, prev):
+                        step = np.abs(q - q_prev) / ds       # joint travel per unit path length
+                        step[~np.isfinite(step)] = 0.0
+                        np.maximum(out, step, out=out)
+                prev = cur
+            # the rotary joints turn uniformly along a block: travel per unit path length |dA| / L
+            for out, i in ((rate[3], ia), (rate[4], ic)):
+                out[:] = np.abs(delta[:, i]) / b.length
+                out[~np.isfinite(out)] = 0.0
         v_joint = np.full(len(b), np.inf)
         a_joint = np.full(len(b), np.inf)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for name, q in zip(names, (*xyz, pts[ia], pts[ic])):
-                step = np.abs(q[:, 1:] - q[:, :-1]) / ds        # joint travel per unit path length
-                step[~np.isfinite(step)] = 0.0
-                rate = step[:, 0].copy()
-                for i in range(1, k):
-                    np.maximum(rate, step[:, i], out=rate)
-                fast = rate > 1e-12
+        with np.errstate(divide="ignore"):
+            for name, q_rate in zip(names, rate):
+                fast = q_rate > 1e-12
                 axis = ctx.profile.axes[name]
-                np.minimum(v_joint, np.where(fast, axis.vel_max / rate, np.inf), out=v_joint)
-                np.minimum(a_joint, np.where(fast, axis.acc_max / rate, np.inf), out=a_joint)
+                np.minimum(v_joint, np.where(fast, axis.vel_max / q_rate, np.inf), out=v_joint)
+                np.minimum(a_joint, np.where(fast, axis.acc_max / q_rate, np.inf), out=a_joint)
         b.v_limit = np.minimum(b.v_limit, v_joint)
         b.a_max = np.minimum(b.a_max, a_joint)
         ctx.notes["joint_feed_limit"] = v_joint
