@@ -57,6 +57,7 @@ def simulated_tables(profile: MachineProfile, *, n_programs: int = 8, n_blocks: 
         from feedlog.toolpath import block_features, parse_program
     except ImportError as exc:
         raise ModelError(f"simulated training data needs feedlog.sim and feedlog.toolpath: {exc}") from None
+    from feedlog.train.features import with_program_columns
     from feedlog.train.model_hybrid import spread_merged
 
     combos = [(f, t) for f in feeds for t in tols]
@@ -66,7 +67,7 @@ def simulated_tables(profile: MachineProfile, *, n_programs: int = 8, n_blocks: 
         name = f"sim-{seed}-{i}"
         text = random_program_text(n_blocks=n_blocks, feed_mm_min=feed, tol_mm=tol, seed=seed * 10_007 + i)
         program = parse_program(text, name=name)
-        features = block_features(program, profile)
+        features = with_program_columns(block_features(program, profile), program, profile)
         sim = simulate(program, profile).blocks.groupby("block")["duration_s"].sum()
         times = features["block"].map(sim).fillna(0.0).to_numpy(np.float64)
         features["duration_s"] = spread_merged(times, features["length_mm"].to_numpy(np.float64))

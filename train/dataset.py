@@ -130,3 +130,11 @@ def tail_split(n: int, fraction: float) -> int:
     if n < 2 or fraction <= 0:
         return n
     return max(1, int(round(n * (1.0 - fraction))))
+
+
+def window_sums(values: np.ndarray, span: int) -> np.ndarray:
+    """Sum over the rows k - span .. k + span (clipped at the ends)."""
+    values = np.asarray(values, np.float64)
+    c = np.concatenate([[0.0], np.cumsum(values)])
+    k = np.arange(len(values))
+    return c[np.minimum(k + span + 1, len(values))] - c[np.maximum(k - span, 0)]

@@ -6,6 +6,17 @@ Models read align's block tables, whose feature columns are `feedlog.toolpath.sc
 - `feed_eff_mm_min`: the feed the block is commanded at; rapids (and blocks without F) take
   `length_mm / nominal_time_s`, i.e. the rapid rate the toolpath stage used for CAM time.
 - `tol_eff_mm`: `tol_mm` with "no tolerance" (NaN, G64 without P) as -1 so the net can tell it apart.
+- `rot_dist_deg`: the largest rotary axis move of the block (|dA|, |dB|, |dC|, deg; 0 for 3-axis):
+  near A = 0 a small orientation change can need a large C turn, which the rotary axis' speed limits.
+  From the program (`with_program_columns`); 0 when a table lacks it.
+- `limited_time_s`: the block's nominal time respecting the axes' speed limits,
+  max(L / F, max over axes |d axis| / vel_max) (`axis_time_s` from `with_program_columns` with the
+  machine profile; L / F when a table lacks it): where a rotary axis turns far for a short TCP move
+  (near A = 0) this, not L / F, is the time scale. `log_limited_time_s` its log, `limit_ratio` its
+  ratio to L / F (1 where L / F is 0).
+- `merge_tol_eff_mm`: the G64 Q tolerance LinuxCNC's interpreter merges nearly collinear lines within
+  (`merge_tol_mm` of toolpath's program table, attached by `with_program_columns`; Q0 = never merge);
+  0 in G61, -1 for G64 without P. A table without `merge_tol_mm` takes Q = P (LinuxCNC's default).
 - `ori_tol_deg`, `xo_mm`, `yo_mm`, `zo_mm`: machine constants from the profile (Chien Table 1:
   epsilon_ORI and the workpiece offset [Xo, Yo, Zo]); profile defaults when no profile is given.
 - `log_length_mm`, `log_nominal_time_s`: log(L + 1 um), log(L/F + 0.1 ms).
@@ -32,6 +43,11 @@ NO_TOLERANCE_MM = -1.0
 DERIVED: dict[str, tuple[str, ...]] = {
     "feed_eff_mm_min": ("feed_mm_min", "length_mm", "nominal_time_s"),
     "tol_eff_mm": ("tol_mm",),
+    "merge_tol_eff_mm": ("tol_mm",),  # + merge_tol_mm when present (else Q = P)
+    "rot_dist_deg": (),                 # from the program when present (else 0)
+    "limited_time_s": ("nominal_time_s",),  # + axis_time_s when present
+    "log_limited_time_s": ("nominal_time_s",),
+    "limit_ratio": ("nominal_time_s",),
     "log_length_mm": ("length_mm",),
     "log_nominal_time_s": ("nominal_time_s",),
     "log_sim_duration_s": ("sim_duration_s",),
@@ -43,8 +59,14 @@ DERIVED: dict[str, tuple[str, ...]] = {
 # (block lengths and times span four decades: 0.01 mm segments next to 100 mm lines).
 CHIEN_INPUTS = ("feed_eff_mm_min", "length_mm", "corner_start_deg", "corner_end_deg", "tol_eff_mm",
                 "ori_arc_deg", "ori_corner_start_deg", "ori_corner_end_deg", "ori_tol_deg", "sin_rot",
-                "xo_mm", "yo_mm", "zo_mm", "nominal_time_s", "log_length_mm", "log_nominal_time_s")
-LOG_FLOOR = {"log_length_mm": 1e-3, "log_nominal_time_s": 1e-4, "log_sim_duration_s": 1e-4}  # added before the log (mm, s)
+                "xo_mm", "yo_mm", "zo_mm", "nominal_time_s", "log_length_mm", "log_nominal_time_s",
+                "merge_tol_eff_mm", "rot_dist_deg", "log_limited_time_s")
+# program-table columns align's block tables do not carry: G64 Q, the largest rotary axis move and the
+# time the slowest axis needs at its speed limit (with a profile)
+PROGRAM_COLUMNS = ("merge_tol_mm", "rot_dist_deg", "axis_time_s")
+ROTARY = ("a", "b", "c")
+LOG_FLOOR = {"log_length_mm": 1e-3, "log_nominal_time_s": 1e-4, "log_sim_duration_s": 1e-4,
+             "log_limited_time_s": 1e-4}  # added before the log (mm, s)
 
 
 def sun_inputs(axis: str) -> tuple[str, ...]:
@@ -132,16 +154,70 @@ def _base_column(table: pd.DataFrame, name: str, constants: dict[str, float]) ->
         return np.full(n, constants.get(name, 0.0))
     if name == "feed_eff_mm_min":
         return effective_feed(table)
+    if name in ("limited_time_s", "log_limited_time_s", "limit_ratio"):
+        nominal = np.nan_to_num(table["nominal_time_s"].to_numpy(np.float64))
+        limited = limited_time(table)
+        if name == "limit_ratio":
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return np.where(nominal > 0, limited / nominal, 1.0)
+        return limited if name == "limited_time_s" else np.log(limited + LOG_FLOOR[name])
     if name in LOG_FLOOR:
         raw = table[DERIVED[name][0]].to_numpy(np.float64)
         return np.log(np.maximum(raw, 0.0) + LOG_FLOOR[name])
     if name == "tol_eff_mm":
         tol = table["tol_mm"].to_numpy(np.float64)
         return np.where(np.isnan(tol), NO_TOLERANCE_MM, tol)
+    if name == "rot_dist_deg":
+        return table[name].to_numpy(np.float64) if name in table else np.zeros(n)
+    if name == "merge_tol_eff_mm":
+        tol = table["tol_mm"].to_numpy(np.float64)
+        merge = table["merge_tol_mm"].to_numpy(np.float64) if "merge_tol_mm" in table else tol
+        merge = np.where(np.isnan(merge) & (tol == 0), 0.0, merge)  # G61: exact stop, nothing merged
+        return np.where(np.isnan(merge), NO_TOLERANCE_MM, merge)
     col = table[name]
     if not pd.api.types.is_numeric_dtype(col):
         col = pd.to_numeric(col, errors="coerce")
     return col.to_numpy(np.float64)
+
+
+def limited_time(table: pd.DataFrame) -> np.ndarray:
+    """Per block max(L / F, axis_time_s): the nominal time with the axes' speed limits (s)."""
+    nominal = np.nan_to_num(table["nominal_time_s"].to_numpy(np.float64))
+    if "axis_time_s" not in table:
+        return nominal
+    return np.maximum(nominal, np.nan_to_num(table["axis_time_s"].to_numpy(np.float64)))
+
+
+def with_program_columns(blocks: pd.DataFrame, program: object, profile: MachineProfile | None = None
+                         ) -> pd.DataFrame:
+    """`blocks` plus the program-table columns it lacks (`PROGRAM_COLUMNS`), matched on `block`.
+
+    `program` is a parsed toolpath Program (its `.blocks` table has one row per program block);
+    `axis_time_s` (max over axes of |d axis| / vel_max, program frame) needs the machine `profile`.
+    """
+    source = getattr(program, "blocks", None)
+    if source is None or "block" not in blocks.columns:
+        return blocks
+    source = source.copy()
+    rot = [a for a in ROTARY if f"{a}_deg" in source and f"{a}0_deg" in source]
+    if rot:
+        moves = np.column_stack([(source[f"{a}_deg"] - source[f"{a}0_deg"]).abs().to_numpy(np.float64) for a in rot])
+        source["rot_dist_deg"] = np.nan_to_num(moves).max(axis=1)
+    if profile is not None:
+        times = [np.zeros(len(source))]
+        for axis, limits in profile.axes.items():
+            unit = "deg" if axis in ROTARY else "mm"
+            end, start = f"{axis}_{unit}", f"{axis}0_{unit}"
+            if end in source and start in source and limits.vel_max > 0:
+                times.append(np.nan_to_num((source[end] - source[start]).abs().to_numpy(np.float64)) / limits.vel_max)
+        source["axis_time_s"] = np.max(np.column_stack(times), axis=1)
+    missing = [c for c in PROGRAM_COLUMNS if c not in blocks.columns and c in source]
+    if not missing:
+        return blocks
+    extra = source[["block", *missing]].drop_duplicates("block")
+    out = blocks.merge(extra, on="block", how="left")
+    out.index = blocks.index
+    return out
 
 
 def effective_feed(table: pd.DataFrame) -> np.ndarray:

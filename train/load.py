@@ -79,11 +79,28 @@ def load_aligned(folder: str | Path, *, manifest: str | Path | None = None, spli
         program_path = Path(entry["_dir"]) / entry["program"]
         if program_path.is_file():
             program_text = program_path.read_text()
+    if program_text is not None:
+        blocks = _attach_program_columns(blocks, program_text, name, profile)
     return ProgramTable(
         name, blocks, program=str(entry.get("family", name)), split=split or str(entry.get("split", "train")),
         points=points, profile=profile, program_text=program_text,
         metadata={k: str(v) for k, v in entry.items() if not k.startswith("_")} | {
             "aligned_dir": str(folder), "recording": str(meta.get("recording", ""))})
+
+
+def _attach_program_columns(blocks, text: str, name: str, profile):
+    """The program-table columns align does not carry (G64 Q: `merge_tol_mm`), from the program."""
+    from feedlog.train.features import PROGRAM_COLUMNS, with_program_columns
+
+    if all(c in blocks.columns for c in PROGRAM_COLUMNS):
+        return blocks
+    try:
+        from feedlog.toolpath import parse_program
+
+        program = parse_program(text, name=name)
+    except (ImportError, FeedlogError):
+        return blocks  # models then take LinuxCNC's default Q = P (features.merge_tol_eff_mm)
+    return with_program_columns(blocks, program, profile)
 
 
 def expand_aligned(paths: Iterable[str | Path]) -> list[Path]:

@@ -22,12 +22,19 @@ import torch
 
 from feedlog.errors import ModelError
 from feedlog.train.dataset import ProgramTable
-from feedlog.train.features import CHIEN_INPUTS, Normaliser, build_inputs, profile_constants
+from feedlog.train.features import CHIEN_INPUTS, Normaliser, build_inputs, limited_time, profile_constants
 from feedlog.train.fitting import setup_torch, train_net
 from feedlog.train.nets import BiLSTMLast
 from feedlog.train.registry import Model, ModelConfig, TablePrediction, register_model
 
 PREDICT_BATCH = 1024
+CAM_FLOOR_S = 1e-3  # added to a stretch's measured and CAM totals before the log ratio
+
+
+def _cam_times(table: ProgramTable) -> np.ndarray:
+    if "nominal_time_s" not in table.blocks.columns:
+        raise ModelError(f"{table.name}: input lacks column 'nominal_time_s' (CAM time) needed by bilstm-final")
+    return limited_time(table.blocks)
 
 
 @dataclass(frozen=True)
@@ -37,12 +44,15 @@ class FinalConfig(ModelConfig):
     layers: int = 1
     crop_blocks: int = 0
     length_tolerance: float = 0.05
-    crops: int = 128
+    crops: int = 512
+    # the label of a crop is its measured total T; the net learns log(T / CAM total of the crop), so a
+    # prediction is CAM x e^out and does not depend on the crop's length (False: T itself, z-scored)
+    cam_ratio: bool = True
     batch_size: int = 32
     epochs: int = 30
     patience: int = 6
 
-    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 15, "patience": 5, "crops": 48,
+    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 15, "patience": 5, "crops": 96,
                                                               "hidden": 16}}
 
     def __post_init__(self) -> None:
@@ -99,20 +109,22 @@ class FinalBiLSTM(Model):
         self.constants = profile_constants(tables[0].profile)
         xs = [self._matrix(t) for t in tables]
         ds = [t.durations() for t in tables]
+        cams = [_cam_times(t) for t in tables]
         crop = self._crop_length(tables)
         lo, hi = max(1, int(np.floor(crop * (1 - cfg.length_tolerance)))), int(np.ceil(crop * (1 + cfg.length_tolerance)))
         self.params = {"crop_blocks": crop, "min_blocks": lo, "max_blocks": hi}
         rng = np.random.default_rng(cfg.seed)
         sizes = np.array([len(x) for x in xs], np.float64)
         which = rng.choice(len(xs), size=cfg.crops, p=sizes / sizes.sum())
-        seqs, totals = [], []
+        seqs, totals, cam_totals = [], [], []
         for i in which:
             n = len(xs[i])
             length = min(n, int(rng.integers(lo, hi + 1)))
             start = int(rng.integers(0, n - length + 1))
             seqs.append(xs[i][start:start + length])
             totals.append(ds[i][start:start + length].sum())
-        totals_arr = np.array(totals)
+            cam_totals.append(cams[i][start:start + length].sum())
+        totals_arr = self._encode(np.array(totals), np.array(cam_totals))
         n_val = int(round(cfg.crops * cfg.val_fraction))
         order = rng.permutation(cfg.crops)
         val_idx, train_idx = order[:n_val], order[n_val:]
@@ -136,6 +148,16 @@ class FinalBiLSTM(Model):
             epochs=cfg.epochs, lr=cfg.lr, batch_size=cfg.batch_size, patience=cfg.patience,
             desc=self.name, progress=progress)
 
+    def _encode(self, totals: np.ndarray, cam: np.ndarray) -> np.ndarray:
+        if self.config.cam_ratio:
+            return np.log(totals + CAM_FLOOR_S) - np.log(cam + CAM_FLOOR_S)
+        return totals
+
+    def _decode(self, values: np.ndarray, cam: np.ndarray) -> np.ndarray:
+        if self.config.cam_ratio:
+            return (cam + CAM_FLOOR_S) * np.exp(values) - CAM_FLOOR_S
+        return values
+
     def chunks(self, n: int) -> list[np.ndarray]:
         """Row index chunks a program of n blocks is predicted in."""
         k = max(1, int(round(n / self.params["crop_blocks"])))
@@ -145,6 +167,7 @@ class FinalBiLSTM(Model):
         self.check_trained()
         setup_torch()
         x = self.norms["x"].apply(self._matrix(table))
+        cam_rows = _cam_times(table)
         if len(x) == 0:
             return TablePrediction(0.0, None)
         parts = self.chunks(len(x))
@@ -154,7 +177,9 @@ class FinalBiLSTM(Model):
         with torch.no_grad():
             for i in range(0, len(parts), PREDICT_BATCH):
                 xb, lb = _padded([x[p] for p in parts[i:i + PREDICT_BATCH]])
-                total += float(self.norms["y"].invert(net(xb, lb).numpy()[:, None]).sum())
+                out = self.norms["y"].invert(net(xb, lb).numpy()[:, None])[:, 0]
+                cam = np.array([cam_rows[p].sum() for p in parts[i:i + PREDICT_BATCH]])
+                total += float(self._decode(out, cam).sum())
         notes = [f"{len(outside)} of {len(parts)} chunk(s) outside the trained length range "
                  f"{self.params['min_blocks']}-{self.params['max_blocks']} blocks (e.g. {outside[0]})"] if outside else []
         return TablePrediction(max(total, 0.0), None, notes)

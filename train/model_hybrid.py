@@ -23,7 +23,7 @@ import pandas as pd
 import torch
 
 from feedlog.errors import ModelError
-from feedlog.train.dataset import ProgramTable
+from feedlog.train.dataset import ProgramTable, window_sums
 from feedlog.train.features import CHIEN_INPUTS
 from feedlog.train.fitting import setup_torch
 from feedlog.train.model_seq import SeqConfig, SeqModel
@@ -100,13 +100,6 @@ def spread_merged(times: np.ndarray, lengths: np.ndarray) -> np.ndarray:
     return total[group] * share
 
 
-def _window_sums(values: np.ndarray, span: int) -> np.ndarray:
-    """Sum over the blocks k - span .. k + span (clipped at the program's ends)."""
-    c = np.concatenate([[0.0], np.cumsum(values)])
-    k = np.arange(len(values))
-    return c[np.minimum(k + span + 1, len(values))] - c[np.maximum(k - span, 0)]
-
-
 @register_model
 class HybridModel(SeqModel):
     name = "hybrid"
@@ -127,8 +120,8 @@ class HybridModel(SeqModel):
 
     def target(self, table: ProgramTable) -> np.ndarray:
         span = self.config.residual_span
-        measured = _window_sums(table.durations(), span)
-        simulated = _window_sums(self._sim(table), span)
+        measured = window_sums(table.durations(), span)
+        simulated = window_sums(self._sim(table), span)
         return np.log(measured + RESIDUAL_FLOOR_S) - np.log(simulated + RESIDUAL_FLOOR_S)
 
     def to_durations(self, table: ProgramTable, values: np.ndarray) -> np.ndarray:

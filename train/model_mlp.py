@@ -19,10 +19,11 @@ import numpy as np
 import torch
 
 from feedlog.errors import ModelError
-from feedlog.train.dataset import ProgramTable, tail_split
+from feedlog.train.dataset import ProgramTable
 from feedlog.train.features import AXES3, Normaliser, build_inputs, sun_inputs
 from feedlog.train.fitting import setup_torch, train_net
 from feedlog.train.nets import AxisMLP
+from feedlog.train.model_seq import VAL_BY, validation_heads
 from feedlog.train.registry import Model, ModelConfig, TablePrediction, register_model
 
 
@@ -35,8 +36,18 @@ class MLPConfig(ModelConfig):
     epochs: int = 300
     patience: int = 30
     min_feed_ratio: float = 0.02  # predicted resultant feed floored at this fraction of the nominal one
-    # beyond Sun Table 1: the path tolerance, fixed in Sun's trials but varied across our recordings
-    extra_inputs: tuple[str, ...] = ("tol_eff_mm",)
+    # beyond Sun Table 1: the path tolerance P and merge tolerance Q (fixed in Sun's trials, varied across
+    # our recordings), the segment length (Sun's CL points were evenly spaced; ours span 0.02-30 mm, and
+    # a short segment never reaches its nominal feed) and the ratio of the axis-speed-limited time to
+    # L / F (five-axis blocks whose time a rotary axis' speed sets)
+    extra_inputs: tuple[str, ...] = ("tol_eff_mm", "merge_tol_eff_mm", "log_length_mm", "limit_ratio")
+    # mirror every block so its axis moves in + (axis feeds and accelerations at n-1, n, n+1 and the
+    # target times sign(v_axis,n)): the machine's axes behave alike in both directions, and the small
+    # tanh nets then learn one feed magnitude instead of a function that is odd in the feed
+    mirror: bool = True
+    # early stopping on whole held-out training programs ("program"), the tail of each ("tail"), or
+    # "auto" (whole programs from 8 training programs on)
+    val_by: str = "auto"
 
     presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 60, "patience": 12, "batch_size": 512}}
 
@@ -46,6 +57,8 @@ class MLPConfig(ModelConfig):
             raise ModelError(f"MLPConfig.hidden needs positive layer sizes, got {self.hidden}")
         if not self.axes or any(a not in AXES3 for a in self.axes):
             raise ModelError(f"MLPConfig.axes must be a subset of {AXES3}, got {self.axes}")
+        if self.val_by not in VAL_BY:
+            raise ModelError(f"MLPConfig.val_by must be one of {', '.join(VAL_BY)}, got {self.val_by!r}")
         if not 0 < self.min_feed_ratio < 1:
             raise ModelError(f"MLPConfig.min_feed_ratio must be in (0, 1), got {self.min_feed_ratio}")
 
@@ -74,6 +87,16 @@ class PerAxisMLP(Model):
             out += [c for c in self.axis_inputs(a) if c not in out]
         return tuple(out) + tuple(c for c in ("nominal_time_s",) if c not in out)
 
+    def _axis_matrix(self, table: ProgramTable, axis: str) -> tuple[np.ndarray, np.ndarray]:
+        """One axis' input matrix (mirrored to + travel when configured) and the sign it was mirrored by."""
+        names = self.axis_inputs(axis)
+        x = build_inputs(table.blocks, names, what="mlp", source=table.name)
+        v = np.nan_to_num(table.blocks[f"v{axis}_nom_mm_min"].to_numpy(np.float64))
+        sign = np.where(v < 0, -1.0, 1.0) if self.config.mirror else np.ones(len(v))
+        signed = [j for j, n in enumerate(names) if n.startswith((f"v{axis}_nom", f"a{axis}_nom"))]
+        x[:, signed] *= sign[:, None].astype(np.float32)
+        return x, sign
+
     def build_nets(self) -> None:
         setup_torch(self.config.seed)
         self.nets = {a: AxisMLP(len(self.axis_inputs(a)), self.config.hidden) for a in self.config.axes}
@@ -83,16 +106,19 @@ class PerAxisMLP(Model):
         xs: dict[str, list[np.ndarray]] = {a: [] for a in cfg.axes}
         ys: dict[str, list[np.ndarray]] = {a: [] for a in cfg.axes}
         is_val: list[np.ndarray] = []
-        for t in tables:
+        heads = validation_heads([len(t.blocks) for t in tables], fraction=cfg.val_fraction, by=cfg.val_by,
+                                 seed=cfg.seed)
+        for t, head in zip(tables, heads):
             v, nominal = _nominal(t, cfg.axes)
             d = t.durations()
             keep = (nominal > 0) & (d > 0) & (np.abs(v).sum(axis=1) > 0)
             val = np.zeros(len(d), bool)
-            val[tail_split(len(d), cfg.val_fraction):] = True
+            val[head:] = True
             is_val.append(val[keep])
             for i, a in enumerate(cfg.axes):
-                xs[a].append(build_inputs(t.blocks, self.axis_inputs(a), what="mlp", source=t.name)[keep])
-                ys[a].append((v[:, i] * nominal / np.where(d > 0, d, 1.0))[keep])
+                x, sign = self._axis_matrix(t, a)
+                xs[a].append(x[keep])
+                ys[a].append((sign * v[:, i] * nominal / np.where(d > 0, d, 1.0))[keep])
         val_mask = np.concatenate(is_val)
         if (~val_mask).sum() < 2:
             raise ModelError("mlp: fewer than 2 usable training blocks (need nominal time and duration > 0)")
@@ -124,9 +150,9 @@ class PerAxisMLP(Model):
         out = []
         with torch.no_grad():
             for a in self.config.axes:
-                x = build_inputs(table.blocks, self.axis_inputs(a), what="mlp", source=table.name)
+                x, sign = self._axis_matrix(table, a)
                 pred = self.nets[a](torch.from_numpy(self.norms[f"x_{a}"].apply(x))).numpy()
-                out.append(self.norms[f"y_{a}"].invert(pred[:, None])[:, 0])
+                out.append(sign * self.norms[f"y_{a}"].invert(pred[:, None])[:, 0])
         return np.column_stack(out)
 
     def predict(self, table: ProgramTable) -> TablePrediction:

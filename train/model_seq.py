@@ -1,8 +1,8 @@
 """Sequence-to-sequence models over a program's blocks: Bi-LSTM block by block (Chien Fig. 7) and BiLSTM-R.
 
 Long programs are cut into overlapping windows (`window` blocks, every `stride`) for training. Early
-stopping watches the last `val_fraction` of every training program, or with `val_by="program"` (the
-hybrid's default) that fraction of the training programs held out whole. Prediction uses longer
+stopping watches `val_fraction` of the training programs held out whole (`val_by="program"`; the default
+"auto" does so from 8 training programs on), or else the last `val_fraction` of every training program. Prediction uses longer
 windows (`predict_window`, default 4 x window) overlapping by 2 x `predict_context`; each block's
 value comes from the window whose centre is nearest, so every block sees at least `predict_context`
 blocks on both sides (except at the program's ends) while few blocks are computed twice.
@@ -18,14 +18,24 @@ import numpy as np
 import torch
 
 from feedlog.errors import ModelError
-from feedlog.train.dataset import ProgramTable, make_windows, stitch_windows, tail_split
-from feedlog.train.features import CHIEN_INPUTS, Normaliser, build_inputs, profile_constants
+from feedlog.train.dataset import ProgramTable, make_windows, stitch_windows, tail_split, window_sums
+from feedlog.train.features import CHIEN_INPUTS, Normaliser, build_inputs, limited_time, profile_constants
 from feedlog.train.fitting import masked_mse, setup_torch, train_net
 from feedlog.train.nets import BiLSTMR, BiLSTMSeq
 from feedlog.train.registry import Model, ModelConfig, TablePrediction, register_model
 
 PREDICT_BATCH = 4096  # windows per forward pass at prediction time
 LOG_FLOOR_S = 1e-3    # added to block times before the log target
+VAL_BY = ("auto", "program", "tail")
+AUTO_PROGRAMS = 8     # val_by="auto" holds out whole programs from this many training tables on
+RATIO_FLOOR_S = 1e-4  # added to both sums of the CAM-ratio target
+
+
+def _nominal_times(table: ProgramTable) -> np.ndarray:
+    """CAM time with the axes' speed limits (features.limited_time): the ratio target's denominator."""
+    if "nominal_time_s" not in table.blocks.columns:
+        raise ModelError(f"{table.name}: input lacks column 'nominal_time_s' (CAM time) needed by the CAM-ratio target")
+    return limited_time(table.blocks)
 
 
 @dataclass(frozen=True)
@@ -38,14 +48,21 @@ class SeqConfig(ModelConfig):
     batch_size: int = 16
     epochs: int = 150
     patience: int = 20
-    log_target: bool = True  # learn log(target + log_floor): block times span four decades
+    log_target: bool = True  # with target_mode "log": learn log(time + 1 ms), block times span four decades
+    # "cam_ratio": learn r = log(measured / CAM time), CAM time = max(L / F, the axes' speed-limited time), both summed over 2 x ratio_span + 1 neighbouring
+    # blocks, and predict CAM time x e^r per block (an untrained net is CAM; align may put a corner's
+    # time on either side of a block boundary, which per-block targets would have to learn as noise);
+    # "log": learn each block's own log time (Chien's per-block target)
+    target_mode: str = "cam_ratio"
+    ratio_span: int = 8
     # prediction runs longer windows (0: 4 x window) that overlap by 2 x predict_context blocks, so every
     # block still sees at least predict_context blocks on each side but few blocks are computed twice
     predict_window: int = 0
     predict_context: int = 16
-    # early stopping on the tail of every training program ("tail") or on held-out whole programs
-    # ("program", with >= 3 training tables: how the model does on programs it has not seen)
-    val_by: str = "tail"
+    # early stopping on the tail of every training program ("tail"), on held-out whole programs
+    # ("program", with >= 3 training tables: how the model does on programs it has not seen), or
+    # "auto": whole programs when there are >= AUTO_PROGRAMS training tables, else tails
+    val_by: str = "auto"
 
     presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8}}
 
@@ -58,8 +75,11 @@ class SeqConfig(ModelConfig):
         if not 1 <= self.stride <= self.window:
             raise ModelError(f"{type(self).__name__}: need 1 <= stride <= window, got stride {self.stride}, "
                              f"window {self.window}")
-        if self.val_by not in ("program", "tail"):
-            raise ModelError(f"{type(self).__name__}.val_by must be 'program' or 'tail', got {self.val_by!r}")
+        if self.target_mode not in ("cam_ratio", "log") or self.ratio_span < 0:
+            raise ModelError(f"{type(self).__name__}: target_mode must be 'cam_ratio' or 'log' and ratio_span >= 0, "
+                             f"got {self.target_mode!r}, {self.ratio_span}")
+        if self.val_by not in VAL_BY:
+            raise ModelError(f"{type(self).__name__}.val_by must be one of {', '.join(VAL_BY)}, got {self.val_by!r}")
         if self.predict_context < 0 or 2 * self.predict_context >= self.prediction_window:
             raise ModelError(f"{type(self).__name__}: need 0 <= 2 x predict_context < prediction window, got "
                              f"predict_context {self.predict_context}, window {self.prediction_window}")
@@ -72,6 +92,8 @@ class SeqConfig(ModelConfig):
 def validation_heads(lengths: Sequence[int], *, fraction: float, by: str, seed: int) -> list[int]:
     """Per table, the row where its validation part starts (0: the whole table validates)."""
     n = len(lengths)
+    if by == "auto":
+        by = "program" if n >= AUTO_PROGRAMS else "tail"
     if by == "program" and n >= 3 and fraction > 0:
         k = max(1, int(round(n * fraction)))
         held = set(np.random.default_rng(seed).choice(n, size=k, replace=False).tolist())
@@ -89,18 +111,27 @@ class SeqModel(Model):
         return tuple(self.config.inputs)
 
     def target(self, table: ProgramTable) -> np.ndarray:
-        """Per-block training target (default: the measured block time)."""
+        """Per-block training target: the log ratio to CAM time over neighbouring blocks, or the block time."""
+        if self.config.target_mode == "cam_ratio":
+            span = self.config.ratio_span
+            measured = window_sums(table.durations(), span)
+            cam = window_sums(_nominal_times(table), span)
+            return np.log(measured + RATIO_FLOOR_S) - np.log(cam + RATIO_FLOOR_S)
         return table.durations()
 
     def to_durations(self, table: ProgramTable, values: np.ndarray) -> np.ndarray:
         """Per-block predicted target -> per-block time."""
+        if self.config.target_mode == "cam_ratio":
+            return np.maximum((_nominal_times(table) + RATIO_FLOOR_S) * np.exp(values) - RATIO_FLOOR_S, 0.0)
         return np.maximum(values, 0.0)
 
     def _encode(self, y: np.ndarray) -> np.ndarray:
-        return np.log(np.maximum(y, 0.0) + LOG_FLOOR_S) if self.config.log_target else y
+        log = self.config.log_target and self.config.target_mode == "log"
+        return np.log(np.maximum(y, 0.0) + LOG_FLOOR_S) if log else y
 
     def _decode(self, y: np.ndarray) -> np.ndarray:
-        return np.exp(y) - LOG_FLOOR_S if self.config.log_target else y
+        log = self.config.log_target and self.config.target_mode == "log"
+        return np.exp(y) - LOG_FLOOR_S if log else y
 
     def _matrix(self, table: ProgramTable) -> np.ndarray:
         constants = profile_constants(table.profile) if table.profile is not None else self.constants

@@ -13,6 +13,7 @@ from feedlog.errors import ModelError
 from feedlog.profile import MachineProfile, load_profile
 from feedlog.train.checkpoint import SUFFIX, load_checkpoint
 from feedlog.train.dataset import ProgramTable
+from feedlog.train.features import with_program_columns
 from feedlog.train.model_hybrid import HybridModel, attach_sim
 from feedlog.train.registry import Model
 
@@ -58,7 +59,7 @@ def predict_program(program: Any, checkpoint: str | Path | Model, profile: Machi
         profile = str(model.params["profile"])
     prof = load_profile(profile) if isinstance(profile, (str, Path)) else profile
     parsed = program if hasattr(program, "blocks") else parse_program(program)
-    features = block_features(parsed, prof)
+    features = with_program_columns(block_features(parsed, prof), parsed, prof)
     label = name or str(getattr(parsed, "name", "") or (Path(program).stem if isinstance(program, Path) else "program"))
     table = ProgramTable(label, features, profile=prof, split="test")
     if isinstance(model, HybridModel):
