@@ -26,6 +26,7 @@ KIND_RAPID, KIND_LINEAR, KIND_ARC, KIND_DWELL = 0, 1, 2, 3
 _KIND_CODES = {schema.RAPID: KIND_RAPID, schema.LINEAR: KIND_LINEAR, schema.ARC_CW: KIND_ARC,
                schema.ARC_CCW: KIND_ARC, schema.DWELL: KIND_DWELL}
 _PLANES = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}  # plane axis 1, plane axis 2, normal (x=0)
+_PLANE_AXES = np.array([_PLANES[17], _PLANES[18], _PLANES[19]])
 EPS_LEN = 1e-9
 
 
@@ -240,25 +241,25 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     is_arc = code == KIND_ARC
     ccw = _codes(table["kind"], {schema.ARC_CCW: 1})[sel] == 1
     length = np.where(lin_len > EPS_LEN, lin_len, rot_len)
-    for i in np.flatnonzero(is_arc):  # arcs are rare; the per-arc work is a few scalar ops
-        if plane[i] not in _PLANES or np.isnan(center[i]).any():
-            raise SimulationError(f"{where(i)}: arc without a centre or plane")
-        a1, a2, nrm = _PLANES[plane[i]]
-        xyz0, xyz1 = p0[i, lin], p1[i, lin]
-        r0 = np.array([xyz0[a1] - center[i, a1], xyz0[a2] - center[i, a2]])
-        r1 = np.array([xyz1[a1] - center[i, a1], xyz1[a2] - center[i, a2]])
+    ia = np.flatnonzero(is_arc)
+    if len(ia):  # all arcs at once: plane axes, signed sweep (full circles, turns), helix length
+        bad_arc = ~np.isin(plane[ia], list(_PLANES)) | np.isnan(center[ia]).any(axis=1)
+        if bad_arc.any():
+            raise SimulationError(f"{where(int(ia[np.flatnonzero(bad_arc)[0]]))}: arc without a centre or plane")
+        a1, a2, nrm = _PLANE_AXES[plane[ia] - 17].T
+        rows_a = np.arange(len(ia))
+        xyz0, xyz1, c_a = p0[ia][:, lin], p1[ia][:, lin], center[ia]
+        r0 = (xyz0[rows_a, a1] - c_a[rows_a, a1], xyz0[rows_a, a2] - c_a[rows_a, a2])
+        r1 = (xyz1[rows_a, a1] - c_a[rows_a, a1], xyz1[rows_a, a2] - c_a[rows_a, a2])
         th0, th1 = np.arctan2(r0[1], r0[0]), np.arctan2(r1[1], r1[0])
-        if ccw[i]:
-            d = (th1 - th0) % (2 * np.pi)
-        else:
-            d = -((th0 - th1) % (2 * np.pi))
-        if abs(d) < 1e-9:
-            d = 2 * np.pi if ccw[i] else -2 * np.pi
-        d += np.sign(d) * 2 * np.pi * (turns[i] - 1)
-        radius[i] = float(np.hypot(*r0))
-        sweep[i] = d
-        normal_axis[i] = nrm
-        length[i] = float(np.hypot(radius[i] * d, xyz1[nrm] - xyz0[nrm]))
+        ccw_a = ccw[ia]
+        d = np.where(ccw_a, (th1 - th0) % (2 * np.pi), -((th0 - th1) % (2 * np.pi)))
+        d = np.where(np.abs(d) < 1e-9, np.where(ccw_a, 2 * np.pi, -2 * np.pi), d)
+        d += np.sign(d) * 2 * np.pi * (turns[ia] - 1)
+        radius[ia] = np.hypot(r0[0], r0[1])
+        sweep[ia] = d
+        normal_axis[ia] = nrm
+        length[ia] = np.hypot(radius[ia] * d, xyz1[rows_a, nrm] - xyz0[rows_a, nrm])
 
     feed = col("feed_mm_min", np.nan) / 60.0
     rapid = code == KIND_RAPID
@@ -274,11 +275,11 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     vel = np.array([profile.axes[a].vel_max for a in axes])
     acc = np.array([profile.axes[a].acc_max for a in axes])
     v_axis, a_axis = projected_limits(delta, length, vel, acc)
-    for i in np.flatnonzero(is_arc):
-        a1, a2, nrm = _PLANES[plane[i]]
-        pl = [lin[a1], lin[a2]]
-        v_axis[i] = min(v_axis[i], vel[pl].min())
-        a_axis[i] = min(a_axis[i], acc[pl].min())
+    if len(ia):  # arcs: the slower of the two plane axes
+        lin_arr = np.asarray(lin)
+        pa, pb = lin_arr[a1], lin_arr[a2]
+        v_axis[ia] = np.minimum(v_axis[ia], np.minimum(vel[pa], vel[pb]))
+        a_axis[ia] = np.minimum(a_axis[ia], np.minimum(acc[pa], acc[pb]))
     interp = profile.interpolator
     is_lin = lin_len > EPS_LEN
     v_path = np.where(is_lin, interp.path_vel_max_mm_s, np.inf)
@@ -319,20 +320,26 @@ def build_pieces(blocks: Blocks) -> Pieces:
     e2 = np.zeros((n, k))
     omega = np.zeros(n)
     radius = blocks.radius.copy()
-    for i in np.flatnonzero(blocks.kind == KIND_ARC):
-        nrm = int(blocks.normal_axis[i])
-        c = blocks.center[i].copy()
-        c[nrm] = blocks.p0[i, lin[nrm]]
-        r0 = blocks.p0[i, lin] - c
-        u1 = r0 / np.linalg.norm(r0)
-        nvec = np.zeros(3)
-        nvec[nrm] = 1.0
-        e1[i, lin] = u1
-        e2[i, lin] = np.cross(nvec, u1) * np.sign(blocks.sweep[i])
-        omega[i] = abs(blocks.sweep[i]) / safe[i]
+    ia = np.flatnonzero(blocks.kind == KIND_ARC)
+    if len(ia):  # all arcs at once
+        rows_a = np.arange(len(ia))
+        lin_arr = np.asarray(lin)
+        nrm = blocks.normal_axis[ia].astype(np.int64)
+        start = blocks.p0[ia][:, lin]
+        c = blocks.center[ia].copy()
+        c[rows_a, nrm] = start[rows_a, nrm]
+        r0 = start - c
+        u1 = r0 / np.linalg.norm(r0, axis=1)[:, None]
+        nvec = np.zeros((len(ia), 3))
+        nvec[rows_a, nrm] = 1.0
+        e1[np.ix_(ia, lin_arr)] = u1
+        e2[np.ix_(ia, lin_arr)] = np.cross(nvec, u1) * np.sign(blocks.sweep[ia])[:, None]
+        omega[ia] = np.abs(blocks.sweep[ia]) / safe[ia]
         # the straight part of an arc: helix along the normal and the rotary axes
-        direction[i, lin] = 0.0
-        direction[i, lin[nrm]] = (blocks.p1[i, lin[nrm]] - blocks.p0[i, lin[nrm]]) / safe[i]
+        col_n = lin_arr[nrm]
+        helix = (blocks.p1[ia, col_n] - blocks.p0[ia, col_n]) / safe[ia]
+        direction[np.ix_(ia, lin_arr)] = 0.0
+        direction[ia, col_n] = helix
     v_max = blocks.v_max.copy()
     with np.errstate(divide="ignore", invalid="ignore"):
         v_max = np.where(blocks.min_time_s > 0, np.minimum(v_max, length / blocks.min_time_s), v_max)
