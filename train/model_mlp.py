@@ -40,7 +40,8 @@ class MLPConfig(ModelConfig):
     # our recordings), the segment length (Sun's CL points were evenly spaced; ours span 0.02-30 mm, and
     # a short segment never reaches its nominal feed) and the ratio of the axis-speed-limited time to
     # L / F (five-axis blocks whose time a rotary axis' speed sets)
-    extra_inputs: tuple[str, ...] = ("tol_eff_mm", "merge_tol_eff_mm", "log_length_mm", "limit_ratio")
+    extra_inputs: tuple[str, ...] = ("tol_eff_mm", "exact_stop", "merge_tol_eff_mm", "log_length_mm",
+                                       "limit_ratio")
     # mirror every block so its axis moves in + (axis feeds and accelerations at n-1, n, n+1 and the
     # target times sign(v_axis,n)): the machine's axes behave alike in both directions, and the small
     # tanh nets then learn one feed magnitude instead of a function that is odd in the feed
