@@ -45,22 +45,28 @@ def moving_average(x: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
-def path_speed(pos: np.ndarray, lin: list[int], dt: float) -> np.ndarray:
+def path_speed(pos: np.ndarray, lin: list[int], dt: float, *, chunk: int = 1 << 16) -> np.ndarray:
     """Speed from successive positions (first sample 0): TCP speed, or the rotary axes' speed where
-    only they move (mm/s or deg/s)."""
-    def norm(cols: list[int]) -> np.ndarray:
-        total = np.zeros(len(pos))
-        for c in cols:
-            step = np.diff(pos[:, c], prepend=pos[:1, c])
-            total += step * step
-        return np.sqrt(total) / dt
-
-    speed = norm(lin)
+    only they move (mm/s or deg/s). Evaluated in chunks of samples so temporaries stay in cache."""
+    n = len(pos)
     rot = [i for i in range(pos.shape[1]) if i not in lin]
-    if rot:
-        rot_only = speed < 1e-9
-        if rot_only.any():
-            speed = np.where(rot_only, norm(rot), speed)
+    speed = np.empty(n)
+    for a in range(0, n, chunk):
+        b = min(a + chunk, n)
+
+        def norm(cols: list[int]) -> np.ndarray:
+            total = np.zeros(b - a)
+            for c in cols:
+                step = np.diff(pos[a - 1:b, c]) if a else np.diff(pos[:b, c], prepend=pos[0, c])
+                total += step * step
+            return np.sqrt(total) / dt
+
+        part = norm(lin)
+        if rot:
+            rot_only = part < 1e-9
+            if rot_only.any():
+                part = np.where(rot_only, norm(rot), part)
+        speed[a:b] = part
     return speed
 
 
