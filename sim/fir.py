@@ -26,6 +26,8 @@ from feedlog.sim.context import Context, Trajectory, block_times, cover_motion, 
 from feedlog.sim.mechanism import Mechanism
 from feedlog.sim.path import Pieces
 
+CHUNK = 1 << 16  # samples evaluated together
+
 
 def moving_average(x: np.ndarray, n: int) -> np.ndarray:
     """Causal moving average over n samples along axis 0, the signal held at x[0] before the start.
@@ -180,21 +182,28 @@ class FirInterpolator(Mechanism):
             s_phase = np.stack([np.zeros(len(pc)), s_1, s_2, s_end], axis=1).ravel()
             f_phase = np.stack([f_s, feed, f_e, np.zeros(len(pc))], axis=1).ravel()
             g = grid_index(t, phase_start)
-            tau = t - phase_start.take(g)
-            np.maximum(tau, 0.0, out=tau)
-            s = s_phase.take(g) + f_phase.take(g) * tau
-            idx = g >> 2
-            np.minimum(s, pc.length.take(idx), out=s)
-            raw = np.empty((len(t), pc.p0.shape[1]), order="F")
-            for c in range(raw.shape[1]):
-                np.multiply(pc.dir[:, c].take(idx), s, out=raw[:, c])
-                raw[:, c] += pc.p0[:, c].take(idx)
+            k = pc.p0.shape[1]
+            p0_cols = [np.ascontiguousarray(pc.p0[:, c]) for c in range(k)]
+            dir_cols = [np.ascontiguousarray(pc.dir[:, c]) if pc.dir[:, c].any() else None for c in range(k)]
             curved = pc.radius > 0
-            if curved.any():  # arcs: the circular part
+            raw = np.empty((len(t), k), order="F")
+            for a in range(0, len(t), CHUNK):  # chunks of samples: temporaries stay in cache
+                b = min(a + CHUNK, len(t))
+                gc = g[a:b]
+                tau = t[a:b] - phase_start.take(gc)
+                np.maximum(tau, 0.0, out=tau)
+                s = s_phase.take(gc) + f_phase.take(gc) * tau
+                idx = gc >> 2
+                np.minimum(s, pc.length.take(idx), out=s)
+                for c in range(k):
+                    out = raw[a:b, c]
+                    p0_cols[c].take(idx, out=out)
+                    if dir_cols[c] is not None:
+                        out += dir_cols[c].take(idx) * s
                 rows_c = np.flatnonzero(curved.take(idx))
-                arc = pc.position(idx.take(rows_c).astype(np.int64), s.take(rows_c))
-                raw[rows_c] = arc
-            del g, tau, s
+                if len(rows_c):  # arcs: the full position including the circular part
+                    raw[a + rows_c] = pc.position(idx.take(rows_c).astype(np.int64), s.take(rows_c))
+            del g
             pos = moving_average(moving_average(raw, n1), n2)
             speed = path_speed(pos, lin, dt)
             row = pc.block.take(grid_index(t - delay, t0))
