@@ -22,20 +22,6 @@ from feedlog.sim.mechanism import Mechanism
 from feedlog.sim.path import KIND_LINEAR, projected_limits
 
 
-def _within(points: list[tuple[float, float, float]], start, end, tol: float) -> bool:
-    """Every point within tol of the segment start -> end (plain floats: chains are short)."""
-    mx, my, mz = end[0] - start[0], end[1] - start[1], end[2] - start[2]
-    mm = mx * mx + my * my + mz * mz
-    tol2 = tol * tol
-    for px, py, pz in points:
-        dx, dy, dz = px - start[0], py - start[1], pz - start[2]
-        t = 0.0 if mm <= 0 else min(max((dx * mx + dy * my + dz * mz) / mm, 0.0), 1.0)
-        ex, ey, ez = dx - t * mx, dy - t * my, dz - t * mz
-        if ex * ex + ey * ey + ez * ez > tol2:
-            return False
-    return True
-
-
 @dataclass
 class NaiveCamMerge(Mechanism):
     name = "naive_cam"
@@ -76,29 +62,48 @@ class NaiveCamMerge(Mechanism):
         keep[idx[alone] - 1] = False
         start_of[idx[alone]] = idx[alone] - 1
         idx = idx[~alone]
-        need = np.unique(np.concatenate([idx, idx - 1]))
-        ends = dict(zip(need.tolist(), map(tuple, p1[need].tolist())))
-        starts = dict(zip(need.tolist(), p0[need].tolist()))
-        tol_of = tol.tolist()
+        # plain Python values for the loop, aligned with idx (ends and starts of i and i - 1)
+        e_cur, s_cur = p1[idx].tolist(), p0[idx].tolist()
+        e_prev, s_prev = p1[idx - 1].tolist(), p0[idx - 1].tolist()
+        max_chain = self.max_chain
         dropped: list[int] = []      # rows merged into the next one
-        joined: list[tuple[int, int]] = []  # (row, start row of its chain)
+        joined: list[int] = []       # rows joined to a chain
+        joined_start: list[int] = []  # the start row of that chain
         chain_start, chain_len, pts, s0 = -1, 0, [], None
         prev = -2
-        for i in idx.tolist():
+        for i, e_i, s_i, e_p, s_p, tol_i in zip(idx.tolist(), e_cur, s_cur, e_prev, s_prev, tol[idx].tolist()):
             if i != prev + 1 or chain_start < 0:
-                chain_start, chain_len, pts, s0 = i - 1, 1, [ends[i - 1]], starts[i - 1]
-            if chain_len <= self.max_chain and _within(pts, s0, ends[i], tol_of[i]):
+                chain_start, chain_len, pts, s0 = i - 1, 1, [e_p], s_p
+            # _within(pts, s0, e_i, tol_i) written out: the same float operations, no calls
+            ok = chain_len <= max_chain
+            if ok:
+                sx, sy, sz = s0
+                mx, my, mz = e_i[0] - sx, e_i[1] - sy, e_i[2] - sz
+                mm = mx * mx + my * my + mz * mz
+                tol2 = tol_i * tol_i
+                for px, py, pz in pts:
+                    dx, dy, dz = px - sx, py - sy, pz - sz
+                    if mm <= 0:
+                        t = 0.0
+                    else:
+                        t = (dx * mx + dy * my + dz * mz) / mm
+                        t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+                    ex, ey, ez = dx - t * mx, dy - t * my, dz - t * mz
+                    if ex * ex + ey * ey + ez * ez > tol2:
+                        ok = False
+                        break
+            if ok:
                 dropped.append(i - 1)
-                joined.append((i, chain_start))
-                pts.append(ends[i])
+                joined.append(i)
+                joined_start.append(chain_start)
+                pts.append(e_i)
                 chain_len += 1
             else:  # the chain ending at i - 1 is flushed; i starts a new one
-                chain_start, chain_len, pts, s0 = i, 1, [ends[i]], starts[i]
+                chain_start, chain_len, pts, s0 = i, 1, [e_i], s_i
             prev = i
         if dropped:
             keep[np.asarray(dropped)] = False
-            rows, first = np.asarray(joined).T
-            start_of[rows] = first
+            start_of[np.array(joined, dtype=np.int64)] = np.array(joined_start, dtype=np.int64)
         merged = np.flatnonzero(keep & (start_of != np.arange(n)))
         if not len(merged):
             return
