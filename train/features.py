@@ -186,8 +186,13 @@ def _base_column(table: pd.DataFrame, name: str, constants: dict[str, float]) ->
     return col.to_numpy(np.float64)
 
 
-def limited_time(table: pd.DataFrame) -> np.ndarray:
-    """Per block max(L / F, axis_time_s): the nominal time with the axes' speed limits (s)."""
+def limited_time(table: pd.DataFrame, *, name: str = "", needed_by: str = "") -> np.ndarray:
+    """Per block max(L / F, axis_time_s): the nominal time with the axes' speed limits (s).
+
+    A table without `nominal_time_s` raises ModelError naming the table and the model that needs it.
+    """
+    if "nominal_time_s" not in table.columns:
+        raise ModelError(f"{name}: input lacks column 'nominal_time_s' (CAM time) needed by {needed_by or 'this model'}")
     nominal = np.nan_to_num(table["nominal_time_s"].to_numpy(np.float64))
     if "axis_time_s" not in table:
         return nominal

@@ -31,12 +31,6 @@ PREDICT_BATCH = 1024
 CAM_FLOOR_S = 1e-3  # added to a stretch's measured and CAM totals before the log ratio
 
 
-def _cam_times(table: ProgramTable) -> np.ndarray:
-    if "nominal_time_s" not in table.blocks.columns:
-        raise ModelError(f"{table.name}: input lacks column 'nominal_time_s' (CAM time) needed by bilstm-final")
-    return limited_time(table.blocks)
-
-
 @dataclass(frozen=True)
 class FinalConfig(ModelConfig):
     inputs: tuple[str, ...] = CHIEN_INPUTS
@@ -109,7 +103,7 @@ class FinalBiLSTM(Model):
         self.constants = profile_constants(tables[0].profile)
         xs = [self._matrix(t) for t in tables]
         ds = [t.durations() for t in tables]
-        cams = [_cam_times(t) for t in tables]
+        cams = [limited_time(t.blocks, name=t.name, needed_by="bilstm-final") for t in tables]
         crop = self._crop_length(tables)
         lo, hi = max(1, int(np.floor(crop * (1 - cfg.length_tolerance)))), int(np.ceil(crop * (1 + cfg.length_tolerance)))
         self.params = {"crop_blocks": crop, "min_blocks": lo, "max_blocks": hi}
@@ -167,7 +161,7 @@ class FinalBiLSTM(Model):
         self.check_trained()
         setup_torch()
         x = self.norms["x"].apply(self._matrix(table))
-        cam_rows = _cam_times(table)
+        cam_rows = limited_time(table.blocks, name=table.name, needed_by="bilstm-final")
         if len(x) == 0:
             return TablePrediction(0.0, None)
         parts = self.chunks(len(x))

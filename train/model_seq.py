@@ -31,13 +31,6 @@ AUTO_PROGRAMS = 8     # val_by="auto" holds out whole programs from this many tr
 RATIO_FLOOR_S = 1e-4  # added to both sums of the CAM-ratio target
 
 
-def _nominal_times(table: ProgramTable) -> np.ndarray:
-    """CAM time with the axes' speed limits (features.limited_time): the ratio target's denominator."""
-    if "nominal_time_s" not in table.blocks.columns:
-        raise ModelError(f"{table.name}: input lacks column 'nominal_time_s' (CAM time) needed by the CAM-ratio target")
-    return limited_time(table.blocks)
-
-
 @dataclass(frozen=True)
 class SeqConfig(ModelConfig):
     inputs: tuple[str, ...] = CHIEN_INPUTS
@@ -115,14 +108,15 @@ class SeqModel(Model):
         if self.config.target_mode == "cam_ratio":
             span = self.config.ratio_span
             measured = window_sums(table.durations(), span)
-            cam = window_sums(_nominal_times(table), span)
+            cam = window_sums(limited_time(table.blocks, name=table.name, needed_by="the CAM-ratio target"), span)
             return np.log(measured + RATIO_FLOOR_S) - np.log(cam + RATIO_FLOOR_S)
         return table.durations()
 
     def to_durations(self, table: ProgramTable, values: np.ndarray) -> np.ndarray:
         """Per-block predicted target -> per-block time."""
         if self.config.target_mode == "cam_ratio":
-            return np.maximum((_nominal_times(table) + RATIO_FLOOR_S) * np.exp(values) - RATIO_FLOOR_S, 0.0)
+            cam = limited_time(table.blocks, name=table.name, needed_by="the CAM-ratio target")
+            return np.maximum((cam + RATIO_FLOOR_S) * np.exp(values) - RATIO_FLOOR_S, 0.0)
         return np.maximum(values, 0.0)
 
     def _encode(self, y: np.ndarray) -> np.ndarray:

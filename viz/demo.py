@@ -201,7 +201,7 @@ def run(args: argparse.Namespace) -> int:
     if rrds:
         print(f"  Rerun recordings:              {written['rerun']}/")
         print(f"  open them in Rerun with:       rerun {written['rerun']}/*.rrd   (or one: rerun {rrds[0]})")
-        print(f"  or one recording at a time:    feedlog view RECORDING --sim")
+        print("  or one recording at a time:    feedlog view RECORDING --sim")
     missing = [s for s, reason in result.stages.items() if reason]
     if missing:
         print(f"  stages not available here: {', '.join(missing)} (the report says why)")
