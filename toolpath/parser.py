@@ -24,7 +24,8 @@ import pyarrow as pa
 from feedlog.errors import ProgramError
 from feedlog.toolpath.arcwords import ArcWords, resolve_arcs
 from feedlog.toolpath.lexer import Tokens, lex
-from feedlog.toolpath.offsets import G10, G92_1, SYSTEM_OF, AxisWords, Event, resolve_offsets
+from feedlog.toolpath.offsets import G10, G92_1
+from feedlog.toolpath.positions import AXIS_LETTERS, SYSTEM_LUT, ffill, offset_positions, positions
 from feedlog.toolpath.program import Program, Unsupported
 from feedlog.toolpath.schema import (ARC_CCW, ARC_CW, BLOCK_COLUMNS, CONTINUOUS, DWELL, END_COLUMNS,
                                      EXACT_PATH, EXACT_STOP, KINDS, LINEAR, NONE, OFFSET_COLUMNS, PATH_MODES,
@@ -64,19 +65,11 @@ STOP_M = (0, 1, 2, 6, 30, 60)  # the machine comes to rest: program stop/end, to
 LETTERS = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
 L = {ch: i for i, ch in enumerate(LETTERS)}
 ACCEPTED_LETTERS = set("ABCFGHIJKMNOPQRSTXYZ")
-AXIS_LETTERS = "XYZABC"
 _ACCEPTED_LUT = np.array([c in ACCEPTED_LETTERS for c in LETTERS])
 _GEO_LUT = np.array([c in "XYZABCIJKRPQL" for c in LETTERS])
 _M_LUT = np.array([m in M_CODES for m in range(200)] + [False])
 PATH_MODE_OF = {610: EXACT_PATH, 611: EXACT_STOP, 640: CONTINUOUS}
 KIND_OF_MOTION = {0: RAPID, 10: LINEAR, 20: ARC_CW, 30: ARC_CCW}
-
-
-def _ffill(values: np.ndarray, present: np.ndarray, initial) -> np.ndarray:
-    """Forward-fill `values` from rows where `present`; `initial` before the first one."""
-    at = np.flatnonzero(present)
-    held = np.r_[np.asarray(initial, dtype=np.result_type(values, np.asarray(initial))), values[at]]
-    return np.repeat(held, np.diff(np.r_[0, at, len(values)]))
 
 
 def _strings(n: int, rows=None, values=None, *, fill: str = "") -> pd.api.extensions.ExtensionArray:
@@ -256,7 +249,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     tok.line = tok.letter = tok.value = R.row_of = None
 
     # -- modal state -------------------------------------------------------------------------------
-    modal = {g: _ffill(groups[g], groups[g] >= 0, DEFAULTS[g]) for g in DEFAULTS}
+    modal = {g: ffill(groups[g], groups[g] >= 0, DEFAULTS[g]) for g in DEFAULTS}
     unit = np.where(modal["units"] == 200, MM_PER_INCH, 1.0)
     motion_mode = np.where(modal["motion"] == 800, -1, modal["motion"])
     nonmodal = groups["nonmodal"]
@@ -301,13 +294,13 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     incremental = modal["distance"] == 910
     coords = groups["coords"]
     if any_offset:  # work offsets that change (G10, G92): positions through machine coordinates
-        start, end, work, system = _offset_positions(W, has, S, unit, is_motion, incremental, coords,
+        start, end, work, system = offset_positions(W, has, S, unit, is_motion, incremental, coords,
                                                      nonmodal, offset_row)
     else:
-        start, end = _positions(W, has, S, unit, is_motion, incremental)
+        start, end = positions(W, has, S, unit, is_motion, incremental)
         work = None
         system = (np.ones(n, dtype=np.int8) if not (coords >= 0).any() else
-                  _SYSTEM_LUT[_ffill(coords, coords >= 0, 540)])
+                  SYSTEM_LUT[ffill(coords, coords >= 0, 540)])
 
     # -- arcs --------------------------------------------------------------------------------------
     centre = np.full((3, n), np.nan)
@@ -340,7 +333,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         given = np.zeros((n, 3))
         given[orient] = o / norm[:, None]
         for j in range(3):
-            ori[:, j] = _ffill(given[:, j], orient, np.nan)
+            ori[:, j] = ffill(given[:, j], orient, np.nan)
 
     # -- feed ---------------------------------------------------------------------------------------
     f_here = has[S["F"]]
@@ -348,7 +341,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     f_mm = W[S["F"]] * unit
     # LinuxCNC forgets the feed when the feed mode changes: G93 -> G94 needs a new F
     mode_change = np.r_[False, modal["feed_mode"][1:] != modal["feed_mode"][:-1]]
-    modal_feed = _ffill(np.where(f_here, f_mm, np.nan), (f_here | mode_change) & ~inverse_time, np.nan)
+    modal_feed = ffill(np.where(f_here, f_mm, np.nan), (f_here | mode_change) & ~inverse_time, np.nan)
     feed_move = is_motion & (motion_mode != 0)
     lin_len = length
     rot_len = np.sqrt(((end[3:] - start[3:]) ** 2).sum(axis=0)) if has[[S[c] for c in "ABC"]].any() \
@@ -374,14 +367,14 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     g64 = groups["path"] == 640
     tol_here = np.where(g64, p_val, 0.0)
     merge_here = np.where(g64, np.where(has[S["Q"]], q_val, p_val), np.nan)
-    tol = _ffill(tol_here, path_here, np.nan)
-    merge = _ffill(merge_here, path_here, np.nan)
+    tol = ffill(tol_here, path_here, np.nan)
+    merge = ffill(merge_here, path_here, np.nan)
     path_code = np.select([modal["path"] == g for g in PATH_MODE_OF],
                           [PATH_MODES.index(m) for m in PATH_MODE_OF.values()], -1).astype(np.int8)
     dwell = np.where(is_dwell, W[S["P"]], 0.0)
     if (dwell < 0).any():
         raise R.error(int(np.flatnonzero(dwell < 0)[0]), "negative dwell time", "P")
-    spindle = _ffill(W[S["S"]], has[S["S"]], 0.0)
+    spindle = ffill(W[S["S"]], has[S["S"]], 0.0)
     mcodes = _strings(n)
     stop = np.zeros(n, dtype=bool)
     if len(m_rows):
@@ -432,77 +425,6 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         warnings.append(f"line {u.line}: skipped {u.code} ({u.reason})")
     return Program(blocks=blocks, path=path, warnings=warnings, unsupported=R.unsupported,
                    metadata=metadata)
-
-
-def _positions(W: np.ndarray, has: np.ndarray, S: dict, unit: np.ndarray, is_motion: np.ndarray,
-               incremental: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Start and end (6, n) of every row, absolute program coordinates, all offsets 0: a forward fill
-    of absolute words, plus a cumulative sum of incremental ones."""
-    n = W.shape[1]
-    any_incremental = bool(incremental.any())
-    end = np.zeros((6, n))  # axis-major while computing: contiguous rows
-    for j, ch in enumerate(AXIS_LETTERS):
-        if not has[S[ch]].any():
-            continue
-        v = W[S[ch]] * unit if j < 3 else W[S[ch]]
-        set_here = has[S[ch]] & is_motion
-        if not any_incremental:
-            end[j] = _ffill(v, set_here, 0.0)
-            continue
-        delta = np.where(set_here & incremental, v, 0.0)
-        cs = np.cumsum(delta)
-        absolute = set_here & ~incremental
-        end[j] = cs + _ffill(np.where(absolute, v - cs, 0.0), absolute, 0.0)
-    start = np.zeros((6, n))
-    start[:, 1:] = end[:, :-1]
-    return start, end
-
-
-_SYSTEM_LUT = np.zeros(1000, dtype=np.int8)
-for _g, _s in SYSTEM_OF.items():
-    _SYSTEM_LUT[_g] = _s
-
-
-def _offset_positions(W: np.ndarray, has: np.ndarray, S: dict, unit: np.ndarray, is_motion: np.ndarray,
-                      incremental: np.ndarray, coords: np.ndarray, nonmodal: np.ndarray,
-                      offset_row: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Start, end (program coordinates), work offset (6, n) and coordinate system per row, for programs
-    with G10/G92: machine position = forward fill of (absolute word + the row's offset) plus the
-    incremental moves; program position = machine - offset (toolpath.offsets)."""
-    n = W.shape[1]
-    values = np.full((6, n), np.nan)
-    absolute = np.zeros((6, n), dtype=bool)
-    cs = np.zeros((6, n))
-    scale = np.vstack([np.broadcast_to(unit, (3, n)), np.ones((3, n))])
-    for j, ch in enumerate(AXIS_LETTERS):
-        if not has[S[ch]].any():
-            continue
-        v = W[S[ch]] * scale[j]
-        set_here = has[S[ch]] & is_motion
-        absolute[j] = set_here & ~incremental
-        values[j] = np.where(absolute[j], v, np.nan)
-        cs[j] = np.cumsum(np.where(set_here & incremental, v, 0.0))
-    selected = _ffill(coords, coords >= 0, 540)
-    switch = (coords >= 0) & (selected != np.r_[540, selected[:-1]])  # re-selecting the active one is no event
-    ev_rows = np.flatnonzero(switch | offset_row)
-    given = W[[S[c] for c in AXIS_LETTERS]][:, ev_rows] * scale[:, ev_rows]
-    lw, pw = W[S["L"], ev_rows], W[S["P"], ev_rows]
-    events = [Event(row=int(r), system=int(_SYSTEM_LUT[coords[r]]) if switch[r] else 0,
-                    code=int(nonmodal[r]) if offset_row[r] else -1,
-                    l_word=int(lw[i]) if not np.isnan(lw[i]) else 0,
-                    p_word=int(pw[i]) if not np.isnan(pw[i]) else 0,
-                    values=given[:, i])
-              for i, r in enumerate(ev_rows.tolist())]
-    work, system = resolve_offsets(n, AxisWords(values=values, absolute=absolute, cumsum=cs), events)
-    machine = cs.copy()
-    for j in range(6):
-        if absolute[j].any():
-            machine[j] += _ffill(np.where(absolute[j], values[j] + work[j] - cs[j], 0.0), absolute[j], 0.0)
-    end = machine - work
-    start = np.zeros((6, n))
-    start[:, 1:] = machine[:, :-1]
-    start -= work
-    return start, end, work, system
 
 
 def _metadata(tok: Tokens, o_value, o_has, m_codes, m_rows, is_motion, R: _Rows, file: str,
