@@ -37,6 +37,7 @@ per sample) is judged fairly and dense data keeps a tight tolerance.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -251,7 +252,7 @@ def _project(c: np.ndarray, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
 def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray, *,
                     s_mm: np.ndarray | None = None, config: MatchConfig | None = None,
                     tolerance: np.ndarray | None = None, check: np.ndarray | None = None,
-                    labels: list[str] | None = None, speed_mm_s: np.ndarray | None = None,
+                    labels: Sequence[str] | None = None, speed_mm_s: np.ndarray | None = None,
                     period_ns: int | None = None) -> Match:
     """Match ordered CL points (k, 3) to the measured path (`t_ns` (n,), `positions` (n, 3)).
 
@@ -443,7 +444,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
 
 
 def violation_message(bad: np.ndarray, dist: np.ndarray, cl: np.ndarray, tol: np.ndarray,
-                      labels: list[str] | None, worst: int = 5) -> str:
+                      labels: Sequence[str] | None, worst: int = 5) -> str:
     d = np.where(np.isfinite(dist[bad]), dist[bad], np.inf)
     order = bad[np.argsort(-d)][:worst]
     parts = []

@@ -209,7 +209,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     kind = cl["kind"].astype(str).to_numpy()
     check = np.ones(len(cl), dtype=bool) if cfg.check_rapids else (kind != RAPID)
     check &= kind != "start"  # the parser's assumed initial position is not a programmed point
-    labels = [f"block {b} (line {ln})" for b, ln in zip(blk, cl["line"].to_numpy())]
+    labels = _PointLabels(blk, cl["line"].to_numpy())
     mcfg = MatchConfig(tol_mm=float(tolerance.max()), window_mm=cfg.window_mm, still_mm=still)
     rapid_mm_min = prof.rapid_mm_min if prof is not None else np.nan
     speed = np.where(kind == RAPID, rapid_mm_min, cl["feed_mm_min"].to_numpy(dtype=np.float64)) / 60.0
@@ -235,11 +235,9 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
 
     # --- blocks -------------------------------------------------------------------------------------
     motion = prog.motion.reset_index(drop=True)
-    end_row = cl.reset_index().groupby("block")["index"].max()
-    end_idx = end_row.reindex(motion["block"]).to_numpy()
-    if np.isnan(end_idx.astype(float)).any():
+    end_idx = _last_rows(blk, motion["block"].to_numpy())
+    if (end_idx < 0).any():
         raise AlignmentError(f"{prog.name}: some motion blocks have no CL point")
-    end_idx = end_idx.astype(np.int64)
     boundary = cfg.boundary
     if boundary == "auto":
         boundary = "leave" if timing.period_ns <= SPARSE_NS else "pass"
@@ -261,8 +259,8 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     primary = line_blocks if line_blocks is not None else geo
 
     feats = block_features(prog, prof)
-    blocks_out = primary.merge(feats.drop(columns=["line"]), on="block", how="left")
-    points = points.merge(feats.drop(columns=["line", "kind", "feed_mm_min"]), on="block", how="left")
+    blocks_out = join_by_block(primary, feats.drop(columns=["line"]))
+    points = join_by_block(points, feats.drop(columns=["line", "kind", "feed_mm_min"]))
     report["blocks"] = {"motion_blocks": len(primary), "source": str(primary["source"].iloc[0]) if len(primary) else None,
                         "unseen_in_line_stream": int((~line_blocks["seen"]).sum()) if line_blocks is not None else None,
                         "sum_duration_s": float(primary["duration_s"].sum())}
@@ -342,20 +340,61 @@ def _path_feed(recording: Recording, cfg: AlignConfig, feeds: pd.DataFrame, tq: 
 
 def _points_table(cl: pd.DataFrame, match, feeds: pd.DataFrame, path_feed: np.ndarray,
                   span: MotionSpan) -> pd.DataFrame:
-    out = cl.rename(columns={"feed_mm_min": "programmed_feed_mm_min"}).copy()
-    out.insert(0, "point", np.arange(len(cl), dtype=np.int64))
+    # built as one dict of columns: one DataFrame construction instead of a dozen insertions
+    data: dict[str, Any] = {"point": np.arange(len(cl), dtype=np.int64)}
+    for c in cl.columns:
+        data["programmed_feed_mm_min" if c == "feed_mm_min" else c] = cl[c].to_numpy(copy=True) \
+            if not isinstance(cl[c].dtype, pd.CategoricalDtype) else cl[c].copy().reset_index(drop=True)
     ok = match.matched
     tm = np.where(ok, match.t_ns, 0)
-    out["t_ns"] = np.where(ok, match.t_ns, NO_TIME)
-    out["t_rel_s"] = np.where(ok, (tm - span.t_start_ns) / 1e9, np.nan)
-    out["dist_mm"] = match.dist_mm
-    out["sample"] = match.nearest
-    out["feed_meas_mm_min"] = np.where(ok, path_feed, np.nan)
+    data["t_ns"] = np.where(ok, match.t_ns, NO_TIME)
+    data["t_rel_s"] = np.where(ok, (tm - span.t_start_ns) / 1e9, np.nan)
+    data["dist_mm"] = match.dist_mm
+    data["sample"] = match.nearest
+    data["feed_meas_mm_min"] = np.where(ok, path_feed, np.nan)
     for c in feeds.columns:
         if c.startswith("v"):  # vx_mm_min -> vx_meas_mm_min
             axis, rest = c.split("_", 1)
-            out[f"{axis}_meas_{rest}"] = np.where(ok, feeds[c].to_numpy(), np.nan)
-    return out
+            data[f"{axis}_meas_{rest}"] = np.where(ok, feeds[c].to_numpy(), np.nan)
+    return pd.DataFrame(data)
+
+
+def join_by_block(left: pd.DataFrame, right: pd.DataFrame) -> pd.DataFrame:
+    """`left.merge(right, on="block", how="left")` for the common case of a unique `block` key in `right`
+    that covers every block of `left` and no other shared column: rows taken by position (one gather,
+    dtypes kept), without the merge machinery's fixed cost. Anything else goes through `merge`."""
+    keys = pd.Index(right["block"].to_numpy())
+    shared = (set(left.columns) & set(right.columns)) - {"block"}
+    if shared or not keys.is_unique:
+        return left.merge(right, on="block", how="left")
+    pos = keys.get_indexer(left["block"].to_numpy())
+    if (pos < 0).any():
+        return left.merge(right, on="block", how="left")
+    extra = right.drop(columns=["block"]).take(pos).reset_index(drop=True)
+    return pd.concat([left.reset_index(drop=True), extra], axis=1)
+
+
+def _last_rows(block: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+    """Index of the last row of `block` (per CL point) holding each of the `wanted` blocks, -1 if none."""
+    rev = np.asarray(block)[::-1]
+    keys, first_rev = np.unique(rev, return_index=True)
+    last = len(rev) - 1 - first_rev
+    at = np.clip(np.searchsorted(keys, wanted), 0, max(len(keys) - 1, 0))
+    found = (keys[at] == wanted) if len(keys) else np.zeros(len(wanted), dtype=bool)
+    return np.where(found, last[at] if len(keys) else -1, -1).astype(np.int64)
+
+
+class _PointLabels:
+    """ "block B (line L)" per CL point, formatted only for the few points an error message names."""
+
+    def __init__(self, block: np.ndarray, line: np.ndarray) -> None:
+        self.block, self.line = block, line
+
+    def __len__(self) -> int:
+        return len(self.block)
+
+    def __getitem__(self, k: int) -> str:
+        return f"block {self.block[k]} (line {self.line[k]})"
 
 
 def _line_blocks(recording: Recording, cfg: AlignConfig, motion: pd.DataFrame, span: MotionSpan,
