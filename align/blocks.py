@@ -332,15 +332,25 @@ def split_merged(line_blocks: pd.DataFrame, geometry_blocks: pd.DataFrame) -> pd
     return lb
 
 
-def compare_blocks(truth: pd.DataFrame, other: pd.DataFrame, *, servo_period_s: float | None = None) -> dict:
+def compare_blocks(truth: pd.DataFrame, other: pd.DataFrame, *, servo_period_s: float | None = None,
+                   groups: np.ndarray | None = None) -> dict:
     """Errors of `other` block times against `truth` from a line stream: median/p95/max of |duration|,
-    |start| and |end| differences in seconds. Blocks the controller merged (unseen in `truth`) are
-    compared as their group (`line_groups`): the line stream cannot say more."""
+    |start| and |end| differences in seconds, per group of blocks. `groups` (one id per row of `truth`,
+    non-decreasing), e.g. the planner moves of `feedlog.align.moves.planner_moves`: blocks the
+    controller really merged into one move are compared as that move, every other block alone (a block
+    whose line never shows then counts with its true zero time). Without `groups`, every block unseen in
+    `truth` is grouped with the next seen one (`line_groups`)."""
     m = truth.reset_index(drop=True).merge(other, on="block", suffixes=("_true", "_est"), how="left")
     seen = m["seen_true"].to_numpy() if "seen_true" in m else np.ones(len(m), dtype=bool)
     if len(m) == 0 or not seen.any():
         return {"blocks": 0}
-    group = line_groups(seen)
+    if groups is None:
+        group = line_groups(seen)
+    else:
+        group = np.asarray(groups, dtype=np.int64)
+        if len(group) != len(m) or np.any(np.diff(group) < 0):
+            raise AlignmentError(f"compare_blocks: need one non-decreasing group id per block ({len(m)} blocks, "
+                                 f"{len(group)} ids)")
     agg = m.assign(group=group).groupby("group").agg(
         ts_true=("t_start_ns_true", "min"), te_true=("t_end_ns_true", "max"),
         ts_est=("t_start_ns_est", "min"), te_est=("t_end_ns_est", "max"),
@@ -348,7 +358,8 @@ def compare_blocks(truth: pd.DataFrame, other: pd.DataFrame, *, servo_period_s: 
     dd = (agg["d_est"] - agg["d_true"]).abs()
     ds = (agg["ts_est"] - agg["ts_true"]).abs() / 1e9
     de = (agg["te_est"] - agg["te_true"]).abs() / 1e9
-    out = {"blocks": int(len(m)), "groups": int(len(agg)), "merged_blocks": int((~seen).sum()),
+    out = {"blocks": int(len(m)), "groups": int(len(agg)), "merged_blocks": int(len(m) - len(agg)),
+           "unseen_blocks": int((~seen).sum()),
            "duration_err_median_s": float(dd.median()), "duration_err_p95_s": float(dd.quantile(0.95)),
            "duration_err_max_s": float(dd.max()), "start_err_median_s": float(ds.median()),
            "end_err_median_s": float(de.median()),
