@@ -31,10 +31,10 @@ import pandas as pd
 from feedlog.align.blocks import NO_TIME, SHORT_LEAVE_SAMPLES, MotionSpan, _last_on, blocks_from_geometry
 from feedlog.align.feed import LINEAR
 from feedlog.align.pipeline import STRAIGHT, Alignment, position_quantum
-from feedlog.errors import AlignmentError
-from feedlog.ingest.recording import Recording
+from feedlog.errors import AlignmentError, FeedlogError
+from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import MachineProfile
-from feedlog.toolpath import Program, to_machine
+from feedlog.toolpath import Program, parse_program, to_machine
 
 
 def planner_moves(program: Program, profile: MachineProfile) -> np.ndarray:
@@ -50,7 +50,7 @@ def planner_moves(program: Program, profile: MachineProfile) -> np.ndarray:
         return np.zeros(0, dtype=np.int64)
     try:
         blocks = prepare_blocks(program, profile)
-    except Exception as exc:  # a program the simulator refuses: no merge model, every block its own move
+    except FeedlogError as exc:  # a program the simulator refuses (e.g. an axis the profile lacks)
         raise AlignmentError(f"{program.name}: cannot model LinuxCNC's collinear merge ({exc})") from exc
     ctx = Context(profile=profile, blocks=blocks)
     NaiveCamMerge().limit(ctx)
@@ -181,17 +181,28 @@ def clip_to_moves(end_ns: np.ndarray, move: np.ndarray) -> np.ndarray:
     return np.minimum(e, move_end)
 
 
-def geometry_blocks_by_moves(recording: Recording, alignment: Alignment, *, program: Program,
-                             profile: MachineProfile, positions: str = "axes") -> pd.DataFrame:
+def geometry_blocks_by_moves(recording: Recording, alignment: Alignment, *, program: Program | None = None,
+                             profile: MachineProfile | None = None, positions: str = "axes") -> pd.DataFrame:
     """`alignment.geometry_blocks` recomputed with LinuxCNC's planner moves (`planner_moves`): straight
     moves end where the tool leaves their chord, consumed moves get zero time, blocks inside a move end
     at their CL match but never after the move. Uses the alignment's CL matches (points `t_ns`), motion
     span, standstill threshold and work offset; the departures from stops are those of
     `alignment.geometry_blocks` (a block that starts after its predecessor's end started at a departure).
-    Adds column `move`."""
+    `program` and `profile` default to the ones attached to the recording. Adds column `move`."""
+    src = recording.source or "recording"
+    if program is None:
+        if recording.program_text is None:
+            raise AlignmentError(f"{src}: no program given and none attached (program.ngc)")
+        program = parse_program(recording.program_text, name=f"{src}:program.ngc")
+    if profile is None:
+        data = recording.attachments.get(PROFILE_ATTACHMENT)
+        if data is None:
+            raise AlignmentError(f"{src}: no machine profile given and none attached ({PROFILE_ATTACHMENT}); "
+                                 "the merge model needs the machine's axes")
+        profile = MachineProfile.from_toml(data.decode("utf-8"), source=f"{src}:{PROFILE_ATTACHMENT}")
     geo = alignment.geometry_blocks
     if geo is None:
-        raise AlignmentError(f"{recording.source or 'recording'}: the alignment has no geometry blocks")
+        raise AlignmentError(f"{src}: the alignment has no geometry blocks")
     axes = recording.stream(positions)
     t = axes["t_ns"].to_numpy(dtype=np.int64)
     xyz = axes[list(LINEAR)].to_numpy(dtype=np.float64)
