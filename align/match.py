@@ -42,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from feedlog.align.chunks import TIE_MM, Path, Search, project, search_chunks
 from feedlog.errors import AlignmentError
 
 
@@ -100,8 +101,6 @@ class Match:
 
 
 NO_TIME = np.iinfo(np.int64).min
-TIE_MM = 1e-6
-MAX_WIDEN = 4
 
 
 def reduce_path(positions: np.ndarray, resolution_mm: float) -> tuple[np.ndarray, np.ndarray]:
@@ -155,7 +154,7 @@ def _refine(cl, m, seg_of, u_of, sv_c, s_full, fine_keep, pos, weight):
         idx = np.minimum(idx, nf - 1)
         fp0 = pos[fine_keep[idx]]
         fd = pos[fine_keep[idx + 1]] - fp0
-        u, dk = _project(cl[ks[part]][:, None, :], fp0, fd, (fd * fd).sum(axis=-1))
+        u, dk = project(cl[ks[part]][:, None, :], fp0, fd, (fd * fd).sum(axis=-1))
         dk = np.where(valid, dk, np.inf)
         score = dk + weight * np.abs(fs[idx] + u * (fs[idx + 1] - fs[idx]) - s_coarse[part, None])
         best = np.argmax(score <= score.min(axis=1, keepdims=True) + TIE_MM, axis=1)
@@ -195,24 +194,6 @@ class _LazyDiff:
         return self.values[j + 1] - self.values[j]
 
 
-def _best_in_windows(c, pred, lo, hi, p0, d, dd, sv, sv_len, weight):
-    """For points c (k, 3): the best segment in [lo, hi] by distance + weight x |S - pred| (earliest of
-    near-equal ones: arrival, not departure, at a standstill). For a point on a straight stretch the
-    distance grows with slope 1 away from the foot point, so a weight < 1 never moves the minimum, but
-    between equally close passes (a retraced line) it picks the expected one."""
-    nseg = len(sv) - 1
-    band = int((hi - lo).max()) + 1
-    idx = lo[:, None] + np.arange(band)[None, :]
-    valid = idx <= hi[:, None]
-    idx = np.minimum(idx, nseg - 1)
-    u, dk = _project(c[:, None, :], p0[idx], d[idx], dd[idx])
-    dk = np.where(valid, dk, np.inf)
-    score = dk + weight * np.abs(sv[idx] + u * sv_len[idx] - pred[:, None])
-    best = np.argmax(score <= score.min(axis=1, keepdims=True) + TIE_MM, axis=1)
-    rows = np.arange(len(c))
-    return idx[rows, best], u[rows, best], dk[rows, best]
-
-
 def _first_passage(c: np.ndarray, tol: float, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
     """(segment, u, distance) of the closest point of the earliest passage of the path within `tol` of
     point c, or None. Scans the path from its start in growing blocks (the start is usually early)."""
@@ -220,7 +201,7 @@ def _first_passage(c: np.ndarray, tol: float, p0: np.ndarray, d: np.ndarray, dd:
     lo, size = 0, 4096
     while lo < n:
         hi = min(n, lo + size)
-        u, dk = _project(c[None, :], p0[lo:hi], d[lo:hi], dd[lo:hi])
+        u, dk = project(c[None, :], p0[lo:hi], d[lo:hi], dd[lo:hi])
         near = np.flatnonzero(dk <= tol)
         if len(near):
             j = int(near[0])
@@ -231,22 +212,12 @@ def _first_passage(c: np.ndarray, tol: float, p0: np.ndarray, d: np.ndarray, dd:
                     end = j + (int(out[0]) if len(out) else len(dk) - j)
                     break
                 hi2 = min(n, hi + size)
-                u2, dk2 = _project(c[None, :], p0[hi:hi2], d[hi:hi2], dd[hi:hi2])
+                u2, dk2 = project(c[None, :], p0[hi:hi2], d[hi:hi2], dd[hi:hi2])
                 u, dk, hi = np.concatenate([u, u2]), np.concatenate([dk, dk2]), hi2
             best = j + int(np.argmin(dk[j:end]))
             return lo + best, float(u[best]), float(dk[best])
         lo, size = hi, size * 2
     return None
-
-
-def _project(c: np.ndarray, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
-    """Project points c (..., 3) onto segments p0 + u d (..., 3); returns u in [0, 1] and distance."""
-    w = c - p0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        u = np.where(dd > 0, (w * d).sum(axis=-1) / np.where(dd > 0, dd, 1.0), 0.0)
-    u = np.clip(u, 0.0, 1.0)
-    r = w - u[..., None] * d
-    return u, np.sqrt((r * r).sum(axis=-1))
 
 
 def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray, *,
@@ -323,59 +294,20 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
                              f"points (e.g. {np.round(cl[order[0]], 3).tolist() if len(order) else '-'}); wrong "
                              "program, units or work offset?")
     anchor_s, anchor_S = s_prog[start], sv[seg_of[start]] + u_of[start] * sv_len[seg_of[start]]
-    ratio = 1.0
     speed = None if speed_mm_s is None else np.nan_to_num(np.asarray(speed_mm_s, dtype=np.float64), nan=0.0)
     tv = t[keep]
     seg_dt = np.diff(tv) / 1e9
     if len(seg_dt):
         seg_dt = np.minimum(seg_dt, 10 * max(float(np.median(seg_dt)), 1e-9))
 
-    # 3. chunks of CL points after the start
+    # 3. chunks of CL points after the start (`chunks`)
     rest = order[order > start]
-    i = 0
     seg_len = np.sqrt(dd)
-    while i < len(rest):
-        hi_i = min(i + cfg.chunk_points, len(rest))
-        limit = s_prog[rest[i]] + chunk_mm
-        cut = int(np.searchsorted(s_prog[rest[i:hi_i]], limit, side="right"))
-        hi_i = i + max(1, cut)
-        ks = rest[i:hi_i]
-        ds = np.maximum(s_prog[ks] - anchor_s, 0.0)
-        pred = anchor_S + ratio * ds
-        # the measured path may be much shorter than the program (chords over wiggles, blends) but not
-        # much longer: search from just behind the anchor to (1 + drift) x the programmed distance ahead
-        if sparse:
-            lo_s = np.full(len(ks), anchor_S - w0)
-            hi_s = anchor_S + (1 + drift) * ds + w0
-        else:  # dense samples follow the program closely: a window around the prediction
-            lo_s = pred - w0 - drift * ds
-            hi_s = pred + w0 + drift * ds
-        lo = np.clip(np.searchsorted(sv, lo_s, side="right") - 1, 0, max(nseg - 1, 0))
-        hi = np.clip(np.searchsorted(sv, hi_s, side="left"), 0, max(nseg - 1, 0))
-        todo = np.arange(len(ks))
-        for _ in range(MAX_WIDEN):
-            seg_b, u_b, d_b = _best_in_windows(cl[ks[todo]], pred[todo], lo[todo], hi[todo], p0, d, dd, sv, sv_len,
-                                               cfg.progress_weight)
-            seg_of[ks[todo]], u_of[ks[todo]], dist[ks[todo]] = seg_b, u_b, d_b
-            # a best candidate on the window's edge may hide a better one beyond it: widen and retry
-            edge = ((seg_b == lo[todo]) & (lo[todo] > 0)) | ((seg_b == hi[todo]) & (hi[todo] < nseg - 1))
-            if not edge.any():
-                break
-            todo = todo[edge]
-            width = hi[todo] - lo[todo] + 1
-            lo[todo] = np.maximum(lo[todo] - width, 0)
-            hi[todo] = np.minimum(hi[todo] + width, nseg - 1)
-        reach = seg_len[seg_of[ks]]
-        if speed is not None:
-            reach = np.maximum(reach, speed[ks] * seg_dt[seg_of[ks]])
-        good = ks[dist[ks] <= tol[ks] + cfg.chord_allowance * reach]
-        if len(good):
-            a = good[-1]
-            new_s, new_S = s_prog[a], sv[seg_of[a]] + u_of[a] * sv_len[seg_of[a]]
-            if new_s - anchor_s > w0:  # local ratio of measured to programmed length, for the prediction
-                ratio = float(np.clip((new_S - anchor_S) / (new_s - anchor_s), 0.05, 1.0 + drift))
-            anchor_s, anchor_S = new_s, new_S
-        i = hi_i
+    path = Path(p0=p0, d=d, dd=dd, seg_len=seg_len, sv=sv, sv_len=sv_len, seg_dt=seg_dt)
+    search = Search(w0=w0, drift=drift, sparse=sparse, weight=cfg.progress_weight,
+                    chord_allowance=cfg.chord_allowance, chunk_points=cfg.chunk_points, chunk_mm=chunk_mm)
+    seg_of[rest], u_of[rest], dist[rest] = search_chunks(cl, s_prog, tol, speed, rest, path, search,
+                                                         anchor_s=float(anchor_s), anchor_S=float(anchor_S))
 
     # refine every match on the fine path, around its coarse segment and the two next to it
     m = seg_of >= 0

@@ -1,0 +1,171 @@
+"""Step 3 of the constrained match (`match`): the CL points after the start, searched chunk by chunk.
+
+Chunk c places its search windows from the state chunk c - 1 left behind: the anchor (program length s
+and measured length S of the last well-matched point) and r, the measured/programmed length ratio.
+This is inherently sequential: an anchor is usually a block end at a corner blend, where the winning
+foot point moves continuously with the prediction, so chunks searched from guessed states (tried: a
+Jacobi iteration over all chunks at once, exact once the states stop changing) settle only one or two
+chunks per pass and cost 3-5x more. What is fast here is the per-chunk step: the coarse path is held
+as separate x/y/z columns so that every projection is a handful of 2-D numpy operations (no reductions
+over a length-3 axis, which numpy does slowly), with the same floating-point operations per point as
+before, and the chunk state is plain Python floats.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+MAX_WIDEN = 4
+TIE_MM = 1e-6
+
+
+@dataclass
+class Path:
+    """The coarse measured path the search runs on: segments p0[j] + u d[j] (n, 3), their squared
+    lengths dd and lengths seg_len, path length sv at each vertex, sv_len = diff(sv), and seg_dt, the
+    sampling interval (s) each segment spans."""
+
+    p0: np.ndarray
+    d: np.ndarray
+    dd: np.ndarray
+    seg_len: np.ndarray
+    sv: np.ndarray
+    sv_len: np.ndarray
+    seg_dt: np.ndarray
+    cols: tuple[np.ndarray, ...] = field(init=False, repr=False)  # x0, y0, z0, dx, dy, dz contiguous
+
+    def __post_init__(self) -> None:
+        self.cols = tuple(np.ascontiguousarray(a[:, i]) for a in (self.p0, self.d) for i in range(3))
+
+    @property
+    def nseg(self) -> int:
+        return len(self.p0)
+
+
+@dataclass(frozen=True)
+class Search:
+    """How windows are placed and scored (see `match.MatchConfig`)."""
+
+    w0: float
+    drift: float
+    sparse: bool
+    weight: float
+    chord_allowance: float
+    chunk_points: int
+    chunk_mm: float
+
+
+def project(c: np.ndarray, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
+    """Project points c (..., 3) onto segments p0 + u d (..., 3); returns u in [0, 1] and distance."""
+    w = c - p0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = np.where(dd > 0, (w * d).sum(axis=-1) / np.where(dd > 0, dd, 1.0), 0.0)
+    u = np.clip(u, 0.0, 1.0)
+    r = w - u[..., None] * d
+    return u, np.sqrt((r * r).sum(axis=-1))
+
+
+def project_gathered(c: np.ndarray, idx: np.ndarray, path: Path):
+    """`project` of points c (k, 3) onto the segments idx (k, m) of `path`, column by column: the same
+    operations in the same order per element (a sum over three is ((x + y) + z) in numpy too)."""
+    x0, y0, z0, dx, dy, dz = (a[idx] for a in path.cols)
+    dd = path.dd[idx]
+    wx, wy, wz = c[:, 0:1] - x0, c[:, 1:2] - y0, c[:, 2:3] - z0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = np.where(dd > 0, (wx * dx + wy * dy + wz * dz) / np.where(dd > 0, dd, 1.0), 0.0)
+    u = np.clip(u, 0.0, 1.0)
+    rx, ry, rz = wx - u * dx, wy - u * dy, wz - u * dz
+    return u, np.sqrt(rx * rx + ry * ry + rz * rz)
+
+
+def best_in_windows(c, pred, lo, hi, path: Path, weight: float):
+    """For points c (k, 3): the best segment in [lo, hi] by distance + weight x |S - pred| (earliest of
+    near-equal ones: arrival, not departure, at a standstill). For a point on a straight stretch the
+    distance grows with slope 1 away from the foot point, so a weight < 1 never moves the minimum, but
+    between equally close passes (a retraced line) it picks the expected one."""
+    nseg = path.nseg
+    band = int((hi - lo).max()) + 1
+    idx = lo[:, None] + np.arange(band)[None, :]
+    valid = idx <= hi[:, None]
+    np.minimum(idx, nseg - 1, out=idx)
+    u, dk = project_gathered(c, idx, path)
+    dk = np.where(valid, dk, np.inf)
+    score = dk + weight * np.abs(path.sv[idx] + u * path.sv_len[idx] - pred[:, None])
+    best = np.argmax(score <= score.min(axis=1, keepdims=True) + TIE_MM, axis=1)
+    rows = np.arange(len(c))
+    return idx[rows, best], u[rows, best], dk[rows, best]
+
+
+def chunk_bounds(s_sel: np.ndarray, chunk_points: int, chunk_mm: float) -> list[int]:
+    """Start offsets (and the end) of the chunks of the ordered points with program length s_sel: at most
+    chunk_points points and chunk_mm of program each, at least one point."""
+    bounds = [0]
+    i, n = 0, len(s_sel)
+    while i < n:
+        hi = min(i + chunk_points, n)
+        cut = int(np.searchsorted(s_sel[i:hi], s_sel[i] + chunk_mm, side="right"))
+        i += max(1, cut)
+        bounds.append(i)
+    return bounds
+
+
+def search_chunks(cl: np.ndarray, s_prog: np.ndarray, tol: np.ndarray, speed: np.ndarray | None,
+                  rest: np.ndarray, path: Path, cfg: Search, *, anchor_s: float, anchor_S: float,
+                  ratio: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(segment, u, distance) of every CL point in `rest` (ordered, after the start match), searching
+    its chunks one after the other from the start state (anchor_s, anchor_S, ratio)."""
+    n = len(rest)
+    seg = np.full(n, -1, dtype=np.int64)
+    u = np.full(n, np.nan)
+    dist = np.full(n, np.nan)
+    nseg = path.nseg
+    if n == 0 or nseg == 0:
+        return seg, u, dist
+    s_rest = s_prog[rest]
+    c_rest = cl[rest]
+    # the tolerance a match must meet to become the anchor, and the reach speed x interval, per point
+    tol_rest = tol[rest]
+    speed_rest = None if speed is None else speed[rest]
+    sv, sv_len, seg_len, seg_dt = path.sv, path.sv_len, path.seg_len, path.seg_dt
+    w0, drift, last_seg = cfg.w0, cfg.drift, max(nseg - 1, 0)
+    bounds = chunk_bounds(s_rest, cfg.chunk_points, cfg.chunk_mm)
+    for i, j in zip(bounds[:-1], bounds[1:]):
+        ds = np.maximum(s_rest[i:j] - anchor_s, 0.0)
+        pred = anchor_S + ratio * ds
+        # the measured path may be much shorter than the program (chords over wiggles, blends) but not
+        # much longer: search from just behind the anchor to (1 + drift) x the programmed distance ahead
+        if cfg.sparse:
+            lo_s = np.full(j - i, anchor_S - w0)
+            hi_s = anchor_S + (1 + drift) * ds + w0
+        else:  # dense samples follow the program closely: a window around the prediction
+            lo_s = pred - w0 - drift * ds
+            hi_s = pred + w0 + drift * ds
+        lo = np.clip(np.searchsorted(sv, lo_s, side="right") - 1, 0, last_seg)
+        hi = np.clip(np.searchsorted(sv, hi_s, side="left"), 0, last_seg)
+        c = c_rest[i:j]
+        sb, ub, db = best_in_windows(c, pred, lo, hi, path, cfg.weight)
+        for _ in range(MAX_WIDEN - 1):
+            # a best candidate on the window's edge may hide a better one beyond it: widen and retry
+            edge = ((sb == lo) & (lo > 0)) | ((sb == hi) & (hi < last_seg))
+            if not edge.any():
+                break
+            e = np.flatnonzero(edge)
+            width = hi[e] - lo[e] + 1
+            lo[e] = np.maximum(lo[e] - width, 0)
+            hi[e] = np.minimum(hi[e] + width, last_seg)
+            sb[e], ub[e], db[e] = best_in_windows(c[e], pred[e], lo[e], hi[e], path, cfg.weight)
+        seg[i:j], u[i:j], dist[i:j] = sb, ub, db
+        reach = seg_len[sb]
+        if speed_rest is not None:
+            reach = np.maximum(reach, speed_rest[i:j] * seg_dt[sb])
+        good = np.flatnonzero(db <= tol_rest[i:j] + cfg.chord_allowance * reach)
+        if len(good):
+            a = int(good[-1])
+            new_s = float(s_rest[i + a])
+            new_S = float(sv[sb[a]] + ub[a] * sv_len[sb[a]])
+            if new_s - anchor_s > w0:  # local ratio of measured to programmed length, for the prediction
+                ratio = float(np.clip((new_S - anchor_S) / (new_s - anchor_s), 0.05, 1.0 + drift))
+            anchor_s, anchor_S = new_s, new_S
+    return seg, u, dist
