@@ -26,12 +26,14 @@ from feedlog.errors import ModelError
 from feedlog.train.dataset import ProgramTable, window_sums
 from feedlog.train.features import CHIEN_INPUTS
 from feedlog.train.fitting import setup_torch
-from feedlog.train.model_seq import SeqConfig, SeqModel
+from feedlog.train.model_seq import SeqConfig, SeqModel, validation_heads
 from feedlog.train.nets import BiLSTMSeq
 from feedlog.train.registry import register_model
 
 SIM_COLUMN = "sim_duration_s"
 RESIDUAL_FLOOR_S = 1e-4
+# shares of the learned correction tried on the validation programs after training (0: the simulation)
+SCALES = (0.0, 0.25, 0.5, 0.75, 1.0)
 
 
 @dataclass(frozen=True)
@@ -117,6 +119,31 @@ class HybridModel(SeqModel):
         super().fit(tables, progress=progress)
         seen = np.concatenate([self.target(t) for t in tables])
         self.params["residual_range"] = [float(seen.min()), float(seen.max())]
+        self.params["correction_scale"] = self._choose_scale(tables)
+
+    def _choose_scale(self, tables) -> float:
+        """The share of the learned correction that serves the validation parts best (0 = simulation alone).
+
+        Per validation part (a held-out program, or a program's tail) the error of its total time;
+        the scale in `SCALES` with the lowest mean |error| wins, the smaller one on a tie, so the
+        hybrid never does worse than the simulation on data the net has not trained on.
+        """
+        cfg = self.config
+        heads = validation_heads([len(t.blocks) for t in tables], fraction=cfg.val_fraction, by=cfg.val_by,
+                                 seed=cfg.seed)
+        parts = [(t, h) for t, h in zip(tables, heads) if h < len(t.blocks)]
+        if not parts:
+            return 1.0
+        errors = np.zeros(len(SCALES))
+        for t, h in parts:
+            measured = t.durations()[h:].sum()
+            sim = self._sim(t)[h:]
+            values = self._net_values(t)[h:]
+            for i, scale in enumerate(SCALES):
+                pred = self._apply(sim, values * scale).sum()
+                errors[i] += abs(pred - measured) / max(measured, 1e-9)
+        self.report["correction_scale_errors_pct"] = [round(100 * e / len(parts), 4) for e in errors]
+        return float(SCALES[int(np.argmin(np.round(errors / len(parts), 6)))])
 
     def target(self, table: ProgramTable) -> np.ndarray:
         span = self.config.residual_span
@@ -125,9 +152,12 @@ class HybridModel(SeqModel):
         return np.log(measured + RESIDUAL_FLOOR_S) - np.log(simulated + RESIDUAL_FLOOR_S)
 
     def to_durations(self, table: ProgramTable, values: np.ndarray) -> np.ndarray:
+        return self._apply(self._sim(table), values * self.params.get("correction_scale", 1.0))
+
+    def _apply(self, sim: np.ndarray, values: np.ndarray) -> np.ndarray:
         lo, hi = self.params.get("residual_range", (-np.inf, np.inf))
         values = np.clip(values, lo, hi)  # never a larger correction than training saw
-        return np.maximum((self._sim(table) + RESIDUAL_FLOOR_S) * np.exp(values) - RESIDUAL_FLOOR_S, 0.0)
+        return np.maximum((sim + RESIDUAL_FLOOR_S) * np.exp(values) - RESIDUAL_FLOOR_S, 0.0)
 
     def _sim(self, table: ProgramTable) -> np.ndarray:
         if SIM_COLUMN not in table.blocks.columns:

@@ -165,6 +165,10 @@ class SeqModel(Model):
     def predict_values(self, table: ProgramTable) -> np.ndarray:
         """Per-block predicted target (in target units)."""
         self.check_trained()
+        return self._net_values(table)
+
+    def _net_values(self, table: ProgramTable) -> np.ndarray:
+        """`predict_values` without the trained check (for validation inside `fit`)."""
         setup_torch()
         cfg = self.config
         x = self.norms["x"].apply(self._matrix(table))

@@ -29,5 +29,31 @@ def test_simulated_tables_carry_features_and_simulated_times():
         assert np.all(d >= 0) and d.sum() > 0
         # an acceleration-limited machine never beats L/F on the feed moves
         assert t.measured_cycle_time_s >= 0.99 * t.cam_time_s
-    # exact path (G61) stops at every corner: slower than blending within 0.2 mm
-    assert tables[0].measured_cycle_time_s / tables[0].cam_time_s > tables[2].measured_cycle_time_s / tables[2].cam_time_s
+
+
+def _sim_time(text: str, profile) -> float:
+    from feedlog.sim import simulate
+
+    return float(simulate(parse_program(text), profile).blocks["duration_s"].sum())
+
+
+def test_one_seed_one_geometry_and_exact_stop_is_slower():
+    prof = load_profile("linuxcnc-xyz")
+    g61, blend = (random_program_text(n_blocks=80, feed_mm_min=3000.0, tol_mm=tol, seed=5) for tol in (0.0, 0.2))
+    moves = [[ln.split(" Z")[0] for ln in text.splitlines() if ln.startswith("X")] for text in (g61, blend)]
+    assert moves[0] == moves[1] and len(moves[0]) >= 80
+    # exact path (G61) stops at every corner: slower than blending within 0.2 mm on the same path
+    assert _sim_time(g61, prof) > 1.05 * _sim_time(blend, prof)
+
+
+def test_five_axis_programs_turn_the_rotary_axes_and_hit_their_speed_limit():
+    prof = load_profile("linuxcnc-xyzac")
+    (table,) = simulated_tables(prof, n_programs=1, n_blocks=200, seed=2)
+    assert " A" in table.program_text and " C" in table.program_text
+    b = table.blocks
+    limited = b["axis_time_s"] > 1.5 * b["nominal_time_s"]
+    assert (b["rot_dist_deg"] > 0).mean() > 0.3 and limited.sum() >= 10
+    # where a rotary axis sets the time, the simulated block is never faster than that axis allows
+    assert np.all(b.loc[limited, "duration_s"].sum() >= 0.99 * b.loc[limited, "axis_time_s"].sum())
+    (flat,) = simulated_tables(load_profile("linuxcnc-xyz"), n_programs=1, n_blocks=50, seed=2)
+    assert " A" not in flat.program_text
