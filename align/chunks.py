@@ -13,7 +13,7 @@ before, and the chunk state is plain Python floats.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -21,27 +21,22 @@ MAX_WIDEN = 4
 TIE_MM = 1e-6
 
 
-@dataclass
+@dataclass(frozen=True)
 class Path:
-    """The coarse measured path the search runs on: segments p0[j] + u d[j] (n, 3), their squared
-    lengths dd and lengths seg_len, path length sv at each vertex, sv_len = diff(sv), and seg_dt, the
-    sampling interval (s) each segment spans."""
+    """The coarse measured path the search runs on, as columns: segment starts x0, y0, z0 and vectors
+    dx, dy, dz (`cols`), squared lengths dd and lengths seg_len, path length sv at each vertex,
+    sv_len = diff(sv), and seg_dt, the sampling interval (s) each segment spans."""
 
-    p0: np.ndarray
-    d: np.ndarray
+    cols: tuple[np.ndarray, ...]
     dd: np.ndarray
     seg_len: np.ndarray
     sv: np.ndarray
     sv_len: np.ndarray
     seg_dt: np.ndarray
-    cols: tuple[np.ndarray, ...] = field(init=False, repr=False)  # x0, y0, z0, dx, dy, dz contiguous
-
-    def __post_init__(self) -> None:
-        self.cols = tuple(np.ascontiguousarray(a[:, i]) for a in (self.p0, self.d) for i in range(3))
 
     @property
     def nseg(self) -> int:
-        return len(self.p0)
+        return len(self.dd)
 
 
 @dataclass(frozen=True)
@@ -67,17 +62,23 @@ def project(c: np.ndarray, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
     return u, np.sqrt((r * r).sum(axis=-1))
 
 
-def project_gathered(c: np.ndarray, idx: np.ndarray, path: Path):
-    """`project` of points c (k, 3) onto the segments idx (k, m) of `path`, column by column: the same
-    operations in the same order per element (a sum over three is ((x + y) + z) in numpy too)."""
-    x0, y0, z0, dx, dy, dz = (a[idx] for a in path.cols)
-    dd = path.dd[idx]
-    wx, wy, wz = c[:, 0:1] - x0, c[:, 1:2] - y0, c[:, 2:3] - z0
+def project_cols(cx, cy, cz, x0, y0, z0, dx, dy, dz, dd):
+    """`project` on coordinates held as separate (broadcasting) columns: the same operations in the same
+    order per element (numpy sums three values as ((x + y) + z) too), without reductions over a
+    length-3 axis, which numpy does slowly."""
+    wx, wy, wz = cx - x0, cy - y0, cz - z0
     with np.errstate(invalid="ignore", divide="ignore"):
         u = np.where(dd > 0, (wx * dx + wy * dy + wz * dz) / np.where(dd > 0, dd, 1.0), 0.0)
     u = np.clip(u, 0.0, 1.0)
     rx, ry, rz = wx - u * dx, wy - u * dy, wz - u * dz
     return u, np.sqrt(rx * rx + ry * ry + rz * rz)
+
+
+def project_gathered(c: np.ndarray, idx: np.ndarray | slice, path: Path):
+    """`project` of points c (k, 3) onto the segments idx ((k, m) indices or a slice) of `path`."""
+    if isinstance(idx, slice):
+        return project_cols(c[..., 0:1], c[..., 1:2], c[..., 2:3], *(a[idx] for a in path.cols), path.dd[idx])
+    return project_cols(c[:, 0:1], c[:, 1:2], c[:, 2:3], *(a[idx] for a in path.cols), path.dd[idx])
 
 
 def best_in_windows(c, pred, lo, hi, path: Path, weight: float):

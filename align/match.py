@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feedlog.align.chunks import TIE_MM, Path, Search, project, search_chunks
+from feedlog.align.chunks import TIE_MM, Path, Search, project_cols, project_gathered, search_chunks
 from feedlog.errors import AlignmentError
 
 
@@ -101,13 +101,29 @@ class Match:
 
 
 NO_TIME = np.iinfo(np.int64).min
+REFINE_ROWS = 256  # CL points per refinement batch
+
+
+def path_length(positions: np.ndarray) -> np.ndarray:
+    """Cumulative chord length (n,) of an (n, k) polyline from 0, column by column (same values as
+    summing the squared differences over each row)."""
+    p = np.asarray(positions, dtype=np.float64)
+    sq = np.zeros(len(p) - 1 if len(p) else 0)
+    for i in range(p.shape[1]):
+        di = np.diff(p[:, i])
+        sq = di * di if i == 0 else sq + di * di
+    s = np.empty(len(p))
+    if len(p):
+        s[0] = 0.0
+        np.cumsum(np.sqrt(sq), out=s[1:])
+    return s
 
 
 def reduce_path(positions: np.ndarray, resolution_mm: float) -> tuple[np.ndarray, np.ndarray]:
     """Indices of vertices at least ~resolution_mm of path length apart (first and last sample of every
     bin kept, so standstills keep their start and end) and the cumulative length at every sample."""
-    s = np.concatenate([[0.0], np.cumsum(np.sqrt((np.diff(positions, axis=0) ** 2).sum(axis=1)))])
-    b = np.floor(s / resolution_mm).astype(np.int64)
+    s = path_length(positions)
+    b = np.floor(s / resolution_mm)  # whole numbers: compared as floats, no integer copy
     keep = np.zeros(len(s), dtype=bool)
     keep[0] = keep[-1] = True
     change = b[1:] != b[:-1]
@@ -118,7 +134,7 @@ def reduce_path(positions: np.ndarray, resolution_mm: float) -> tuple[np.ndarray
 
 def _bin_edges(s: np.ndarray, step: float) -> np.ndarray:
     """Indices of the first and last element of every `step`-wide bin of the non-decreasing `s`."""
-    b = np.floor(s / step).astype(np.int64)
+    b = np.floor(s / step)
     keep = np.zeros(len(s), dtype=bool)
     keep[0] = keep[-1] = True
     change = b[1:] != b[:-1]
@@ -145,16 +161,20 @@ def _refine(cl, m, seg_of, u_of, sv_c, s_full, fine_keep, pos, weight):
     d_new = np.full(len(seg_of), np.nan)
     width = hi - lo + 1
     order = np.argsort(width)
-    for part in np.array_split(order, max(1, int(width.sum()) // 1_000_000 + 1)):
+    px, py, pz = pos[:, 0], pos[:, 1], pos[:, 2]
+    # rows sorted by window width, in parts of a few hundred: each part pads only to its own widest row
+    for part in np.array_split(order, max(1, len(order) // REFINE_ROWS, int(width.sum()) // 1_000_000 + 1)):
         if not len(part):
             continue
         band = int(width[part].max())
         idx = lo[part, None] + np.arange(band)[None, :]
         valid = idx <= hi[part, None]
         idx = np.minimum(idx, nf - 1)
-        fp0 = pos[fine_keep[idx]]
-        fd = pos[fine_keep[idx + 1]] - fp0
-        u, dk = project(cl[ks[part]][:, None, :], fp0, fd, (fd * fd).sum(axis=-1))
+        a, b = fine_keep[idx], fine_keep[idx + 1]
+        x0, y0, z0 = px[a], py[a], pz[a]
+        dx, dy, dz = px[b] - x0, py[b] - y0, pz[b] - z0
+        c = cl[ks[part]]
+        u, dk = project_cols(c[:, 0:1], c[:, 1:2], c[:, 2:3], x0, y0, z0, dx, dy, dz, dx * dx + dy * dy + dz * dz)
         dk = np.where(valid, dk, np.inf)
         score = dk + weight * np.abs(fs[idx] + u * (fs[idx + 1] - fs[idx]) - s_coarse[part, None])
         best = np.argmax(score <= score.min(axis=1, keepdims=True) + TIE_MM, axis=1)
@@ -194,14 +214,14 @@ class _LazyDiff:
         return self.values[j + 1] - self.values[j]
 
 
-def _first_passage(c: np.ndarray, tol: float, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
+def _first_passage(c: np.ndarray, tol: float, path: Path):
     """(segment, u, distance) of the closest point of the earliest passage of the path within `tol` of
     point c, or None. Scans the path from its start in growing blocks (the start is usually early)."""
-    n = len(p0)
+    n = path.nseg
     lo, size = 0, 4096
     while lo < n:
         hi = min(n, lo + size)
-        u, dk = project(c[None, :], p0[lo:hi], d[lo:hi], dd[lo:hi])
+        u, dk = project_gathered(c, slice(lo, hi), path)
         near = np.flatnonzero(dk <= tol)
         if len(near):
             j = int(near[0])
@@ -212,7 +232,7 @@ def _first_passage(c: np.ndarray, tol: float, p0: np.ndarray, d: np.ndarray, dd:
                     end = j + (int(out[0]) if len(out) else len(dk) - j)
                     break
                 hi2 = min(n, hi + size)
-                u2, dk2 = project(c[None, :], p0[hi:hi2], d[hi:hi2], dd[hi:hi2])
+                u2, dk2 = project_gathered(c, slice(hi, hi2), path)
                 u, dk, hi = np.concatenate([u, u2]), np.concatenate([dk, dk2]), hi2
             best = j + int(np.argmin(dk[j:end]))
             return lo + best, float(u[best]), float(dk[best])
@@ -257,13 +277,19 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     fine_keep, s_full = reduce_path(pos, cfg.resolution_mm)
     # search on a coarse copy of the path (vertices >= coarse_mm apart), refine on the fine one
     keep = fine_keep[_bin_edges(s_full[fine_keep], cfg.coarse_mm)]
-    v = pos[keep]
+    vx, vy, vz = pos[keep, 0], pos[keep, 1], pos[keep, 2]
     sv = s_full[keep]
-    p0, d = v[:-1], np.diff(v, axis=0)
-    dd = (d * d).sum(axis=1)
-    nseg = len(p0)
+    dx, dy, dz = np.diff(vx), np.diff(vy), np.diff(vz)
+    dd = dx * dx + dy * dy + dz * dz  # the coarse segments, as columns
+    nseg = len(dd)
     spacing = float(np.median(np.diff(sv))) if nseg else 0.0
     sv_len = np.diff(sv)  # path length along each coarse segment
+    seg_dt = np.diff(t[keep]) / 1e9  # sampling interval each coarse segment spans (s), outliers capped
+    if len(seg_dt):
+        seg_dt = np.minimum(seg_dt, 10 * max(float(np.median(seg_dt)), 1e-9))
+    seg_len = np.sqrt(dd)
+    coarse = Path(cols=(vx[:-1], vy[:-1], vz[:-1], dx, dy, dz), dd=dd, seg_len=seg_len, sv=sv, sv_len=sv_len,
+                  seg_dt=seg_dt)
     if period_ns is None:
         dt_all = np.diff(t)
         period = int(np.median(dt_all[dt_all > 0])) if (dt_all > 0).any() else 0
@@ -283,7 +309,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     order = np.flatnonzero(finite_cl)
     start = None
     for k in order[: min(len(order), 64)]:
-        found = _first_passage(cl[k], tol[k], p0, d, dd)
+        found = _first_passage(cl[k], tol[k], coarse)
         if found is not None:
             seg_of[k], u_of[k], dist[k] = found
             start = k
@@ -295,18 +321,12 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
                              "program, units or work offset?")
     anchor_s, anchor_S = s_prog[start], sv[seg_of[start]] + u_of[start] * sv_len[seg_of[start]]
     speed = None if speed_mm_s is None else np.nan_to_num(np.asarray(speed_mm_s, dtype=np.float64), nan=0.0)
-    tv = t[keep]
-    seg_dt = np.diff(tv) / 1e9
-    if len(seg_dt):
-        seg_dt = np.minimum(seg_dt, 10 * max(float(np.median(seg_dt)), 1e-9))
 
     # 3. chunks of CL points after the start (`chunks`)
     rest = order[order > start]
-    seg_len = np.sqrt(dd)
-    path = Path(p0=p0, d=d, dd=dd, seg_len=seg_len, sv=sv, sv_len=sv_len, seg_dt=seg_dt)
     search = Search(w0=w0, drift=drift, sparse=sparse, weight=cfg.progress_weight,
                     chord_allowance=cfg.chord_allowance, chunk_points=cfg.chunk_points, chunk_mm=chunk_mm)
-    seg_of[rest], u_of[rest], dist[rest] = search_chunks(cl, s_prog, tol, speed, rest, path, search,
+    seg_of[rest], u_of[rest], dist[rest] = search_chunks(cl, s_prog, tol, speed, rest, coarse, search,
                                                          anchor_s=float(anchor_s), anchor_S=float(anchor_S))
 
     # refine every match on the fine path, around its coarse segment and the two next to it

@@ -57,6 +57,11 @@ def stream_timing(t_ns: np.ndarray, *, gap_factor: float = 3.0, name: str = "str
         if len(positive) == 0:
             raise AlignmentError(f"{name}: all {len(t)} samples carry the same timestamp")
     period = int(np.median(positive))
+    lo, hi = int(dt.min()), int(dt.max())
+    if lo > 0 and hi <= gap_factor * period:  # the usual case: no gaps, no duplicates; no masks needed
+        return StreamTiming(samples=len(t), period_ns=period, jitter_ns=float(np.std(dt)),
+                            max_jitter_ns=max(hi - period, period - lo), gaps=0, gap_total_ns=0,
+                            largest_gap_ns=0, first_gap_index=-1, duplicates=0)
     gap_mask = dt > gap_factor * period
     regular = dt[(dt > 0) & ~gap_mask]
     dev = regular - period
@@ -68,7 +73,7 @@ def stream_timing(t_ns: np.ndarray, *, gap_factor: float = 3.0, name: str = "str
         max_jitter_ns=int(np.max(np.abs(dev))) if len(dev) else 0,
         gaps=int(len(gap_idx)),
         gap_total_ns=int(np.sum(dt[gap_mask] - period)),
-        largest_gap_ns=int(dt.max()) if len(gap_idx) else 0,
+        largest_gap_ns=hi if len(gap_idx) else 0,
         first_gap_index=int(gap_idx[0]) if len(gap_idx) else -1,
         duplicates=int(np.sum(dt == 0)),
     )
