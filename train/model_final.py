@@ -1,14 +1,21 @@
 """Bi-LSTM direct final cycle time (Chien Fig. 8): sequence to last, trained on whole-sequence times only.
 
 The "stopwatch" strategy: the network never sees a block time, only the total time of a stretch of
-blocks. Training examples are crops of the training programs whose lengths lie within
-`length_tolerance` (Chien §2.5: 5 %) of `crop_blocks`; a program shorter than a crop is used whole
-(the packed LSTM ignores padding). `crop_blocks` = 0 picks the median length of the programs the
-caller names as targets (`target_lengths`, e.g. the test programs) or else of the training programs.
+blocks. Chien §2.5: the training sequences must lie within `length_tolerance` (5 %) of the length
+of the sequence predicted. Programs range from tens to thousands of blocks, so one crop length cannot
+serve them all; the rule is applied per predicted *chunk* (`crop_mode`):
 
-A program of N blocks is predicted as k = round(N / crop_blocks) consecutive, near-equal chunks whose
-predicted totals are summed; with k = 1 this is the paper's single pass. Chunks outside the trained
-length range are flagged in the prediction's notes.
+- "range" (default): crop lengths are drawn log-uniformly from `crop_range` = (lo, hi) blocks, so
+  every length in the range has training crops within +-5 % of it (about `crops` x 0.1 / ln(hi / lo)
+  of them). A program of N <= hi blocks is predicted in one pass (the paper's); a longer one in
+  k = ceil(N / hi) consecutive near-equal chunks, each of hi / 2 .. hi blocks, so inside the trained
+  range, whose predicted totals are summed. A program shorter than lo is predicted whole and flagged.
+- "fixed": crops within +-5 % of one length `crop_blocks` (0: the median length of the programs the
+  caller names as targets, `target_lengths`, e.g. the test programs, or else of the training
+  programs); a program is predicted in round(N / crop_blocks) near-equal chunks.
+- "auto": "fixed" when `crop_blocks` > 0, else "range".
+
+Chunks outside the trained length range are flagged in the prediction's notes.
 """
 
 from __future__ import annotations
@@ -25,9 +32,11 @@ from feedlog.train.dataset import ProgramTable
 from feedlog.train.features import CHIEN_INPUTS, Normaliser, build_inputs, limited_time, profile_constants
 from feedlog.train.fitting import setup_torch, train_net
 from feedlog.train.nets import BiLSTMLast
+from feedlog.train.model_seq import AUTO_PROGRAMS, validation_heads
 from feedlog.train.registry import Model, ModelConfig, TablePrediction, register_model
 
 PREDICT_BATCH = 1024
+CROP_MODES = ("auto", "range", "fixed")
 CAM_FLOOR_S = 1e-3  # added to a stretch's measured and CAM totals before the log ratio
 
 
@@ -36,6 +45,8 @@ class FinalConfig(ModelConfig):
     inputs: tuple[str, ...] = CHIEN_INPUTS
     hidden: int = 50
     layers: int = 1
+    crop_mode: str = "auto"
+    crop_range: tuple[int, int] = (16, 256)
     crop_blocks: int = 0
     length_tolerance: float = 0.05
     crops: int = 512
@@ -57,6 +68,18 @@ class FinalConfig(ModelConfig):
         if self.crop_blocks < 0 or not 0 <= self.length_tolerance < 1:
             raise ModelError(f"FinalConfig: need crop_blocks >= 0 and length_tolerance in [0, 1), got "
                              f"{self.crop_blocks}, {self.length_tolerance}")
+        if self.crop_mode not in CROP_MODES:
+            raise ModelError(f"FinalConfig.crop_mode must be one of {', '.join(CROP_MODES)}, got {self.crop_mode!r}")
+        if len(self.crop_range) != 2 or not 2 <= self.crop_range[0] <= self.crop_range[1] // 2:
+            raise ModelError(f"FinalConfig.crop_range needs (lo, hi) with 2 <= lo and 2 x lo <= hi (a long "
+                             f"program's chunks span hi / 2 .. hi), got {self.crop_range}")
+
+    @property
+    def mode(self) -> str:
+        """The crop mode in effect ("auto" resolved)."""
+        if self.crop_mode == "auto":
+            return "fixed" if self.crop_blocks > 0 else "range"
+        return self.crop_mode
 
 
 def _padded(seqs: Sequence[np.ndarray]) -> tuple[torch.Tensor, torch.Tensor]:
@@ -96,6 +119,40 @@ class FinalBiLSTM(Model):
         lengths = self.target_lengths or [len(t.blocks) for t in tables]
         return max(2, int(np.median(lengths)))
 
+    def _length_range(self, tables: Sequence[ProgramTable]) -> tuple[int, int]:
+        """Sets params (crop mode and the trained length range) and returns the crop length range."""
+        cfg = self.config
+        if cfg.mode == "range":
+            lo, hi = int(cfg.crop_range[0]), int(cfg.crop_range[1])
+            self.params = {"crop_mode": "range", "min_blocks": lo, "max_blocks": hi}
+            return lo, hi
+        crop = self._crop_length(tables)
+        lo = max(1, int(np.floor(crop * (1 - cfg.length_tolerance))))
+        hi = int(np.ceil(crop * (1 + cfg.length_tolerance)))
+        self.params = {"crop_mode": "fixed", "crop_blocks": crop, "min_blocks": lo, "max_blocks": hi}
+        return lo, hi
+
+    def _crop_lengths(self, rng: np.random.Generator, n: int, lo: int, hi: int) -> np.ndarray:
+        if self.config.mode == "range":  # log-uniform: as many crops near 20 blocks as near 200
+            return np.floor(np.exp(rng.uniform(np.log(lo), np.log(hi + 1), n))).astype(np.int64).clip(lo, hi)
+        return rng.integers(lo, hi + 1, n)
+
+    def _sample(self, rng: np.random.Generator, pool: Sequence[int], n: int, xs: Sequence[np.ndarray],
+                ds: Sequence[np.ndarray], cams: Sequence[np.ndarray], lo: int, hi: int
+                ) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+        """`n` random stretches of the programs in `pool` (chosen by size): inputs, totals, CAM totals."""
+        sizes = np.array([len(xs[i]) for i in pool], np.float64)
+        which = np.asarray(pool)[rng.choice(len(pool), size=n, p=sizes / sizes.sum())]
+        lengths = self._crop_lengths(rng, n, lo, hi)
+        seqs, totals, cam_totals = [], np.empty(n), np.empty(n)
+        for k, (i, want) in enumerate(zip(which, lengths)):
+            length = min(len(xs[i]), int(want))  # a program shorter than the crop is used whole
+            start = int(rng.integers(0, len(xs[i]) - length + 1))
+            seqs.append(xs[i][start:start + length])
+            totals[k] = ds[i][start:start + length].sum()
+            cam_totals[k] = cams[i][start:start + length].sum()
+        return seqs, totals, cam_totals
+
     def fit(self, tables: Sequence[ProgramTable], *, progress: bool = True) -> None:
         cfg = self.config
         if not tables:
@@ -104,24 +161,26 @@ class FinalBiLSTM(Model):
         xs = [self._matrix(t) for t in tables]
         ds = [t.durations() for t in tables]
         cams = [limited_time(t.blocks, name=t.name, needed_by="bilstm-final") for t in tables]
-        crop = self._crop_length(tables)
-        lo, hi = max(1, int(np.floor(crop * (1 - cfg.length_tolerance)))), int(np.ceil(crop * (1 + cfg.length_tolerance)))
-        self.params = {"crop_blocks": crop, "min_blocks": lo, "max_blocks": hi}
+        lo, hi = self._length_range(tables)
         rng = np.random.default_rng(cfg.seed)
-        sizes = np.array([len(x) for x in xs], np.float64)
-        which = rng.choice(len(xs), size=cfg.crops, p=sizes / sizes.sum())
-        seqs, totals, cam_totals = [], [], []
-        for i in which:
-            n = len(xs[i])
-            length = min(n, int(rng.integers(lo, hi + 1)))
-            start = int(rng.integers(0, n - length + 1))
-            seqs.append(xs[i][start:start + length])
-            totals.append(ds[i][start:start + length].sum())
-            cam_totals.append(cams[i][start:start + length].sum())
-        totals_arr = self._encode(np.array(totals), np.array(cam_totals))
         n_val = int(round(cfg.crops * cfg.val_fraction))
-        order = rng.permutation(cfg.crops)
-        val_idx, train_idx = order[:n_val], order[n_val:]
+        # early stopping on crops of whole held-out training programs when there are enough programs
+        # (how the net does on a program it has not seen), else on held-out crops of all of them
+        heads = validation_heads([len(x) for x in xs], fraction=cfg.val_fraction, by="auto", seed=cfg.seed)
+        held = [i for i, h in enumerate(heads) if h == 0]
+        if held and n_val and len(held) < len(xs) and len(xs) >= AUTO_PROGRAMS:
+            kept = [i for i in range(len(xs)) if i not in held]
+            seqs, totals, cam_totals = self._sample(rng, kept, cfg.crops - n_val, xs, ds, cams, lo, hi)
+            v_seqs, v_totals, v_cams = self._sample(rng, held, n_val, xs, ds, cams, lo, hi)
+            seqs += v_seqs
+            totals, cam_totals = np.concatenate([totals, v_totals]), np.concatenate([cam_totals, v_cams])
+            train_idx, val_idx = np.arange(cfg.crops - n_val), np.arange(cfg.crops - n_val, cfg.crops)
+        else:
+            seqs, totals, cam_totals = self._sample(rng, range(len(xs)), cfg.crops, xs, ds, cams, lo, hi)
+            order = rng.permutation(cfg.crops)
+            val_idx, train_idx = order[:n_val], order[n_val:]
+        self.params["crops_trained"] = int(len(train_idx))
+        totals_arr = self._encode(totals, cam_totals)
         self.norms["x"] = Normaliser.fit(np.concatenate([seqs[i] for i in train_idx]))
         self.norms["y"] = Normaliser.fit(totals_arr[train_idx], bounds=False)
         norm_seqs = [self.norms["x"].apply(s) for s in seqs]
@@ -135,6 +194,8 @@ class FinalBiLSTM(Model):
             xb, lb, yb = data[split]
             if idx is not None:
                 xb, lb, yb = xb[idx], lb[idx], yb[idx]
+                width = int(lb.max())  # the batch's longest crop: no time spent on all-padding steps
+                xb = xb[:, :width]
             return torch.mean((net(xb, lb) - yb) ** 2)
 
         self.report["net"] = train_net(
@@ -153,8 +214,11 @@ class FinalBiLSTM(Model):
         return values
 
     def chunks(self, n: int) -> list[np.ndarray]:
-        """Row index chunks a program of n blocks is predicted in."""
-        k = max(1, int(round(n / self.params["crop_blocks"])))
+        """Row index chunks a program of n blocks is predicted in (each inside the trained range if it can be)."""
+        if self.params.get("crop_mode", "fixed") == "range":
+            k = max(1, int(np.ceil(n / self.params["max_blocks"])))
+        else:
+            k = max(1, int(round(n / self.params["crop_blocks"])))
         return np.array_split(np.arange(n), k)
 
     def predict(self, table: ProgramTable) -> TablePrediction:

@@ -7,6 +7,11 @@ at the CL point itself, but Eq. 10 integrates the time over each segment, and th
 makes that integral exact (at a sharp corner the instantaneous feed is near zero and Eq. 10 would
 explode). Eq. 9 gives the resultant f = sqrt(fx^2 + fy^2 + fz^2); Eq. 10 gives each block's time as
 its nominal time scaled by |v_nom| / f (= L / f for lines).
+
+Departures from Sun, each configurable (`MLPConfig`): `extra_inputs` (tolerances, segment length, axis
+limit ratio; `()` is Sun's Table 1 exactly), `limited_feeds` (feeds and nominal times within the axes'
+speed limits, for five-axis blocks a rotary axis times), `target_span` (the speed ratio of the target
+taken over neighbouring blocks), `mirror` (blocks mirrored to + travel).
 """
 
 from __future__ import annotations
@@ -19,8 +24,8 @@ import numpy as np
 import torch
 
 from feedlog.errors import ModelError
-from feedlog.train.dataset import ProgramTable
-from feedlog.train.features import AXES3, Normaliser, build_inputs, sun_inputs
+from feedlog.train.dataset import ProgramTable, window_sums
+from feedlog.train.features import AXES3, Normaliser, build_inputs, limited_time, sun_inputs
 from feedlog.train.fitting import setup_torch, train_net
 from feedlog.train.nets import AxisMLP
 from feedlog.train.model_seq import VAL_BY, validation_heads
@@ -46,6 +51,14 @@ class MLPConfig(ModelConfig):
     # target times sign(v_axis,n)): the machine's axes behave alike in both directions, and the small
     # tanh nets then learn one feed magnitude instead of a function that is odd in the feed
     mirror: bool = True
+    # feeds in the axes' speed limits: each block's nominal axis feeds scaled by L/F / limited time
+    # (`features.limited_time`), so a five-axis block whose time a rotary axis' speed sets enters (and is
+    # timed by Eq. 10) at the feed its axes can actually run; False: the programmed feeds (Sun)
+    limited_feeds: bool = True
+    # the target's speed ratio (nominal / measured time) is taken over the 2 x target_span + 1 blocks
+    # around n: align may put a corner's time on either side of a block boundary, and a per-block ratio
+    # (target_span 0, Sun's) carries that noise into 1 / duration
+    target_span: int = 1
     # early stopping on whole held-out training programs ("program"), the tail of each ("tail"), or
     # "auto" (whole programs from 8 training programs on)
     val_by: str = "auto"
@@ -60,15 +73,29 @@ class MLPConfig(ModelConfig):
             raise ModelError(f"MLPConfig.axes must be a subset of {AXES3}, got {self.axes}")
         if self.val_by not in VAL_BY:
             raise ModelError(f"MLPConfig.val_by must be one of {', '.join(VAL_BY)}, got {self.val_by!r}")
+        if self.target_span < 0:
+            raise ModelError(f"MLPConfig.target_span must be >= 0, got {self.target_span}")
         if not 0 < self.min_feed_ratio < 1:
             raise ModelError(f"MLPConfig.min_feed_ratio must be in (0, 1), got {self.min_feed_ratio}")
 
 
-def _nominal(table: ProgramTable, axes: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
-    """Nominal axis feeds (rows x axes, mm/min) and nominal block times (s)."""
+def _nominal(table: ProgramTable, axes: Sequence[str], *, limited: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Axis feeds (rows x axes, mm/min) and block times (s): nominal, or within the axes' speed limits."""
     b = table.blocks
-    v = np.column_stack([b[f"v{a}_nom_mm_min"].to_numpy(np.float64) for a in axes])
-    return np.nan_to_num(v), np.nan_to_num(b["nominal_time_s"].to_numpy(np.float64))
+    v = np.nan_to_num(np.column_stack([b[f"v{a}_nom_mm_min"].to_numpy(np.float64) for a in axes]))
+    nominal = np.nan_to_num(b["nominal_time_s"].to_numpy(np.float64))
+    if not limited:
+        return v, nominal
+    lim = limited_time(b, name=table.name, needed_by="mlp")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = np.where(lim > 0, nominal / lim, 1.0)
+    return v * scale[:, None], lim
+
+
+def speed_ratio(nominal: np.ndarray, duration: np.ndarray, *, span: int) -> np.ndarray:
+    """Each block's nominal / measured time, both summed over the moving blocks n - span .. n + span."""
+    moving = nominal > 0
+    return window_sums(nominal, span) / np.maximum(window_sums(np.where(moving, duration, 0.0), span), 1e-9)
 
 
 @register_model
@@ -93,6 +120,16 @@ class PerAxisMLP(Model):
         names = self.axis_inputs(axis)
         x = build_inputs(table.blocks, names, what="mlp", source=table.name)
         v = np.nan_to_num(table.blocks[f"v{axis}_nom_mm_min"].to_numpy(np.float64))
+        if self.config.limited_feeds:  # axis feeds at n-1, n, n+1 within the axes' speed limits
+            _, lim = _nominal(table, (axis,), limited=True)
+            nominal = np.nan_to_num(table.blocks["nominal_time_s"].to_numpy(np.float64))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                scale = np.where(lim > 0, nominal / lim, 1.0)
+            shifted = {"": scale, "_prev": np.concatenate([[1.0], scale[:-1]]),
+                       "_next": np.concatenate([scale[1:], [1.0]])}
+            for j, n in enumerate(names):
+                if n.startswith(f"v{axis}_nom_mm_min"):
+                    x[:, j] *= shifted[n[len(f"v{axis}_nom_mm_min"):]].astype(np.float32)
         sign = np.where(v < 0, -1.0, 1.0) if self.config.mirror else np.ones(len(v))
         signed = [j for j, n in enumerate(names) if n.startswith((f"v{axis}_nom", f"a{axis}_nom"))]
         x[:, signed] *= sign[:, None].astype(np.float32)
@@ -110,8 +147,9 @@ class PerAxisMLP(Model):
         heads = validation_heads([len(t.blocks) for t in tables], fraction=cfg.val_fraction, by=cfg.val_by,
                                  seed=cfg.seed)
         for t, head in zip(tables, heads):
-            v, nominal = _nominal(t, cfg.axes)
+            v, nominal = _nominal(t, cfg.axes, limited=cfg.limited_feeds)
             d = t.durations()
+            ratio = speed_ratio(nominal, d, span=cfg.target_span)
             keep = (nominal > 0) & (d > 0) & (np.abs(v).sum(axis=1) > 0)
             val = np.zeros(len(d), bool)
             val[head:] = True
@@ -119,7 +157,7 @@ class PerAxisMLP(Model):
             for i, a in enumerate(cfg.axes):
                 x, sign = self._axis_matrix(t, a)
                 xs[a].append(x[keep])
-                ys[a].append((sign * v[:, i] * nominal / np.where(d > 0, d, 1.0))[keep])
+                ys[a].append((sign * v[:, i] * ratio)[keep])
         val_mask = np.concatenate(is_val)
         if (~val_mask).sum() < 2:
             raise ModelError("mlp: fewer than 2 usable training blocks (need nominal time and duration > 0)")
@@ -158,7 +196,7 @@ class PerAxisMLP(Model):
 
     def predict(self, table: ProgramTable) -> TablePrediction:
         f = self.axis_feeds(table)
-        v, nominal = _nominal(table, self.config.axes)
+        v, nominal = _nominal(table, self.config.axes, limited=self.config.limited_feeds)
         v_res = np.sqrt((v * v).sum(axis=1))
         f_res = np.maximum(np.sqrt((f * f).sum(axis=1)), self.config.min_feed_ratio * v_res)  # Eq. 9
         with np.errstate(divide="ignore", invalid="ignore"):

@@ -104,7 +104,8 @@ def test_final_model_chunks_long_programs(data):
 
 
 def test_final_model_takes_its_crop_length_from_the_targets(data):
-    model = FinalBiLSTM(make_config("bilstm-final", **{**TINY["bilstm-final"], "crop_blocks": 0}),
+    model = FinalBiLSTM(make_config("bilstm-final", **{**TINY["bilstm-final"], "crop_blocks": 0,
+                                                          "crop_mode": "fixed"}),
                         target_lengths=[50, 60, 70])
     model.fit([t for t in data if t.split == "train"], progress=False)
     assert model.params["crop_blocks"] == 60

@@ -1,0 +1,69 @@
+"""Per-axis MLP: Sun's Table 1 inputs, feeds within the axes' speed limits, the smoothed speed-ratio target."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from feedlog.errors import ModelError
+from feedlog.profile import load_profile
+from feedlog.toolpath import block_features, parse_program
+from feedlog.train.dataset import ProgramTable
+from feedlog.train.features import sun_inputs, with_program_columns
+from feedlog.train.model_mlp import PerAxisMLP, speed_ratio
+from feedlog.train.registry import make_config
+
+PROGRAM = """G21 G90 G94
+G64 P0.01
+F600
+G0 X0 Y0 Z0 A0 C0
+G1 X1
+G1 X2 C30
+G1 X3
+M2
+"""
+
+
+def _table() -> ProgramTable:
+    prof = load_profile("linuxcnc-xyzac")
+    program = parse_program(PROGRAM)
+    return ProgramTable("t", with_program_columns(block_features(program, prof), program, prof))
+
+
+def test_no_extra_inputs_is_sun_table_1_exactly():
+    model = PerAxisMLP(make_config("mlp", extra_inputs=()))
+    for axis in ("x", "y", "z"):
+        assert model.axis_inputs(axis) == sun_inputs(axis)
+        assert len(model.axis_inputs(axis)) == 9  # angles, feeds, accelerations at n-1, n, n+1
+
+
+def test_limited_feeds_slow_a_block_a_rotary_axis_times():
+    t = _table()
+    limited = PerAxisMLP(make_config("mlp", extra_inputs=()))
+    programmed = PerAxisMLP(make_config("mlp", extra_inputs=(), limited_feeds=False))
+    names = limited.axis_inputs("x")
+    x_lim, _ = limited._axis_matrix(t, "x")
+    x_nom, _ = programmed._axis_matrix(t, "x")
+    v, v_prev, v_next = (names.index(c) for c in ("vx_nom_mm_min", "vx_nom_mm_min_prev", "vx_nom_mm_min_next"))
+    # block 2 turns C 30 deg at 60 deg/s (0.5 s) for 1 mm at 600 mm/min (0.1 s): its X feed runs at 1/5
+    assert x_nom[2, v] == pytest.approx(600.0)
+    assert x_lim[2, v] == pytest.approx(120.0)
+    assert x_lim[1, v_next] == pytest.approx(120.0) and x_lim[3, v_prev] == pytest.approx(120.0)
+    # blocks the X feed times keep their programmed feed
+    assert x_lim[1, v] == pytest.approx(x_nom[1, v]) and x_lim[3, v] == pytest.approx(x_nom[3, v])
+
+
+def test_speed_ratio_spreads_a_time_align_put_on_the_wrong_side_of_a_boundary():
+    nominal = np.array([0.0, 1.0, 1.0, 1.0, 1.0])
+    # the corner between blocks 2 and 3 costs 0.4 s; align put it all on block 2
+    duration = np.array([0.3, 1.0, 1.4, 1.0, 1.0])
+    assert speed_ratio(nominal, duration, span=0)[1:].tolist() == pytest.approx([1.0, 1 / 1.4, 1.0, 1.0])
+    smooth = speed_ratio(nominal, duration, span=1)
+    assert smooth[2] == pytest.approx(3 / 3.4) and smooth[3] == pytest.approx(3 / 3.4)
+    # the dwell/rapid block without nominal time does not count in its neighbour's window
+    assert smooth[1] == pytest.approx(2 / 2.4)
+
+
+def test_negative_target_span_is_refused():
+    with pytest.raises(ModelError, match="target_span"):
+        make_config("mlp", target_span=-1)
