@@ -259,8 +259,8 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     primary = line_blocks if line_blocks is not None else geo
 
     feats = block_features(prog, prof)
-    blocks_out = join_by_block(primary, feats.drop(columns=["line"]))
-    points = join_by_block(points, feats.drop(columns=["line", "kind", "feed_mm_min"]))
+    blocks_out = join_by_block(primary, feats, exclude=("line",))
+    points = join_by_block(points, feats, exclude=("line", "kind", "feed_mm_min"))
     report["blocks"] = {"motion_blocks": len(primary), "source": str(primary["source"].iloc[0]) if len(primary) else None,
                         "unseen_in_line_stream": int((~line_blocks["seen"]).sum()) if line_blocks is not None else None,
                         "sum_duration_s": float(primary["duration_s"].sum())}
@@ -343,8 +343,7 @@ def _points_table(cl: pd.DataFrame, match, feeds: pd.DataFrame, path_feed: np.nd
     # built as one dict of columns: one DataFrame construction instead of a dozen insertions
     data: dict[str, Any] = {"point": np.arange(len(cl), dtype=np.int64)}
     for c in cl.columns:
-        data["programmed_feed_mm_min" if c == "feed_mm_min" else c] = cl[c].to_numpy(copy=True) \
-            if not isinstance(cl[c].dtype, pd.CategoricalDtype) else cl[c].copy().reset_index(drop=True)
+        data["programmed_feed_mm_min" if c == "feed_mm_min" else c] = _column(cl, c)
     ok = match.matched
     tm = np.where(ok, match.t_ns, 0)
     data["t_ns"] = np.where(ok, match.t_ns, NO_TIME)
@@ -356,22 +355,33 @@ def _points_table(cl: pd.DataFrame, match, feeds: pd.DataFrame, path_feed: np.nd
         if c.startswith("v"):  # vx_mm_min -> vx_meas_mm_min
             axis, rest = c.split("_", 1)
             data[f"{axis}_meas_{rest}"] = np.where(ok, feeds[c].to_numpy(), np.nan)
-    return pd.DataFrame(data)
+    return pd.DataFrame(data, copy=False)
 
 
-def join_by_block(left: pd.DataFrame, right: pd.DataFrame) -> pd.DataFrame:
-    """`left.merge(right, on="block", how="left")` for the common case of a unique `block` key in `right`
-    that covers every block of `left` and no other shared column: rows taken by position (one gather,
-    dtypes kept), without the merge machinery's fixed cost. Anything else goes through `merge`."""
+def _column(frame: pd.DataFrame, c: str) -> Any:
+    """A writable copy of column `c` as an array: numpy for numpy dtypes, the extension array (category,
+    string) otherwise (a copy: columns read from a copy-on-write frame are read-only views)."""
+    col = frame[c]
+    return col.to_numpy(copy=True) if isinstance(col.dtype, np.dtype) else col.array.copy()
+
+
+def join_by_block(left: pd.DataFrame, right: pd.DataFrame, *, exclude: tuple[str, ...] = ()) -> pd.DataFrame:
+    """`left.merge(right.drop(columns=exclude), on="block", how="left")` for the common case of a unique
+    `block` key in `right` that covers every block of `left` and no other shared column: the new columns
+    gathered by position (dtypes kept) into one DataFrame built from arrays, without the merge machinery's
+    fixed cost. Anything else goes through `merge`."""
+    cols = [c for c in right.columns if c != "block" and c not in exclude]
     keys = pd.Index(right["block"].to_numpy())
-    shared = (set(left.columns) & set(right.columns)) - {"block"}
-    if shared or not keys.is_unique:
-        return left.merge(right, on="block", how="left")
+    if set(left.columns) & set(cols) or not keys.is_unique:
+        return left.merge(right[["block", *cols]], on="block", how="left")
     pos = keys.get_indexer(left["block"].to_numpy())
     if (pos < 0).any():
-        return left.merge(right, on="block", how="left")
-    extra = right.drop(columns=["block"]).take(pos).reset_index(drop=True)
-    return pd.concat([left.reset_index(drop=True), extra], axis=1)
+        return left.merge(right[["block", *cols]], on="block", how="left")
+    data = {c: _column(left, c) for c in left.columns}
+    for c in cols:
+        col = right[c]
+        data[c] = (col.to_numpy() if isinstance(col.dtype, np.dtype) else col.array).take(pos)  # a new array
+    return pd.DataFrame(data, copy=False)
 
 
 def _last_rows(block: np.ndarray, wanted: np.ndarray) -> np.ndarray:
