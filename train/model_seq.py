@@ -29,6 +29,7 @@ LOG_FLOOR_S = 1e-3    # added to block times before the log target
 VAL_BY = ("auto", "program", "tail")
 AUTO_PROGRAMS = 8     # val_by="auto" holds out whole programs from this many training tables on
 RATIO_FLOOR_S = 1e-4  # added to both sums of the CAM-ratio target
+TARGET_MODES = ("cam_ratio", "cam_sum", "log")
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,10 @@ class SeqConfig(ModelConfig):
     # blocks, and predict CAM time x e^r per block (an untrained net is CAM; align may put a corner's
     # time on either side of a block boundary, which per-block targets would have to learn as noise);
     # "log": learn each block's own log time (Chien's per-block target)
+    # "cam_sum": the net gives each block its own log factor on the CAM time, trained so that the predicted
+    # block times summed over the same 2 x ratio_span + 1 neighbouring blocks match the measured sums (log
+    # error): the factors may differ block by block (a short block after a long line), and the per-block
+    # predictions add up to what the loss saw, which a smoothed "cam_ratio" target does not guarantee
     target_mode: str = "cam_ratio"
     ratio_span: int = 8
     # prediction runs longer windows (0: 4 x window) that overlap by 2 x predict_context blocks, so every
@@ -68,8 +73,9 @@ class SeqConfig(ModelConfig):
         if not 1 <= self.stride <= self.window:
             raise ModelError(f"{type(self).__name__}: need 1 <= stride <= window, got stride {self.stride}, "
                              f"window {self.window}")
-        if self.target_mode not in ("cam_ratio", "log") or self.ratio_span < 0:
-            raise ModelError(f"{type(self).__name__}: target_mode must be 'cam_ratio' or 'log' and ratio_span >= 0, "
+        if self.target_mode not in TARGET_MODES or self.ratio_span < 0:
+            raise ModelError(f"{type(self).__name__}: target_mode must be one of {', '.join(TARGET_MODES)} and "
+                             f"ratio_span >= 0, "
                              f"got {self.target_mode!r}, {self.ratio_span}")
         if self.val_by not in VAL_BY:
             raise ModelError(f"{type(self).__name__}.val_by must be one of {', '.join(VAL_BY)}, got {self.val_by!r}")
@@ -92,6 +98,27 @@ def validation_heads(lengths: Sequence[int], *, fraction: float, by: str, seed: 
         held = set(np.random.default_rng(seed).choice(n, size=k, replace=False).tolist())
         return [0 if i in held else length for i, length in enumerate(lengths)]
     return [tail_split(length, fraction) for length in lengths]
+
+
+def window_sum_loss(log_factor: torch.Tensor, measured: torch.Tensor, cam: torch.Tensor, mask: torch.Tensor,
+                    *, span: int) -> torch.Tensor:
+    """Mean squared log error of block times summed over 2 x span + 1 neighbours (within each window).
+
+    Predicted block time = cam x e^log_factor; padded steps (mask 0) add nothing to either sum.
+    """
+    m = mask.to(cam.dtype)
+    pred = cam * torch.exp(log_factor) * m
+    meas = measured * m
+    n = pred.shape[1]
+    k = torch.arange(n)
+    hi, lo = torch.clamp(k + span + 1, max=n), torch.clamp(k - span, min=0)
+
+    def sums(v: torch.Tensor) -> torch.Tensor:
+        c = torch.nn.functional.pad(torch.cumsum(v, dim=1), (1, 0))
+        return c[:, hi] - c[:, lo]
+
+    diff = torch.log(sums(pred) + RATIO_FLOOR_S) - torch.log(sums(meas) + RATIO_FLOOR_S)
+    return (diff * diff * m).sum() / m.sum().clamp_min(1.0)
 
 
 class SeqModel(Model):
@@ -117,6 +144,8 @@ class SeqModel(Model):
         if self.config.target_mode == "cam_ratio":
             cam = limited_time(table.blocks, name=table.name, needed_by="the CAM-ratio target")
             return np.maximum((cam + RATIO_FLOOR_S) * np.exp(values) - RATIO_FLOOR_S, 0.0)
+        if self.config.target_mode == "cam_sum":
+            return limited_time(table.blocks, name=table.name, needed_by="the CAM-sum target") * np.exp(values)
         return np.maximum(values, 0.0)
 
     def _encode(self, y: np.ndarray) -> np.ndarray:
@@ -137,24 +166,39 @@ class SeqModel(Model):
             raise ModelError(f"{self.name}: no training tables")
         self.constants = profile_constants(tables[0].profile)
         xs = [self._matrix(t) for t in tables]
+        summed = cfg.target_mode == "cam_sum"
         ys = [self._encode(self.target(t)) for t in tables]
         heads = validation_heads([len(y) for y in ys], fraction=cfg.val_fraction, by=cfg.val_by, seed=cfg.seed)
         self.norms["x"] = Normaliser.fit(np.concatenate([x[:h] for x, h in zip(xs, heads)]))
-        self.norms["y"] = Normaliser.fit(np.concatenate([y[:h] for y, h in zip(ys, heads)]), bounds=False)
-        parts: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {"train": [], "val": []}
-        for x, y, h in zip(xs, ys, heads):
+        # cam_sum: the net's output is the log factor itself (an untrained net is about CAM)
+        self.norms["y"] = (Normaliser((0.0,), (1.0,)) if summed else
+                           Normaliser.fit(np.concatenate([y[:h] for y, h in zip(ys, heads)]), bounds=False))
+        cams = [limited_time(t.blocks, name=t.name, needed_by="the CAM-sum target") if summed else None
+                for t in tables]
+        parts: dict[str, list[tuple[np.ndarray, ...]]] = {"train": [], "val": []}
+        for x, y, h, cam in zip(xs, ys, heads, cams):
             xn, yn = self.norms["x"].apply(x), self.norms["y"].apply(y[:, None])[:, 0]
-            parts["train"].append(make_windows(xn[:h], yn[:h], length=cfg.window, stride=cfg.stride))
-            if h < len(y):
-                parts["val"].append(make_windows(xn[h:], yn[h:], length=cfg.window, stride=cfg.stride))
+            for split, rows in (("train", slice(0, h)), ("val", slice(h, len(y)))):
+                if rows.start >= rows.stop:
+                    continue
+                w = make_windows(xn[rows], yn[rows], length=cfg.window, stride=cfg.stride)
+                if summed:
+                    w = w + (make_windows(xn[rows], cam[rows], length=cfg.window, stride=cfg.stride)[1],)
+                parts[split].append(w)
+        width = 4 if summed else 3
         data = {k: tuple(torch.from_numpy(np.concatenate([p[i] for p in v]).astype(np.float32))
-                         for i in range(3)) if v else None for k, v in parts.items()}
+                         for i in range(width)) if v else None for k, v in parts.items()}
         self.build_nets()
+        span = cfg.ratio_span
 
         def loss_fn(net, idx, split):
-            xb, yb, mb = data[split]
+            batch = data[split]
             if idx is not None:
-                xb, yb, mb = xb[idx], yb[idx], mb[idx]
+                batch = tuple(b[idx] for b in batch)
+            if summed:
+                xb, yb, mb, cb = batch
+                return window_sum_loss(net(xb), yb, cb, mb, span=span)
+            xb, yb, mb = batch
             return masked_mse(net(xb), yb, mb)
 
         self.report["net"] = train_net(
