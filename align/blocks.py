@@ -188,9 +188,9 @@ NO_TIME = np.iinfo(np.int64).min
 SHORT_LEAVE_SAMPLES = 64
 
 
-def _last_on(t, p, rows, start, hi, a, d, on_path_mm):
+def _last_on(t, p, rows, start, hi, a, d, on_path_mm, *, off=False):
     """Per row: the index of the last sample in [start, hi[row]] within on_path_mm of the segment
-    a[i] + u d[i] (u in [0, 1]), -1 when none."""
+    a[i] + u d[i] (u in [0, 1]) (with `off`: farther than on_path_mm), -1 when none."""
     n = len(t)
     out = np.full(len(rows), -1, dtype=np.int64)
     if not len(rows):
@@ -206,7 +206,8 @@ def _last_on(t, p, rows, start, hi, a, d, on_path_mm):
         dd = (dv * dv).sum(axis=2)
         u = np.clip(np.where(dd > 0, (w * dv).sum(axis=2) / np.where(dd > 0, dd, 1.0), 0.0), 0.0, 1.0)
         dist = np.sqrt(((w - u[..., None] * dv) ** 2).sum(axis=2))
-        out[sel] = np.where(valid & (dist <= on_path_mm), idx, -1).max(axis=1)
+        hit = (dist > on_path_mm) if off else (dist <= on_path_mm)
+        out[sel] = np.where(valid & hit, idx, -1).max(axis=1)
     return out
 
 

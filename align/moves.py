@@ -10,17 +10,21 @@ LinuxCNC 2.9 (read in src/emc/task/emccanon.cc and src/emc/tp/tp.c):
   number. So a merged move is exactly the chord of whole blocks; the blocks before its last one never
   show in `motion.program-line`. feedlog.sim models this as its `naive_cam` mechanism
   (`NaiveCamMerge`); `planner_moves` runs that mechanism on the program and reads off the chains.
-- **Blends (planner).** Between two moves the planner inserts a blend arc. The arc is queued when the
-  next move is added and takes the next move's id (`tp->nextId`), i.e. its line: the line switches where
-  the tool leaves the straight move into the blend. When the part of a move left over by its two blends
-  would take less than about one servo cycle, the blend arc *consumes* it (`param.consume`,
-  `tcqPopBack`): that move never shows at all; the line goes from the move before it straight to the
-  one after it.
+- **Blends (planner).** Between two xyz moves the planner inserts a blend arc. The arc is queued when
+  the next move is added and takes the next move's id (`tp->nextId`), i.e. its line: the line switches
+  where the tool leaves the straight move into the blend. When the straight rest of a move left over by
+  its two blends would take less than `ARC_BLEND_GAP_CYCLES` servo cycles (INI [TRAJ], default 4;
+  `blendCheckConsume` in src/emc/tp/blendmath.c: rest length / planned speed), the next blend arc
+  *consumes* it (`param.consume`, `tcqPopBack`, the rest added to the arc as `line_length`): the move's
+  line shows only during the blend INTO it; the next line starts where the tool arrives on its chord.
+  Moves with rotary motion (or into one) blend parabolically, not by arcs, and are not consumed this way.
 
 Geometry boundaries from this: a straight move ends at the first sample off its chord after the last
-sample on it (`move_leave_times`). A move with no sample on its chord was consumed (or lasted less than
-a servo period): it gets zero time at the end of the move before it. Blocks inside a move end where
-the tool passes their end point (their CL match), never after the move's end.
+sample on it (`move_leave_times`); when its on-chord run lasts less than the gap cycles (measured from
+where the blends meet the chord tangentially), at the first sample of that run. A move whose chord the
+path only touches ends at the touching point; one never near its chord gets zero time at the end of
+the move before it. Blocks inside a move end where the tool passes their end point (their CL match),
+never after the move's end.
 """
 
 from __future__ import annotations
@@ -65,7 +69,8 @@ def planner_moves(program: Program, profile: MachineProfile) -> np.ndarray:
 
 def move_leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndarray, seg_end: np.ndarray,
                      end_index: np.ndarray, move: np.ndarray, *, on_path_mm: float = 1e-4,
-                     touch_mm: float = 0.01, search_s: float = 0.5) -> np.ndarray:
+                     touch_mm: float = 0.01, gap_cycles: float = 4.0, arc_blends: np.ndarray | None = None,
+                     search_s: float = 0.5) -> np.ndarray:
     """Per motion block: where the line switches, for the last block of each straight planner move.
 
     `seg_start`/`seg_end` (k, 3) are the blocks' straight segments in the measured frame (NaN rows:
@@ -74,8 +79,13 @@ def move_leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndar
     runs the chord from its first block's start to its last block's end; its last block gets the time
     of the first sample farther than `on_path_mm` from that chord after the last sample on it, searched
     among the samples after the previous move's end match up to its own end match (at most `search_s`
-    before it). A straight move with no sample on its chord gets the previous move's result (zero time,
-    the blend consumed it). Other blocks: NO_TIME (their end is their CL match)."""
+    before it). When the tool runs the chord for less than `gap_cycles` servo cycles (LinuxCNC's
+    ARC_BLEND_GAP_CYCLES, default 4) between two blend arcs (`arc_blends`: per block, xyz-only motion;
+    default all), the next blend consumed that straight rest and its line shows from where the tool
+    arrived on the chord: that sample instead. A straight move whose chord the path only touches (the
+    blends before and after it meet) ends at the touching point (nearest sample within `touch_mm`);
+    one never within `touch_mm` of its chord gets the previous move's result (zero time). Other
+    blocks: NO_TIME (their end is their CL match)."""
     t = np.asarray(t_ns, dtype=np.int64)
     p = np.asarray(positions, dtype=np.float64)[:, :3]
     a = np.asarray(seg_start, dtype=np.float64)
@@ -113,6 +123,23 @@ def move_leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndar
     leave = np.full(len(first), NO_TIME, dtype=np.int64)
     found = on >= 0
     leave[rows[found]] = t[np.minimum(on[found] + 1, n - 1)]
+    # a straight part shorter than `gap_cycles` servo cycles is consumed by the next blend arc (its
+    # line shows from where the tool arrives on the chord): first sample of the on-chord run
+    # (blend arcs join xyz lines only: moves with rotary motion, or into one, blend parabolically)
+    arcs = np.ones(k, bool) if arc_blends is None else np.asarray(arc_blends, dtype=bool)
+    arc_move = np.minimum.reduceat(arcs.astype(np.int8), first).astype(bool)
+    arc_move &= np.r_[arc_move[1:], False]
+    sel = found & arc_move[rows]
+    if gap_cycles > 0 and sel.any():
+        r, last_on, sa, sb = rows[sel], on[sel], ca[sel], cb[sel]
+        upto = hi.copy()
+        upto[r] = last_on
+        off_before = _last_on(t, p, r, lo[r], upto, sa, sb - sa, on_path_mm, off=True)
+        first_on = off_before + 1
+        arrive = _tangent_time(t, p, np.maximum(first_on - 1, 0), -1, sa, sb)
+        depart = _tangent_time(t, p, np.minimum(last_on + 1, n - 1), 1, sa, sb)
+        short_run = (off_before >= 0) & (last_on + 2 < n) & (depart - arrive < gap_cycles * period)
+        leave[r[short_run]] = t[first_on[short_run]]
     # no straight stretch left: the blends before and after the move meet on its chord (the path only
     # touches it); the line switches at that touching point, the sample nearest the chord
     miss = rows[~found]
@@ -131,6 +158,33 @@ def move_leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndar
         leave[c] = leave[prev[c]]
     out[last] = leave
     return out
+
+
+def _seg_dist(p: np.ndarray, idx: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance of samples p[idx[i]] to the segments a[i] -> b[i]."""
+    d = b - a
+    w = p[idx] - a
+    u = np.clip((w * d).sum(axis=1) / np.maximum((d * d).sum(axis=1), 1e-300), 0.0, 1.0)
+    return np.linalg.norm(w - u[:, None] * d, axis=1)
+
+
+def _tangent_time(t: np.ndarray, p: np.ndarray, off_idx: np.ndarray, step: int, a: np.ndarray,
+                  b: np.ndarray) -> np.ndarray:
+    """Sub-sample time (float ns) where a blend meets the segment a -> b tangentially: off_idx is the
+    sample just off the segment, off_idx + step the next one farther out. A circular blend leaves a
+    tangent line as d = (v tau)^2 / 2R, so sqrt(d) is linear in time: extrapolated to zero, clipped to
+    the interval next to off_idx."""
+    n = len(t)
+    i1 = np.clip(off_idx, 0, n - 1)
+    i2 = np.clip(off_idx + step, 0, n - 1)
+    i0 = np.clip(off_idx - step, 0, n - 1)     # the on-segment neighbour
+    r1 = np.sqrt(_seg_dist(p, i1, a, b))
+    r2 = np.sqrt(_seg_dist(p, i2, a, b))
+    t1, t2, t0 = t[i1].astype(np.float64), t[i2].astype(np.float64), t[i0].astype(np.float64)
+    grow = r2 - r1
+    est = np.where(grow > 0, t1 - r1 * (t2 - t1) / np.where(grow > 0, grow, 1.0), t1)
+    lo_t, hi_t = np.minimum(t0, t1), np.maximum(t0, t1)
+    return np.clip(est, lo_t, hi_t)
 
 
 def _touch_times(t: np.ndarray, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, a: np.ndarray,
@@ -225,8 +279,13 @@ def geometry_blocks_by_moves(recording: Recording, alignment: Alignment, *, prog
     on_path = max(float(report.get("config", {}).get("on_path_mm", 1e-6)), 2 * position_quantum(xyz),
                   float(report.get("still_mm", 0.0)))
     move = planner_moves(program, profile)
+    rotary = np.zeros(len(motion), dtype=bool)
+    for ax in ("a", "b", "c"):
+        if f"{ax}_deg" in motion.columns and f"{ax}0_deg" in motion.columns:
+            turn = (motion[f"{ax}_deg"] - motion[f"{ax}0_deg"]).abs().to_numpy(dtype=np.float64)
+            rotary |= np.nan_to_num(turn, nan=0.0) > 1e-9
     leave = move_leave_times(t, xyz, np.where(straight, p0, np.nan), np.where(straight, p1, np.nan), end_index,
-                             move, on_path_mm=on_path)
+                             move, on_path_mm=on_path, arc_blends=~rotary)
     span = MotionSpan(t_start_ns=int(report["motion"]["t_start_ns"]), t_end_ns=int(report["motion"]["t_end_ns"]),
                       first_index=0, last_index=len(t) - 1)
     # blocks inside a move: their own end is their CL match (arrival); the move's last block: the leave

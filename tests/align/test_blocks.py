@@ -91,3 +91,129 @@ def test_geometry_blocks_match_line_truth(motion, rate_hz, tol_mm, max_median_s)
     assert cmp["blocks"] == len(blocks)
     assert cmp["duration_err_median_s"] <= max_median_s
     assert (geo["t_end_ns"].iloc[-1] - geo["t_start_ns"].iloc[0]) / 1e9 == pytest.approx(motion.motion_s, rel=0.005)
+
+
+# --- LinuxCNC planner moves (feedlog.align.moves) -----------------------------------------------------
+
+def _blended_path(corners, radius_mm, speed_mm_per_sample):
+    """Straight moves between `corners` (xy) joined by circular blends of `radius_mm` tangent to both
+    moves (as LinuxCNC's blend arcs), sampled at a constant speed. Returns positions (n, 3), and per
+    move the arc length where the tool arrives on and leaves its chord."""
+    c = np.asarray(corners, dtype=float)
+    u = np.diff(c, axis=0)
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    pieces = []  # (kind, start, end or centre data, length)
+    on = [(0.0, None)]
+    s = 0.0
+    pos = c[0]
+    for i in range(1, len(c) - 1):
+        half = np.arccos(np.clip(u[i - 1] @ u[i], -1, 1)) / 2       # half the turn
+        trim = radius_mm * np.tan(half)
+        p_in, p_out = c[i] - trim * u[i - 1], c[i] + trim * u[i]
+        L = np.linalg.norm(p_in - pos)
+        pieces.append(("line", pos, p_in, L))
+        s += L
+        on[-1] = (on[-1][0], s)
+        turn = np.sign(u[i - 1][0] * u[i][1] - u[i - 1][1] * u[i][0])   # +1 left, -1 right
+        normal = np.array([-u[i - 1][1], u[i - 1][0]]) * turn
+        centre = p_in + radius_mm * normal
+        sweep = 2 * half
+        pieces.append(("arc", p_in, (centre, sweep, turn), radius_mm * sweep))
+        s += radius_mm * sweep
+        on.append((s, None))
+        pos = p_out
+    L = np.linalg.norm(c[-1] - pos)
+    pieces.append(("line", pos, c[-1], L))
+    on[-1] = (on[-1][0], s + L)
+    total = s + L
+    samples = np.arange(0.0, total + speed_mm_per_sample, speed_mm_per_sample)
+    samples = np.minimum(samples, total)
+    out = np.zeros((len(samples), 3))
+    start = 0.0
+    for kind, a, b, length in pieces:
+        sel = (samples >= start) & (samples <= start + length)
+        w = samples[sel] - start
+        if kind == "line":
+            out[sel, :2] = a + (b - a) * (w / max(length, 1e-12))[:, None]
+        else:
+            centre, sweep, turn = b
+            r0 = a - centre
+            ang = turn * w / radius_mm
+            cs, sn = np.cos(ang), np.sin(ang)
+            out[sel, 0] = centre[0] + cs * r0[0] - sn * r0[1]
+            out[sel, 1] = centre[1] + sn * r0[0] + cs * r0[1]
+        start += length
+    return out, np.asarray(on)
+
+
+def _leave(corners, *, radius=0.5, step=0.05, **kw):
+    from feedlog.align.moves import move_leave_times
+    p, on = _blended_path(corners, radius, step)
+    t = np.arange(len(p), dtype=np.int64) * 1_000_000   # 1 kHz
+    c = np.c_[np.asarray(corners, float), np.zeros(len(corners))]
+    end_index = np.array([np.argmin(np.linalg.norm(p - e, axis=1)) for e in c[1:]], dtype=float)
+    leave = move_leave_times(t, p, c[:-1], c[1:], end_index, np.arange(len(c) - 1), on_path_mm=1e-6, **kw)
+    return leave, on / step  # chord run [arrive, leave] per move in samples
+
+
+def test_move_leaves_its_chord_where_the_blend_begins():
+    leave, on = _leave([[0, 0], [10, 0], [10, 10], [0, 10]])
+    # moves 0 and 1 have long straight rests: the line switches one sample after the last on the chord
+    for k in (0, 1):
+        assert leave[k] / 1e6 == pytest.approx(np.floor(on[k, 1]) + 1, abs=1)
+    assert leave[2] / 1e6 >= np.floor(on[2, 1])  # the last move stays on its chord to its end
+
+
+def test_short_straight_rest_is_consumed_by_the_next_blend():
+    """Move 1's straight rest (0.15 mm = 3 cycles at 0.05 mm per cycle) is shorter than 4 gap cycles:
+    LinuxCNC's next blend arc consumes it, the line switches where the tool arrives on the chord."""
+    corners = [[0, 0], [10, 0], [10, 1.15], [0, 1.15]]
+    leave, on = _leave(corners)
+    assert on[1, 1] - on[1, 0] == pytest.approx(3.0, abs=0.01)
+    assert leave[1] / 1e6 == pytest.approx(np.ceil(on[1, 0]), abs=1)
+    # the same rest with the gap check off (or with rotary moves, which blend without arcs): the leave
+    long_leave, _ = _leave(corners, gap_cycles=0)
+    assert long_leave[1] / 1e6 == pytest.approx(np.floor(on[1, 1]) + 1, abs=1)
+    no_arcs, _ = _leave(corners, arc_blends=np.array([True, False, True]))
+    assert no_arcs[1] == long_leave[1]
+    assert leave[0] == long_leave[0]
+    # a longer rest (0.5 mm = 10 cycles) is kept
+    leave10, on10 = _leave([[0, 0], [10, 0], [10, 1.5], [0, 1.5]])
+    assert leave10[1] / 1e6 == pytest.approx(np.floor(on10[1, 1]) + 1, abs=1)
+
+
+def test_move_the_path_only_touches_ends_at_the_touching_point():
+    """Move 1 is exactly as long as its two blends' trims: the blends meet on its chord."""
+    leave, on = _leave([[0, 0], [10, 0], [10, 1.0], [0, 1.0]])
+    assert on[1, 1] - on[1, 0] == pytest.approx(0.0, abs=1e-6)
+    touch = on[1, 0]
+    assert leave[1] / 1e6 == pytest.approx(touch, abs=1.0)
+    assert leave[0] < leave[1]
+
+
+def test_move_leave_times_rejects_inconsistent_moves():
+    from feedlog.align.moves import move_leave_times
+    t = np.arange(10, dtype=np.int64) * 1_000_000
+    p = np.zeros((10, 3))
+    seg = np.zeros((3, 3))
+    with pytest.raises(AlignmentError, match="non-decreasing"):
+        move_leave_times(t, p, seg, seg, np.zeros(3), np.array([0, 1, 0]))
+
+
+def test_planner_moves_follow_linuxcnc_collinear_merge():
+    """G64 P0.05 (Q = P): nearly collinear 0.2 mm segments are merged into one move (emccanon's chain);
+    G61 and G64 P0.05 Q0 run every block alone; a corner always ends a move."""
+    from feedlog.align.moves import planner_moves
+    from feedlog.profile import load_profile
+    from feedlog.toolpath import parse_program
+    lines = [f"G1 X{0.2 * i:.3f} Y{0.002 * (i % 2):.4f}" for i in range(1, 11)] + ["G1 Y5", "G1 X0"]
+
+    def moves(mode):
+        text = "\n".join(["G21 G90 G17", mode, "G0 X0 Y0 Z0", "F3000"] + lines + ["M2"])
+        return planner_moves(parse_program(text, name="merge.ngc"), load_profile("linuxcnc-xyz"))
+    merged = moves("G64 P0.05")
+    assert len(merged) == 13 and merged[0] == 0                  # the rapid is its own move
+    assert (merged[1:11] == merged[1]).all()                     # the ten short segments: one move
+    assert merged[11] != merged[10] and merged[12] != merged[11]   # corners
+    for mode in ("G61", "G64 P0.05 Q0"):
+        assert (np.diff(moves(mode)) == 1).all()
