@@ -367,20 +367,29 @@ def _column(frame: pd.DataFrame, c: str) -> Any:
 
 def join_by_block(left: pd.DataFrame, right: pd.DataFrame, *, exclude: tuple[str, ...] = ()) -> pd.DataFrame:
     """`left.merge(right.drop(columns=exclude), on="block", how="left")` for the common case of a unique
-    `block` key in `right` that covers every block of `left` and no other shared column: the new columns
-    gathered by position (dtypes kept) into one DataFrame built from arrays, without the merge machinery's
-    fixed cost. Anything else goes through `merge`."""
+    `block` key in `right` and no other shared column: the new columns gathered by position into one
+    DataFrame built from arrays, without the merge machinery's fixed cost. Rows of `left` whose block
+    `right` lacks (the CL start point) get NaN, as from the merge, when every new column is a float
+    (or extension) column; anything else goes through `merge`."""
     cols = [c for c in right.columns if c != "block" and c not in exclude]
     keys = pd.Index(right["block"].to_numpy())
-    if set(left.columns) & set(cols) or not keys.is_unique:
+    if set(left.columns) & set(cols) or not keys.is_unique or not len(keys):
         return left.merge(right[["block", *cols]], on="block", how="left")
     pos = keys.get_indexer(left["block"].to_numpy())
-    if (pos < 0).any():
+    missing = pos < 0
+    new = {c: right[c] for c in cols}
+    if missing.any() and any(isinstance(v.dtype, np.dtype) and v.dtype.kind != "f" for v in new.values()):
         return left.merge(right[["block", *cols]], on="block", how="left")
     data = {c: _column(left, c) for c in left.columns}
-    for c in cols:
-        col = right[c]
-        data[c] = (col.to_numpy() if isinstance(col.dtype, np.dtype) else col.array).take(pos)  # a new array
+    hole = missing.any()
+    for c, col in new.items():
+        if isinstance(col.dtype, np.dtype):
+            v = col.to_numpy().take(pos if not hole else np.where(missing, 0, pos))  # a new array
+            if hole:
+                v[missing] = np.nan
+        else:
+            v = col.array.take(pos, allow_fill=True)
+        data[c] = v
     return pd.DataFrame(data, copy=False)
 
 
