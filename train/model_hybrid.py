@@ -52,6 +52,9 @@ class HybridConfig(SeqConfig):
         super().__post_init__()
         if self.residual_span < 0:
             raise ModelError(f"HybridConfig.residual_span must be >= 0, got {self.residual_span}")
+        if self.target_mode == "cam_sum":
+            raise ModelError("HybridConfig: the hybrid learns its own residual target; target_mode 'cam_sum' "
+                             "does not apply")
         if SIM_COLUMN not in self.inputs:
             raise ModelError(f"HybridConfig.inputs must include {SIM_COLUMN!r}, got {self.inputs}")
 

@@ -40,6 +40,10 @@ def test_window_sum_loss_is_the_log_error_of_neighbour_sums():
 def test_target_mode_is_checked():
     with pytest.raises(ModelError, match="target_mode must be one of cam_ratio, cam_sum, log"):
         make_config("bilstm-block", target_mode="sum")
+    with pytest.raises(ModelError, match="hybrid learns its own residual"):
+        make_config("hybrid", target_mode="cam_sum")
+    assert make_config("bilstm-block").target_mode == "cam_sum"
+    assert make_config("bilstm-block", target_mode="cam_ratio").batch_size == 64
 
 
 def test_cam_sum_learns_block_times_that_add_up():
