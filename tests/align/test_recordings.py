@@ -23,7 +23,13 @@ UNMERGED = ["corners_f3000_p001", "corners_f3000_g61", "circle_f3000_p001", "tes
             "pocket_f3000_p001"]
 # all families, merged ones included (their blocks compared per merged group)
 FREEFORM = ["freeform_f3000_p001", "freeform_f1000_p01", "freeform_f2000_p005", "freeform_b_f3000_p01"]
-ALL = UNMERGED + ["dense002q0", "circle_f1000_p01", "test_p01", "corners_f1000_p01", "rcl_f3000_p01"] + FREEFORM
+# the other bundled recordings (train and test split: this is alignment accuracy, not learning)
+OTHERS = ["corners_f2000_p005", "corners_b_f1000_p001", "circle_r10_f2000_p001", "circle_b_f3000_g61",
+          "pocket_f2000_p01", "pocket_f1000_g61", "test_g61", "rcl_f1000_p001", "rcl_f1000_p01", "rcl_f3000_p001",
+          "rcl_f3000_g61", "rcl5ax_f1000_p001", "rcl5ax_f1000_p01", "rcl5ax_f3000_p001", "rcl5ax_f3000_p01",
+          "rcl5ax_f3000_g61", "5ax_near_f3000_p001", "5ax_far_f3000_p001", "5ax_near_f1000_g61_offset",
+          "5ax_far_f1000_p01_offset", "5ax_near_f2000_p01", "5ax_far_f2000_g61", "5ax_near_b_f1000_p01_offset"]
+ALL = UNMERGED + ["dense002q0", "circle_f1000_p01", "test_p01", "corners_f1000_p01", "rcl_f3000_p01"] + FREEFORM + OTHERS
 # 5 Hz: motion start and end inside their 200 ms interval come from feedlog.sim's trajectory
 EXACT_STOP = ["corners_f3000_g61", "test_g61", "pocket_f1000_g61", "5ax_g61", "circle_b_f3000_g61"]
 CONTINUOUS_5HZ = ["corners_f3000_p001", "test_p001", "circle_f3000_p001", "dense002q0", "freeform_f3000_p001",
@@ -80,11 +86,15 @@ def test_planner_moves_are_what_linuxcnc_shows(aligned, by_moves, name):
     assert not (seen & ~last_of_move).any()
     if name.startswith("freeform") or name in ("circle_f1000_p01", "rcl_f3000_p01"):
         assert (~last_of_move).sum() > 80  # these programs really are merged
-    # the move-based geometry blocks follow each other inside the motion (gaps only at exact stops,
-    # between arrival and departure), like the pipeline's own geometry blocks
+    # the move-based geometry blocks follow each other inside the motion, with gaps (stops between
+    # arrival and departure) exactly where the pipeline's own geometry blocks have them
     assert (g["duration_s"] >= 0).all()
-    assert (g["t_start_ns"].to_numpy()[1:] >= g["t_end_ns"].to_numpy()[:-1]).all()
-    assert a.cycle_time_s - 0.005 <= g["duration_s"].sum() <= a.cycle_time_s + 1e-9
+    start, end = g["t_start_ns"].to_numpy(), g["t_end_ns"].to_numpy()
+    assert (start[1:] >= end[:-1]).all()
+    geo = a.geometry_blocks
+    np.testing.assert_array_equal(start[1:] > end[:-1],
+                                  geo["t_start_ns"].to_numpy()[1:] > geo["t_end_ns"].to_numpy()[:-1])
+    assert geo["duration_s"].sum() - 0.005 <= g["duration_s"].sum() <= a.cycle_time_s + 1e-9
 
 
 @pytest.mark.parametrize("name", ALL)
