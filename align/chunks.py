@@ -69,7 +69,7 @@ def project_cols(cx, cy, cz, x0, y0, z0, dx, dy, dz, dd):
     wx, wy, wz = cx - x0, cy - y0, cz - z0
     with np.errstate(invalid="ignore", divide="ignore"):
         u = np.where(dd > 0, (wx * dx + wy * dy + wz * dz) / np.where(dd > 0, dd, 1.0), 0.0)
-    u = np.clip(u, 0.0, 1.0)
+    u = np.minimum(np.maximum(u, 0.0), 1.0)  # np.clip's values, without its wrapper's cost per call
     rx, ry, rz = wx - u * dx, wy - u * dy, wz - u * dz
     return u, np.sqrt(rx * rx + ry * ry + rz * rz)
 
@@ -143,8 +143,9 @@ def search_chunks(cl: np.ndarray, s_prog: np.ndarray, tol: np.ndarray, speed: np
         else:  # dense samples follow the program closely: a window around the prediction
             lo_s = pred - w0 - drift * ds
             hi_s = pred + w0 + drift * ds
-        lo = np.clip(np.searchsorted(sv, lo_s, side="right") - 1, 0, last_seg)
-        hi = np.clip(np.searchsorted(sv, hi_s, side="left"), 0, last_seg)
+        # np.clip on integers looks up the type's limits on every call: maximum/minimum instead
+        lo = np.minimum(np.maximum(np.searchsorted(sv, lo_s, side="right") - 1, 0), last_seg)
+        hi = np.minimum(np.maximum(np.searchsorted(sv, hi_s, side="left"), 0), last_seg)
         c = c_rest[i:j]
         sb, ub, db = best_in_windows(c, pred, lo, hi, path, cfg.weight)
         for _ in range(MAX_WIDEN - 1):
@@ -167,6 +168,6 @@ def search_chunks(cl: np.ndarray, s_prog: np.ndarray, tol: np.ndarray, speed: np
             new_s = float(s_rest[i + a])
             new_S = float(sv[sb[a]] + ub[a] * sv_len[sb[a]])
             if new_s - anchor_s > w0:  # local ratio of measured to programmed length, for the prediction
-                ratio = float(np.clip((new_S - anchor_S) / (new_s - anchor_s), 0.05, 1.0 + drift))
+                ratio = min(max((new_S - anchor_S) / (new_s - anchor_s), 0.05), 1.0 + drift)
             anchor_s, anchor_S = new_s, new_S
     return seg, u, dist
