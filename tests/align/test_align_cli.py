@@ -136,3 +136,25 @@ def test_align_many_api_keeps_input_order(rec_files, tmp_path):
     assert [Path(i.recording).name for i in items] == ["one.mcap", "two.mcap"] and all(i.ok for i in items)
     with pytest.raises(FeedlogError, match="share the file name"):
         align_many([rec_files[0], rec_files[0]], tmp_path / "o2", progress=False)
+
+
+def test_join_by_block_equals_merge():
+    from feedlog.align.pipeline import join_by_block
+
+    kinds = pd.Categorical(["linear", "arc_cw", "rapid"], categories=["rapid", "linear", "arc_cw"])
+    right = pd.DataFrame({"block": np.array([3, 1, 2], dtype=np.int32), "line": [30, 10, 20],
+                          "length_mm": [3.0, 1.0, 2.0], "kind": kinds,
+                          "label": pd.array(["c", "a", "b"], dtype="string")})
+    left = pd.DataFrame({"point": np.arange(5), "block": np.array([1, 1, 2, 3, 3], dtype=np.int32)},
+                        index=[10, 11, 12, 13, 14])
+    for lf in (left, left.assign(block=np.array([0, 1, 2, 3, 3], dtype=np.int32))):  # block 0: no features
+        got = join_by_block(lf, right, exclude=("line",))
+        want = lf.merge(right.drop(columns=["line"]), on="block", how="left")
+        pd.testing.assert_frame_equal(got, want)
+        for j in range(got.shape[1]):  # every column writable (not a read-only view of the inputs)
+            got.iloc[0, j] = got.iloc[-1, j]
+        assert right["length_mm"].tolist() == [3.0, 1.0, 2.0] and lf["point"].tolist() == [0, 1, 2, 3, 4]
+    # an integer column with a missing block: merge's own upcast (here via the fallback)
+    with_int = right.assign(count=np.array([7, 5, 6], dtype=np.int64))
+    lf = left.assign(block=np.array([0, 1, 2, 3, 3], dtype=np.int32))
+    pd.testing.assert_frame_equal(join_by_block(lf, with_int), lf.merge(with_int, on="block", how="left"))

@@ -70,3 +70,22 @@ def test_common_timebase_overlap_and_errors():
         common_timebase([a, c])
     with pytest.raises(AlignmentError, match="no column"):
         resample(a, grid, columns=["y_mm"])
+
+
+def test_timing_without_gaps_or_duplicates_matches_the_general_measure():
+    # a jittered stream with neither gaps nor repeated timestamps takes stream_timing's short path:
+    # its figures must be those of the general definition (over the positive, non-gap intervals)
+    rng = np.random.default_rng(7)
+    t = np.cumsum(rng.integers(700_000, 1_300_001, 2000)).astype(np.int64)
+    timing = stream_timing(t)
+    dt = np.diff(t)
+    period = int(np.median(dt))
+    assert timing.period_ns == period
+    assert timing.jitter_ns == pytest.approx(float(np.std(dt)), rel=1e-12)
+    assert timing.max_jitter_ns == int(np.abs(dt - period).max())
+    assert (timing.gaps, timing.duplicates, timing.largest_gap_ns, timing.first_gap_index) == (0, 0, 0, -1)
+    # one repeated timestamp: the general path, the zero interval counted and kept out of the jitter
+    t2 = np.insert(t, 1000, t[1000])
+    dup = stream_timing(t2)
+    assert dup.duplicates == 1 and dup.gaps == 0
+    assert dup.jitter_ns == pytest.approx(float(np.std(np.diff(t2)[np.diff(t2) > 0])), rel=1e-12)
