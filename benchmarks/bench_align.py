@@ -13,6 +13,7 @@ Two classes, each printed with the load average (the machine is shared; run it t
    the same from the MCAP file on disk to the Parquet tables (read_recording + align + write).
 
     .venv/bin/python benchmarks/bench_align.py [--samples 4000000 300000] [--repeat 3] [--jobs 2]
+        [--recordings FILE.mcap ...] [--no-bundled]
 """
 
 from __future__ import annotations
@@ -86,29 +87,46 @@ def load() -> str:
     return "load average " + " / ".join(f"{x:.2f}" for x in os.getloadavg()) + " (1/5/15 min)"
 
 
-def bench_bundled(repeat: int, jobs: int) -> None:
+def bundled_files() -> list[Path]:
     manifest = tomllib.loads((RECORDINGS / "manifest.toml").read_text())
-    files = [RECORDINGS / r["file"] for r in manifest["recording"] if (RECORDINGS / r["file"]).exists()]
+    return [RECORDINGS / r["file"] for r in manifest["recording"] if (RECORDINGS / r["file"]).exists()]
+
+
+def bench_bundled(repeat: int, jobs: int, files: list[Path]) -> None:
     if not files:
         print("bundled recordings: none found")
         return
-    print(f"bundled recordings: {len(files)} files in {RECORDINGS} ({load()})")
+    where = sorted({str(f.parent) for f in files})
+    print(f"bundled recordings: {len(files)} files in {', '.join(where)} ({load()})")
     best_wall = best_cpu = np.inf
     n = 0
+    steps: dict[str, float] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(repeat):
             w0, c0 = time.perf_counter(), time.process_time()
             n = 0
+            laps: dict[str, float] = {}
             for f in files:
+                t0 = time.perf_counter()
                 r = read_recording(f)
+                t1 = time.perf_counter()
                 a = align_recording(r)
+                t2 = time.perf_counter()
                 write_alignment(Path(tmp) / f"seq{k}" / f.stem, a)
+                laps["read"] = laps.get("read", 0.0) + t1 - t0
+                laps["write"] = laps.get("write", 0.0) + time.perf_counter() - t2
+                for name, v in a.report["timings_s"].items():
+                    laps[name] = laps.get(name, 0.0) + v
                 n += len(r.streams["axes"])
-            best_wall = min(best_wall, time.perf_counter() - w0)
+            wall = time.perf_counter() - w0
+            if wall < best_wall:
+                best_wall, steps = wall, laps
             best_cpu = min(best_cpu, time.process_time() - c0)
         print(f"  one process, read MCAP + align + write Parquet: {n:,} samples, {best_wall:.2f} s wall "
               f"({best_cpu:.2f} s CPU) -> {n / best_wall / 1e6:.2f} M samples/s "
               f"({n / best_cpu / 1e6:.2f} per CPU second), {best_wall / len(files) * 1e3:.1f} ms per recording")
+        print("    ms per recording, by step (wall): " + ", ".join(
+            f"{name} {v / len(files) * 1e3:.1f}" for name, v in steps.items()))
         best = np.inf
         for k in range(repeat):
             t0 = time.perf_counter()
@@ -154,9 +172,11 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3, help="runs per figure; the best is printed")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes for align_many over the bundled recordings")
     ap.add_argument("--no-bundled", action="store_true", help="skip the bundled recordings")
+    ap.add_argument("--recordings", type=Path, nargs="*", default=None,
+                    help="MCAP files for the first class instead of those in recordings/manifest.toml")
     args = ap.parse_args()
     if not args.no_bundled:
-        bench_bundled(args.repeat, args.jobs)
+        bench_bundled(args.repeat, args.jobs, args.recordings if args.recordings is not None else bundled_files())
     for samples in args.samples:
         bench_long(samples, args.repeat)
 
