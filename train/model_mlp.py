@@ -32,6 +32,10 @@ from feedlog.train.model_seq import VAL_BY, validation_heads
 from feedlog.train.registry import Model, ModelConfig, TablePrediction, register_model
 
 
+MLP_TARGETS = ("feed", "log_ratio")
+RATIO_FLOOR = 1e-3  # speed ratios floored here before the log
+
+
 @dataclass(frozen=True)
 class MLPConfig(ModelConfig):
     hidden: tuple[int, ...] = (5, 10)
@@ -59,6 +63,12 @@ class MLPConfig(ModelConfig):
     # around n: align may put a corner's time on either side of a block boundary, and a per-block ratio
     # (target_span 0, Sun's) carries that noise into 1 / duration
     target_span: int = 1
+    # what each axis net learns: "feed", the axis' mean feed (Sun), or "log_ratio", the log of the block's
+    # speed ratio (nominal / measured time) seen by that axis, the net's output times the axis' nominal
+    # feed giving the feed; its loss is weighted by the axis' share (v_axis / |v|)^2 of the resultant, so
+    # an axis that hardly moves does not teach its net. A small tanh net then need not multiply its
+    # feed input by a ratio: the feed enters Eq. 9 exactly, and the error is relative (a time error)
+    target: str = "log_ratio"
     # early stopping on whole held-out training programs ("program"), the tail of each ("tail"), or
     # "auto" (whole programs from 8 training programs on)
     val_by: str = "auto"
@@ -73,6 +83,8 @@ class MLPConfig(ModelConfig):
             raise ModelError(f"MLPConfig.axes must be a subset of {AXES3}, got {self.axes}")
         if self.val_by not in VAL_BY:
             raise ModelError(f"MLPConfig.val_by must be one of {', '.join(VAL_BY)}, got {self.val_by!r}")
+        if self.target not in MLP_TARGETS:
+            raise ModelError(f"MLPConfig.target must be one of {', '.join(MLP_TARGETS)}, got {self.target!r}")
         if self.target_span < 0:
             raise ModelError(f"MLPConfig.target_span must be >= 0, got {self.target_span}")
         if not 0 < self.min_feed_ratio < 1:
@@ -143,6 +155,7 @@ class PerAxisMLP(Model):
         cfg = self.config
         xs: dict[str, list[np.ndarray]] = {a: [] for a in cfg.axes}
         ys: dict[str, list[np.ndarray]] = {a: [] for a in cfg.axes}
+        ws: dict[str, list[np.ndarray]] = {a: [] for a in cfg.axes}
         is_val: list[np.ndarray] = []
         heads = validation_heads([len(t.blocks) for t in tables], fraction=cfg.val_fraction, by=cfg.val_by,
                                  seed=cfg.seed)
@@ -154,28 +167,35 @@ class PerAxisMLP(Model):
             val = np.zeros(len(d), bool)
             val[head:] = True
             is_val.append(val[keep])
+            v_res = np.sqrt((v * v).sum(axis=1))
             for i, a in enumerate(cfg.axes):
                 x, sign = self._axis_matrix(t, a)
                 xs[a].append(x[keep])
-                ys[a].append((sign * v[:, i] * ratio)[keep])
+                if cfg.target == "feed":
+                    ys[a].append((sign * v[:, i] * ratio)[keep])
+                    ws[a].append(np.ones(int(keep.sum())))
+                else:
+                    ys[a].append(np.log(np.maximum(ratio, RATIO_FLOOR))[keep])
+                    ws[a].append((v[:, i] / np.where(v_res > 0, v_res, 1.0))[keep] ** 2)
         val_mask = np.concatenate(is_val)
         if (~val_mask).sum() < 2:
             raise ModelError("mlp: fewer than 2 usable training blocks (need nominal time and duration > 0)")
         self.build_nets()
         for a in cfg.axes:
-            x, y = np.concatenate(xs[a]), np.concatenate(ys[a])
+            x, y, w = np.concatenate(xs[a]), np.concatenate(ys[a]), np.concatenate(ws[a])
             self.norms[f"x_{a}"] = Normaliser.fit(x[~val_mask])
             self.norms[f"y_{a}"] = Normaliser.fit(y[~val_mask], bounds=False)
             xn = torch.from_numpy(self.norms[f"x_{a}"].apply(x))
             yn = torch.from_numpy(self.norms[f"y_{a}"].apply(y[:, None])[:, 0])
-            data = {"train": (xn[torch.from_numpy(~val_mask)], yn[torch.from_numpy(~val_mask)]),
-                    "val": (xn[torch.from_numpy(val_mask)], yn[torch.from_numpy(val_mask)])}
+            wn = torch.from_numpy((w / max(float(w[~val_mask].mean()), 1e-12)).astype(np.float32))
+            tr, va = torch.from_numpy(~val_mask), torch.from_numpy(val_mask)
+            data = {"train": (xn[tr], yn[tr], wn[tr]), "val": (xn[va], yn[va], wn[va])}
 
             def loss_fn(net, idx, split, data=data):
-                xb, yb = data[split]
+                xb, yb, wb = data[split]
                 if idx is not None:
-                    xb, yb = xb[idx], yb[idx]
-                return torch.mean((net(xb) - yb) ** 2)
+                    xb, yb, wb = xb[idx], yb[idx], wb[idx]
+                return torch.mean(wb * (net(xb) - yb) ** 2)
 
             self.report[a] = train_net(self.nets[a], loss_fn, n_train=int((~val_mask).sum()),
                                        n_val=int(val_mask.sum()), seed=cfg.seed, epochs=cfg.epochs, lr=cfg.lr,
@@ -186,13 +206,17 @@ class PerAxisMLP(Model):
         """Predicted mean axis feeds (rows x axes, mm/min)."""
         self.check_trained()
         setup_torch()
-        out = []
+        out, signs = [], []
         with torch.no_grad():
             for a in self.config.axes:
                 x, sign = self._axis_matrix(table, a)
+                signs.append(sign)
                 pred = self.nets[a](torch.from_numpy(self.norms[f"x_{a}"].apply(x))).numpy()
-                out.append(sign * self.norms[f"y_{a}"].invert(pred[:, None])[:, 0])
-        return np.column_stack(out)
+                out.append(self.norms[f"y_{a}"].invert(pred[:, None])[:, 0])
+        if self.config.target == "feed":
+            return np.column_stack(out) * np.column_stack(signs)
+        v, _ = _nominal(table, self.config.axes, limited=self.config.limited_feeds)
+        return v * np.exp(np.column_stack(out))
 
     def predict(self, table: ProgramTable) -> TablePrediction:
         f = self.axis_feeds(table)

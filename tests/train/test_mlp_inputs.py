@@ -12,6 +12,7 @@ from feedlog.train.dataset import ProgramTable
 from feedlog.train.features import sun_inputs, with_program_columns
 from feedlog.train.model_mlp import PerAxisMLP, speed_ratio
 from feedlog.train.registry import make_config
+from feedlog.train.synthetic import synthetic_set
 
 PROGRAM = """G21 G90 G94
 G64 P0.01
@@ -67,3 +68,24 @@ def test_speed_ratio_spreads_a_time_align_put_on_the_wrong_side_of_a_boundary():
 def test_negative_target_span_is_refused():
     with pytest.raises(ModelError, match="target_span"):
         make_config("mlp", target_span=-1)
+
+
+@pytest.mark.parametrize("target", ["feed", "log_ratio"])
+def test_both_targets_train_and_predict_feeds_along_the_programmed_move(target):
+    tables = synthetic_set(n_train=2, n_test=1, n_blocks=120, seed=5)
+    model = PerAxisMLP(make_config("mlp", target=target, epochs=5))
+    model.fit([t for t in tables if t.split == "train"], progress=False)
+    model.fingerprint = "trained"
+    test = tables[-1]
+    feeds = model.axis_feeds(test)
+    v = np.column_stack([test.blocks[f"v{a}_nom_mm_min"].to_numpy() for a in ("x", "y", "z")])
+    if target == "log_ratio":  # the ratio scales the programmed feed: direction and proportions kept
+        ratio = np.divide(feeds, v, out=np.full_like(feeds, np.nan), where=np.abs(v) > 1e-6)
+        assert np.all(ratio[np.isfinite(ratio)] > 0)
+    pred = model.predict(test)
+    assert np.all(pred.durations_s > 0) and pred.cycle_time_s == pytest.approx(pred.durations_s.sum())
+
+
+def test_unknown_target_is_refused():
+    with pytest.raises(ModelError, match="target must be one of"):
+        make_config("mlp", target="time")
