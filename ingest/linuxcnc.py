@@ -29,6 +29,13 @@ from feedlog.ingest.writer import write_recording
 from feedlog.profile import load_profile
 
 INI_ATTACHMENT = "machine.ini"
+# which streams (and columns) a session keeps: "full" = everything the recorder samples; "compact" =
+# what align, train and viz use (positions, program line, LinuxCNC's path speed) for training sessions
+STREAM_SETS: dict[str, dict[str, list[str] | None] | None] = {
+    "full": None,
+    "compact": {"axes": None, "line": None, "feed": ["t_ns", "feed_mm_min"]},
+}
+COMPACT_ZSTD_LEVEL = 19  # compact sessions are written once and read many times: spend the time
 CONTROLLER = "LinuxCNC"
 # INI [KINS] KINEMATICS module -> shipped machine profile
 PROFILE_BY_KINEMATICS = {"trivkins": "linuxcnc-xyz", "xyzac-trt-kins": "linuxcnc-xyzac"}
@@ -58,16 +65,25 @@ def profile_toml_for(profile: str | None, ini: MachineIni) -> tuple[str, bytes]:
 
 def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, profile: str | None = None,
                     isolate: bool = False, timeout_s: float = 600.0, overwrite: bool = False,
-                    compression: str = "zstd", notes: str = "",
+                    compression: str = "zstd", notes: str = "", streams: str = "full",
+                    priority: str = "normal", level: int | None = None,
                     stop_event: threading.Event | None = None) -> dict[str, Any]:
     """Run `program` on the LinuxCNC machine `ini`, write the recording to `out`, return a summary.
 
     Setting `stop_event` (the CLI does on SIGINT/SIGTERM) stops the machine where it is and writes
     what was recorded (metadata `status = stopped`).
 
+    `streams`: "full" (axes, joints, feed, line, status) or "compact" (axes, line and feed_mm_min only,
+    zstd level 19 unless `level` says otherwise: about half the size). `priority`: "normal", "high" or
+    "realtime" (root): how LinuxCNC's processes are scheduled against other work on the host.
+
     A G-code error raises ProgramError (file, line, LinuxCNC's message); if the machine had already
     moved, what was recorded up to then is still written to `out` (metadata `status = aborted`).
     """
+    if streams not in STREAM_SETS:
+        raise ValueError(f"streams {streams!r} is not one of {', '.join(STREAM_SETS)}")
+    if level is None and streams == "compact" and compression == "zstd":
+        level = COMPACT_ZSTD_LEVEL
     ini_cfg = MachineIni.read(ini)
     program = Path(program)
     out = Path(out)
@@ -76,18 +92,20 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
     if out.exists() and not overwrite:
         raise IngestError("output exists; pass --overwrite to replace it", file=str(out))
     profile_name, profile_toml = profile_toml_for(profile, ini_cfg)
-    session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s, stop_event=stop_event)
+    session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s, stop_event=stop_event,
+                          priority=priority)
     error = session_error(session.report, program)
     if error is not None and not has_samples(session.sample_files):
         cleanup(session)
         raise error  # failed before anything was sampled
     with keep_captures_on_failure(session.workdir):
-        streams, missing = load_capture(session.sample_files, session.layout, period_ns=ini_cfg.servo_period_ns,
+        captured, missing = load_capture(session.sample_files, session.layout, period_ns=ini_cfg.servo_period_ns,
                                         linear_units=ini_cfg.linear_units, source=str(program))
-        summary = write_session(streams, missing, session.report, ini=ini_cfg, program=program.name,
+        summary = write_session(captured, missing, session.report, ini=ini_cfg, program=program.name,
                                 program_bytes=program.read_bytes(), profile_name=profile_name,
                                 profile_toml=profile_toml, out=out, overwrite=overwrite, compression=compression,
-                                notes=notes, error=error, wall_s=session.wall_s)
+                                notes=notes, error=error, wall_s=session.wall_s, stream_set=streams, level=level,
+                                priority=priority)
     cleanup(session)
     return finish(summary, error, out)
 
@@ -112,11 +130,26 @@ def finish(summary: dict[str, Any] | None, error: FeedlogError | None, out: Path
     raise error
 
 
+def select_streams(streams: dict[str, pd.DataFrame], stream_set: str) -> dict[str, pd.DataFrame]:
+    """The streams and columns that `stream_set` (a STREAM_SETS name) keeps; all for "full"."""
+    if stream_set not in STREAM_SETS:
+        raise ValueError(f"streams {stream_set!r} is not one of {', '.join(STREAM_SETS)}")
+    chosen = STREAM_SETS[stream_set]
+    if chosen is None:
+        return dict(streams)
+    return {name: (streams[name] if columns is None else streams[name][columns])
+            for name, columns in chosen.items() if name in streams}
+
+
 def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, *, ini: MachineIni,
                   program: str, program_bytes: bytes | None, profile_name: str, profile_toml: bytes,
                   out: Path, overwrite: bool, compression: str = "zstd", notes: str = "",
-                  error: FeedlogError | None = None, wall_s: float = 0.0) -> dict[str, Any] | None:
+                  error: FeedlogError | None = None, wall_s: float = 0.0, stream_set: str = "full",
+                  level: int | None = None, priority: str = "normal") -> dict[str, Any] | None:
     """Write one recorded LinuxCNC session (also a cut-short one) and return its summary.
+
+    `stream_set` names an entry of STREAM_SETS: the streams (and columns) written; cycle time and motion
+    span are measured on the full capture first.
 
     `error` (how the session failed, if it did) goes into the `status` metadata. A failed session in
     which nothing moved writes nothing and returns None.
@@ -144,18 +177,22 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
         "motion_end_ns": str(int(axes_t.iloc[span.last])) if span else "",
         "linuxcnc_motion_time_s": f"{motion_time_s:.6f}",
         "sampler_overruns": str(int(report.get("overruns", 0))),
+        "streams": stream_set,
         "status": (f"aborted: {error}" if error is not None else
                    "stopped" if report.get("stopped") else "complete"),
     }
+    if priority != "normal":
+        metadata["priority"] = priority
     attachments = {INI_ATTACHMENT: ini.text.encode(), PROFILE_ATTACHMENT: profile_toml}
     for hal_file in ini.hal_files():  # e.g. trt.hal with the trunnion kinematics' offsets
         attachments.setdefault(f"hal/{hal_file.name}", hal_file.read_bytes())
     if program_bytes is not None:
         attachments[PROGRAM_ATTACHMENT] = program_bytes
-    recording = Recording(streams=streams, metadata=metadata, attachments=attachments,
+    kept = select_streams(streams, stream_set)
+    recording = Recording(streams=kept, metadata=metadata, attachments=attachments,
                           dropped_frames=missing + int(report.get("overruns", 0)), source=str(out))
     out.parent.mkdir(parents=True, exist_ok=True)
-    write_recording(out, recording, overwrite=overwrite, compression=compression)
+    write_recording(out, recording, overwrite=overwrite, compression=compression, level=level)
     return {
         "out": str(out),
         "program": program,
@@ -181,6 +218,12 @@ def add_arguments(group: argparse._ArgumentGroup) -> None:
     group.add_argument("--until-stopped", action="store_true",
                        help="with --attach: record until Ctrl-C/SIGTERM, not just until the program ends")
     group.add_argument("--timeout-s", type=float, default=600.0, help="give up after this long (default 600)")
+    group.add_argument("--streams", choices=tuple(STREAM_SETS), default="full",
+                       help="full: axes, joints, feed, line, status; compact: axes, line and feed_mm_min, "
+                            "zstd level 19 (about half the size; for training sessions)")
+    group.add_argument("--priority", choices=("normal", "high", "realtime"), default="normal",
+                       help="schedule LinuxCNC's processes above other work (root): high = nice -10, "
+                            "realtime = SCHED_FIFO 20")
 
 
 def record(args: argparse.Namespace) -> dict[str, Any]:
@@ -202,4 +245,5 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
     return record_linuxcnc(args.ini, args.program, args.out, profile=getattr(args, "profile", None),
                            isolate=args.isolate, timeout_s=args.timeout_s,
                            overwrite=getattr(args, "overwrite", False),
+                           streams=getattr(args, "streams", "full"), priority=getattr(args, "priority", "normal"),
                            stop_event=getattr(args, "stop_event", None))

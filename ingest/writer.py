@@ -9,13 +9,18 @@ raises `IngestError`: everything written before stays readable, and the file say
 
 from __future__ import annotations
 
+import contextlib
 import os
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import BinaryIO
 
+import mcap.writer
 import pandas as pd
 import pyarrow as pa
+import zstandard
 from mcap.records import DataEnd, Footer, Metadata
 from mcap.data_stream import RecordBuilder
 from mcap.writer import MCAP0_MAGIC, CompressionType, IndexType, Writer
@@ -25,6 +30,41 @@ from feedlog.ingest import mcap_format as fmt
 from feedlog.ingest.recording import Recording
 
 COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+ZSTD_DEFAULT_LEVEL = 3  # what mcap's writer uses (zstandard.compress's default)
+ZSTD_LEVELS = range(1, 23)
+
+
+class _LevelledZstd:
+    """Stands in for the `zstandard` module inside mcap.writer, whose Writer compresses each chunk
+    with `zstandard.compress(data)` at zstd's default level and has no option for another. The level
+    is per thread (`zstd_level()`), so concurrent writers do not affect each other; everything else
+    is the real module."""
+
+    def __init__(self) -> None:
+        self._local = threading.local()
+
+    def __getattr__(self, name: str):
+        return getattr(zstandard, name)
+
+    def compress(self, data: bytes) -> bytes:
+        level = getattr(self._local, "level", ZSTD_DEFAULT_LEVEL)
+        return zstandard.ZstdCompressor(level=level).compress(data)
+
+
+_ZSTD = _LevelledZstd()
+if getattr(mcap.writer, "zstandard", None) is zstandard:
+    mcap.writer.zstandard = _ZSTD  # type: ignore[attr-defined]
+
+
+@contextlib.contextmanager
+def zstd_level(level: int) -> Iterator[None]:
+    """Chunks that mcap's Writer compresses in this thread inside the block use zstd `level`."""
+    before = getattr(_ZSTD._local, "level", ZSTD_DEFAULT_LEVEL)
+    _ZSTD._local.level = level
+    try:
+        yield
+    finally:
+        _ZSTD._local.level = before
 
 
 class RecordingWriter:
@@ -38,12 +78,18 @@ class RecordingWriter:
     def __init__(self, path: str | os.PathLike, *, metadata: dict[str, str] | None = None,
                  attachments: dict[str, bytes] | None = None, overwrite: bool = False,
                  flush_interval_s: float = 1.0, rows_per_message: int = 16384,
-                 chunk_size: int = 4 * 1024 * 1024, compression: str = "none") -> None:
+                 chunk_size: int = 4 * 1024 * 1024, compression: str = "none",
+                 level: int | None = None) -> None:
         if flush_interval_s <= 0 or rows_per_message < 1:
             raise ValueError(f"flush_interval_s={flush_interval_s} and rows_per_message={rows_per_message} "
                              "must be positive")
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression {compression!r} is not one of {sorted(COMPRESSIONS)}")
+        if level is not None and (compression != "zstd" or level not in ZSTD_LEVELS):
+            raise ValueError(f"level={level} needs compression='zstd' and a zstd level from 1 to 22")
+        if level is not None and mcap.writer.zstandard is not _ZSTD:  # type: ignore[attr-defined]
+            raise ValueError("this mcap version compresses chunks on its own: no zstd level can be set")
+        self.level = ZSTD_DEFAULT_LEVEL if level is None else level
         self.path = Path(path)
         if self.path.exists() and not overwrite:
             raise IngestError("output exists; pass overwrite=True (--overwrite) to replace it", file=str(self.path))
@@ -193,7 +239,8 @@ class RecordingWriter:
     def _guard(self, action, *args) -> None:
         """Run a write; on an OS error keep the file as it was after the last complete flush."""
         try:
-            action(*args)
+            with zstd_level(self.level):
+                action(*args)
         except OSError as exc:
             self._failed = IngestError(f"write failed ({exc.strerror or exc}); the recording keeps the data "
                                        f"flushed before byte {self._good_offset}", file=str(self.path),
@@ -238,8 +285,13 @@ def _first_backwards(t, previous: int | None) -> int | None:
 
 
 def write_recording(path: str | os.PathLike, recording: Recording, *, overwrite: bool = False,
-                    compression: str = "none") -> None:
-    """Write a whole recording. The file appears under `path` only once it is complete."""
+                    compression: str = "none", level: int | None = None,
+                    chunk_size: int = 4 * 1024 * 1024) -> None:
+    """Write a whole recording. The file appears under `path` only once it is complete.
+
+    `level` is the zstd level (1-22, with compression='zstd'; default 3); `chunk_size` the uncompressed
+    size at which an MCAP chunk is closed (larger chunks let zstd find repeats further back).
+    """
     path = Path(path)
     if path.exists() and not overwrite:
         raise IngestError("output exists; pass overwrite=True (--overwrite) to replace it", file=str(path))
@@ -249,7 +301,8 @@ def write_recording(path: str | os.PathLike, recording: Recording, *, overwrite:
     partial = path.with_name(path.name + ".partial")
     try:
         with RecordingWriter(partial, metadata=recording.metadata, attachments=recording.attachments,
-                             overwrite=True, compression=compression) as writer:
+                             overwrite=True, compression=compression, level=level,
+                             chunk_size=chunk_size) as writer:
             for name, table in recording.streams.items():
                 writer.write(name, table)
             writer.dropped_frames = recording.dropped_frames

@@ -264,3 +264,103 @@ def random_cl(feed: float, tolerance: str, *, seed: int, blocks: int, five_axis:
     start = f"G0 X0 Y0 Z0 A{num(-20.0)} C0" if five_axis else "G0 X0 Y0 Z0"
     return program(f"random CL-line toolpath {kind}, seed {seed}, {blocks} blocks, F{feed:g}", tolerance, feed,
                    body, start=start, end="G0 Z20" if five_axis else "G0 Z5")
+
+
+# ---- Chien-style mixed random toolpaths: short programs over every regime of the held-out tests ----
+
+TOLERANCES = ("G61", "G64 P0.01", "G64 P0.05", "G64 P0.1")
+FEEDS = (1000.0, 1500.0, 2000.0, 2500.0, 3000.0)
+
+
+def mix_settings(seed: int, *, five_axis: bool) -> dict:
+    """Feed, tolerance, Q0, CL-line count and work offset of `random_mix` program `seed`."""
+    import random
+
+    rng = random.Random(10_000 + seed)
+    tolerance = rng.choice(TOLERANCES)
+    q0 = tolerance != "G61" and rng.random() < 0.4
+    offset = (0.0, 0.0, 0.0)
+    if five_axis and rng.random() < 0.4:
+        offset = (round(rng.uniform(-15, 15), 1), round(rng.uniform(-15, 15), 1), round(rng.uniform(-5, 5), 1))
+    return {"feed": rng.choice(FEEDS), "tolerance": tolerance + (" Q0" if q0 else ""),
+            "lines": rng.randint(60, 200 if five_axis else 300), "offset": offset}
+
+
+def random_mix(feed: float, tolerance: str, *, seed: int, lines: int, five_axis: bool = False,
+               offset: tuple[float, float, float] = (0.0, 0.0, 0.0), box_mm: float = 30.0,
+               min_time_s: float = 2.0) -> str:
+    """A short random CL-line toolpath (Chien et al. §2) made of pieces drawn at random until `lines`
+    CL lines: a long line (5-30 mm) after a sharp (interior 10-60 deg) or obtuse (120-175 deg) corner;
+    a few medium lines (1-8 mm) with random corners; a curved run of short segments (0.1-1 mm, radius
+    2-20 mm, like a polygonal circle); a dense curved run (0.02-0.06 mm: at F1000-F3000 LinuxCNC's
+    per-block rate sets the speed). In five-axis mode each piece also moves A (toward a target in
+    -55..0, a third of them within 2 deg of the A = 0 singularity) and turns C (up to 180 deg over a
+    piece, at most 1.5 and 4 deg per mm of the piece). A long line comes whenever the path so far is
+    shorter than its share of `min_time_s` at `feed`, so that even a dense program moves for a while.
+    Deterministic for a given `seed`; stays within +-`box_mm` in X and Y and 0..6 mm in Z.
+    """
+    import random
+
+    rng = random.Random(seed)
+    x = y = 0.0
+    z = 2.0
+    a, c = -20.0, 0.0
+    heading = rng.uniform(0.0, 360.0)
+    body: list[str] = []
+
+    def emit(nx: float, ny: float, nz: float, na: float, nc: float) -> None:
+        body.append(move(nx, ny, nz, na, nc) if five_axis else move(nx, ny, nz))
+
+    path_mm = 0.0
+    want_mm = min_time_s * feed / 60.0  # at least min_time_s of CAM time: long lines when behind
+    while len(body) < lines or path_mm < want_mm:
+        kind = rng.choices(("long", "corners", "short_run", "dense_run"), weights=(2, 3, 3, 2))[0]
+        if path_mm < want_mm * min(1.0, len(body) / lines):
+            kind = "long"
+        if kind == "long":
+            sharp = rng.random() < 0.5
+            turn = 180.0 - (rng.uniform(10, 60) if sharp else rng.uniform(120, 175))
+            steps = [(rng.uniform(5.0, 30.0), rng.choice((-1, 1)) * turn)]
+        elif kind == "corners":
+            steps = [(rng.uniform(1.0, 8.0), rng.choice((-1, 1)) * rng.uniform(5.0, 170.0))
+                     for _ in range(rng.randint(2, 6))]
+        else:
+            dense = kind == "dense_run"
+            seg = rng.uniform(0.02, 0.06) if dense else rng.uniform(0.1, 1.0)
+            radius = rng.uniform(1.0, 10.0) if dense else rng.uniform(2.0, 20.0)
+            count = rng.randint(20, 80) if dense else rng.randint(5, 40)
+            bend = rng.choice((-1, 1)) * math.degrees(seg / radius)
+            first_turn = rng.choice((-1, 1)) * rng.uniform(0.0, 90.0)
+            steps = [(seg, first_turn if k == 0 else bend) for k in range(count)]
+        steps = steps[:max(1, lines - len(body))]
+        dz = rng.uniform(-0.3, 0.3)
+        if five_axis:  # rotary moves of at most 1.5 deg (A) and 4 deg (C) per mm of the piece's path
+            piece_mm = sum(length for length, _ in steps)
+            target_a = rng.uniform(-2.0, 0.0) if rng.random() < 1 / 3 else rng.uniform(-55.0, -5.0)
+            target_a = a + max(-1.5 * piece_mm, min(1.5 * piece_mm, target_a - a))
+            turn_c = rng.choice((-1, 1)) * rng.uniform(0.0, min(180.0, 4.0 * piece_mm)) if rng.random() < 0.6 else 0.0
+        for k, (length, turn) in enumerate(steps):
+            heading += turn
+            nx = x + length * math.cos(math.radians(heading))
+            ny = y + length * math.sin(math.radians(heading))
+            if abs(nx) > box_mm or abs(ny) > box_mm:  # turn back toward the middle
+                heading = math.degrees(math.atan2(-y, -x)) + rng.uniform(-45.0, 45.0)
+                nx = x + length * math.cos(math.radians(heading))
+                ny = y + length * math.sin(math.radians(heading))
+            x, y = nx, ny
+            path_mm += length
+            z = min(6.0, max(0.0, z + dz * min(length, 1.0) / len(steps)))
+            if five_axis:
+                f = (k + 1) / len(steps)
+                na = a + (target_a - a) * f
+                emit(x, y, z, na, c + turn_c * f)
+            else:
+                emit(x, y, z, a, c)
+        if five_axis:
+            a, c = target_a, c + turn_c
+    kind = "five-axis" if five_axis else "3-axis"
+    start = f"G0 X0 Y0 Z2 A{num(-20.0)} C0" if five_axis else "G0 X0 Y0 Z2"
+    prelude = _offset_prelude(offset) if any(offset) else []
+    return program(f"random mixed toolpath {kind}, seed {seed}, {len(body)} CL lines, F{feed:g}, "
+                   f"offset {_offset_text(offset)}", tolerance, feed, body, prelude=prelude, start=start,
+                   end="G0 Z20" if five_axis else "G0 Z8")

@@ -24,9 +24,19 @@ def manifest() -> list[dict]:
     return tomllib.loads((RECORDINGS / "manifest.toml").read_text())["recording"]
 
 
-def test_manifest_covers_the_catalogue_with_train_and_test_splits(manifest):
+@pytest.fixture(scope="module")
+def held_back() -> list[dict]:
+    return tomllib.loads((RECORDINGS / "held_back.toml").read_text())["recording"]
+
+
+def test_manifest_covers_the_catalogue_with_train_and_test_splits(manifest, held_back):
     names = [r["name"] for r in manifest]
-    assert names == [e.name for e in make_recordings.catalogue()]
+    catalogue = [e.name for e in make_recordings.catalogue()]
+    assert names == [n for n in catalogue if n not in make_recordings.HELD_BACK]
+    # sessions the simulation misses by > 2 % are recorded and listed, apart, with that error
+    assert [r["name"] for r in held_back] == [n for n in catalogue if n in make_recordings.HELD_BACK]
+    assert all(r["sim_cycle_time_error"] == make_recordings.HELD_BACK[r["name"]] for r in held_back)
+    assert {r["split"] for r in held_back} <= {"train"}
     splits = {r["split"] for r in manifest}
     assert splits == {"train", "test"}
     # the papers keep training and test programs apart: no program text is in both splits
@@ -52,10 +62,10 @@ def test_shared_programs_are_regenerated_byte_for_byte():
     assert progs.shared_5ax("G64 P0.01") == (SHARED / "5ax_p001.ngc").read_text()
 
 
-def test_cycle_times_match_linuxcnc_and_the_shared_measurements(manifest):
-    for r in manifest:
+def test_cycle_times_match_linuxcnc_and_the_shared_measurements(manifest, held_back):
+    for r in manifest + held_back:
         assert r["dropped_frames"] == 0, r["name"]
-        assert abs(r["cycle_time_s"] - r["linuxcnc_motion_time_s"]) <= 0.001, r["name"]
+        assert abs(r["cycle_time_s"] - r["linuxcnc_motion_time_s"]) <= 0.001 + 1e-9, r["name"]  # one servo period
         assert 1.0 < r["cycle_time_s"] < 30.0, r["name"]
         if "reference_cycle_time_s" in r:
             assert r["cycle_time_s"] == pytest.approx(r["reference_cycle_time_s"], abs=0.005), r["name"]
@@ -66,9 +76,10 @@ def test_folder_stays_small():
     assert size < 30e6
 
 
-@pytest.mark.parametrize("name", ["pocket_f3000_p001", "5ax_near_f1000_g61_offset"])
-def test_a_recording_reads_back_as_its_manifest_says(manifest, name):
-    row = next(r for r in manifest if r["name"] == name)
+@pytest.mark.parametrize("name", ["pocket_f3000_p001", "5ax_near_f1000_g61_offset", "mix_025", "mix5ax_009",
+                                  "mix_009"])
+def test_a_recording_reads_back_as_its_manifest_says(manifest, held_back, name):
+    row = next(r for r in manifest + held_back if r["name"] == name)
     rec = read_recording(RECORDINGS / row["file"])
     assert rec.metadata["machine"] == row["profile"]
     assert float(rec.metadata["cycle_time_s"]) == pytest.approx(row["cycle_time_s"])
