@@ -288,7 +288,7 @@ def mix_settings(seed: int, *, five_axis: bool) -> dict:
 
 def random_mix(feed: float, tolerance: str, *, seed: int, lines: int, five_axis: bool = False,
                offset: tuple[float, float, float] = (0.0, 0.0, 0.0), box_mm: float = 30.0,
-               min_time_s: float = 2.0) -> str:
+               min_time_s: float = 2.0, weights: tuple[int, int, int, int] = (2, 3, 3, 2)) -> str:
     """A short random CL-line toolpath (Chien et al. §2) made of pieces drawn at random until `lines`
     CL lines: a long line (5-30 mm) after a sharp (interior 10-60 deg) or obtuse (120-175 deg) corner;
     a few medium lines (1-8 mm) with random corners; a curved run of short segments (0.1-1 mm, radius
@@ -297,6 +297,7 @@ def random_mix(feed: float, tolerance: str, *, seed: int, lines: int, five_axis:
     -55..0, a third of them within 2 deg of the A = 0 singularity) and turns C (up to 180 deg over a
     piece, at most 1.5 and 4 deg per mm of the piece). A long line comes whenever the path so far is
     shorter than its share of `min_time_s` at `feed`, so that even a dense program moves for a while.
+    `weights`: how often a long line, medium lines, a short run and a dense run are drawn.
     Deterministic for a given `seed`; stays within +-`box_mm` in X and Y and 0..6 mm in Z.
     """
     import random
@@ -314,7 +315,7 @@ def random_mix(feed: float, tolerance: str, *, seed: int, lines: int, five_axis:
     path_mm = 0.0
     want_mm = min_time_s * feed / 60.0  # at least min_time_s of CAM time: long lines when behind
     while len(body) < lines or path_mm < want_mm:
-        kind = rng.choices(("long", "corners", "short_run", "dense_run"), weights=(2, 3, 3, 2))[0]
+        kind = rng.choices(("long", "corners", "short_run", "dense_run"), weights=weights)[0]
         if path_mm < want_mm * min(1.0, len(body) / lines):
             kind = "long"
         if kind == "long":

@@ -34,6 +34,7 @@ SHARED_CONFIGS = ROOT.parent / "shared" / "linuxcnc" / "configs"
 MACHINES = {"xyz": ("configs/xyz.ini", "linuxcnc-xyz"), "xyzac": ("configs/xyzac.ini", "linuxcnc-xyzac")}
 OFFSET_B = (15.0, -10.0, 5.0)
 MIX_3AX, MIX_5AX = 40, 24  # random_mix training programs (sized for the recordings/ budget of 30 MB)
+MIX_DENSE = 8  # 3-axis random_mix programs weighted to dense runs, G64 with Q0, F2500/F3000 (dense002q0's regime)
 # recorded sessions that feedlog's simulation misses by more than the 2 % of tests/sim/test_linuxcnc_accuracy.py
 # (simulated vs recorded cycle time, measured when they were recorded): listed in recordings/held_back.toml
 # instead of manifest.toml until it is decided whether the simulation or the test changes
@@ -127,6 +128,10 @@ def catalogue() -> list[Entry]:
         add(f"mix5ax_{k:03d}", "random_mix_5ax", "xyzac", cfg["feed"], cfg["tolerance"], "train",
             progs.random_mix(cfg["feed"], cfg["tolerance"], seed=2000 + k, lines=cfg["lines"], five_axis=True,
                              offset=cfg["offset"]))
+    for k in range(MIX_DENSE):
+        feed, tol = (3000.0, 2500.0)[k % 2], ("G64 P0.01 Q0", "G64 P0.01 Q0", "G64 P0.05 Q0", "G64 P0.1 Q0")[k % 4]
+        add(f"mixdense_{k:03d}", "random_mix_dense", "xyz", feed, tol, "train",
+            progs.random_mix(feed, tol, seed=3000 + k, lines=120 + 20 * k, weights=(2, 2, 2, 4)))
     # test programs: the shared reference programs, and new geometry of each family
     add("test_p001", "shared_test", "xyz", 3000, p001, "test", progs.shared_test(p001), "test_p001.ngc")
     add("test_p01", "shared_test", "xyz", 3000, p01, "test", progs.shared_test(p01), "test_p01.ngc")

@@ -90,6 +90,10 @@ def test_random_mix_programs_cover_the_regimes_of_the_held_out_tests(tmp_path):
             assert a.min() >= -55.0 and a.max() <= 0.0, e.name
             near_zero += int(np.any(a > -2.0))
     assert offsets >= 3 and near_zero >= 5 and dense_f3000 >= 3
+    # dense002q0's regime: 3-axis, G64 with Q0, F2500-F3000, mostly dense runs
+    dense_q0 = [e for e in entries if e.family == "random_mix_dense"]
+    assert len(dense_q0) >= 8 and all(e.tolerance.endswith("Q0") and e.feed_mm_min >= 2500 for e in dense_q0)
+    assert sum(e.tolerance == "G64 P0.01 Q0" for e in dense_q0) >= 4
     # no training program is a test program
     tests = {e.text.split("\n", 2)[2] for e in make_recordings.catalogue() if e.split == "test"}
     assert not {e.text.split("\n", 2)[2] for e in entries} & tests
