@@ -60,7 +60,12 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
     log = log or (lambda msg: print(msg, file=sys.stderr))
     for name in models:
         model_class(name)  # unknown names fail before any training
-    train = [t for t in tables if t.split == "train"]
+    # a recording a manifest was found for but that it does not list (e.g. recordings/held_back.toml) is not
+    # part of the data set: not trained on (--test NAME still holds it out)
+    unlisted = [t for t in tables if t.split == "train" and t.metadata.get("unlisted_in")]
+    for t in unlisted:
+        log(f"{t.name}: not trained on: not listed in {t.metadata['unlisted_in']}")
+    train = [t for t in tables if t.split == "train" and not t.metadata.get("unlisted_in")]
     test = [t for t in tables if t.split == "test"]
     if not train:
         raise ModelError("no training recordings (split = 'train')")

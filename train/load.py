@@ -64,13 +64,19 @@ def load_aligned(folder: str | Path, *, manifest: str | Path | None = None, spli
         raise ModelError(str(exc)) from None
     name = folder.name
     entries: dict[str, dict[str, Any]] = {}
+    found: list[Path] = []
     candidates = [Path(manifest)] if manifest is not None else _manifest_candidates(folder, meta)
     for cand in candidates:
         if cand.is_file():
             entries = read_manifest(cand)
+            found.append(cand)
             if name in entries:
                 break
     entry = entries.get(name, {})
+    # left out of the manifest beside its recording (or the one given): not part of that data set
+    beside = Path(meta["recording"]).parent / MANIFEST if meta.get("recording") else None
+    unlisted = ({"unlisted_in": str(found[0])} if found and not entry and (manifest is not None or found[0] == beside)
+                else {})
     profile = None
     if entry.get("profile"):
         profile = load_profile(entry["profile"])
@@ -85,7 +91,7 @@ def load_aligned(folder: str | Path, *, manifest: str | Path | None = None, spli
         name, blocks, program=str(entry.get("family", name)), split=split or str(entry.get("split", "train")),
         points=points, profile=profile, program_text=program_text,
         metadata={k: str(v) for k, v in entry.items() if not k.startswith("_")} | {
-            "aligned_dir": str(folder), "recording": str(meta.get("recording", ""))})
+            "aligned_dir": str(folder), "recording": str(meta.get("recording", ""))} | unlisted)
 
 
 def _attach_program_columns(blocks, text: str, name: str, profile):

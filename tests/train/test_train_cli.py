@@ -86,3 +86,30 @@ def test_train_then_predict(tmp_path, capsys, examples_dir, monkeypatch):
     assert "unknown model(s) gpt" in capsys.readouterr().err
     assert main(["predict", str(program), "--model", str(tmp_path / "none.pt")]) == 1
     assert "checkpoint not found" in capsys.readouterr().err
+
+
+def test_a_recording_its_manifest_leaves_out_is_not_trained_on(tmp_path):
+    """recordings/held_back.toml: aligned beside the manifest but not listed in it -> noted, not trained on."""
+    from feedlog.train import train_and_evaluate
+
+    aligned = _write_aligned(tmp_path)
+    extra = synthetic_set(n_train=1, n_test=0, n_blocks=80, seed=9, sim_acc_factor=None)[0]
+    folder = aligned / "held-back"
+    folder.mkdir()
+    meta = {"format_version": FORMAT_VERSION, "table": "blocks", "recording": str(tmp_path / "held-back.mcap"),
+            "program": "program.ngc", "cycle_time_s": extra.measured_cycle_time_s}
+    arrow = pa.Table.from_pandas(extra.blocks, preserve_index=False)
+    pq.write_table(arrow.replace_schema_metadata({META_KEY: json.dumps(meta).encode()}), folder / "blocks.parquet")
+    tables = load_many([aligned])
+    held = next(t for t in tables if t.name == "held-back")
+    assert held.metadata["unlisted_in"] == str(tmp_path / "manifest.toml")
+    assert all("unlisted_in" not in t.metadata for t in tables if t is not held)
+    notes: list[str] = []
+    results = train_and_evaluate(tables, out_dir=tmp_path / "models", models=["bilstm-block"], preset="quick",
+                                 overrides={"bilstm-block": {"epochs": 2, "hidden": 4}}, progress=False,
+                                 log=notes.append)
+    assert any(n.startswith("held-back: not trained on: not listed in") for n in notes)
+    assert list(results["recording"]) == ["test-2"]
+    # without a manifest beside the recordings nothing is left out
+    (tmp_path / "manifest.toml").unlink()
+    assert all("unlisted_in" not in t.metadata for t in load_many([aligned]))
