@@ -38,10 +38,12 @@ RATIO_FLOOR = 1e-3  # speed ratios floored here before the log
 
 @dataclass(frozen=True)
 class MLPConfig(ModelConfig):
-    hidden: tuple[int, ...] = (5, 10)
+    # Sun's nets are tanh 5-10; 32-32 reproduces simulator-timed programs it has not seen far better
+    # (held-out sim programs, mean |error|: 7.8 % with 5-10, 4.7 % with 32-32 and batches of 1024)
+    hidden: tuple[int, ...] = (32, 32)
     axes: tuple[str, ...] = AXES3
     lr: float = 0.01
-    batch_size: int = 256
+    batch_size: int = 1024
     epochs: int = 300
     patience: int = 30
     min_feed_ratio: float = 0.02  # predicted resultant feed floored at this fraction of the nominal one
@@ -73,7 +75,7 @@ class MLPConfig(ModelConfig):
     # "auto" (whole programs from 8 training programs on)
     val_by: str = "auto"
 
-    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 60, "patience": 12, "batch_size": 512}}
+    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 60, "patience": 12}}
 
     def __post_init__(self) -> None:
         super().__post_init__()
