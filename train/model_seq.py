@@ -201,10 +201,13 @@ class SeqModel(Model):
             xb, yb, mb = batch
             return masked_mse(net(xb), yb, mb)
 
-        self.report["net"] = train_net(
-            self.nets["net"], loss_fn, n_train=len(data["train"][0]),
-            n_val=0 if data["val"] is None else len(data["val"][0]), seed=cfg.seed, epochs=cfg.epochs,
-            lr=cfg.lr, batch_size=cfg.batch_size, patience=cfg.patience, desc=self.name, progress=progress)
+        # one net, or an ensemble of nets that differ only in their seed (their outputs are averaged)
+        for k, (key, net) in enumerate(self.nets.items()):
+            self.report[key] = train_net(
+                net, loss_fn, n_train=len(data["train"][0]),
+                n_val=0 if data["val"] is None else len(data["val"][0]), seed=cfg.seed + k, epochs=cfg.epochs,
+                lr=cfg.lr, batch_size=cfg.batch_size, patience=cfg.patience, desc=f"{self.name} {key}",
+                progress=progress)
 
     def predict_values(self, table: ProgramTable) -> np.ndarray:
         """Per-block predicted target (in target units)."""
@@ -221,10 +224,11 @@ class SeqModel(Model):
         length = cfg.prediction_window
         stride = length - 2 * cfg.predict_context
         xw, _, _ = make_windows(x, None, length=length, stride=stride)
-        net = self.nets["net"].eval()
+        nets = [net.eval() for net in self.nets.values()]
         with torch.no_grad():
-            out = np.concatenate([net(torch.from_numpy(xw[i:i + PREDICT_BATCH])).numpy()
-                                  for i in range(0, len(xw), PREDICT_BATCH)])
+            out = np.concatenate([
+                np.mean([net(torch.from_numpy(xw[i:i + PREDICT_BATCH])).numpy() for net in nets], axis=0)
+                for i in range(0, len(xw), PREDICT_BATCH)])
         per_row = stitch_windows(out, len(x), length=length, stride=stride)
         return self._decode(self.norms["y"].invert(per_row[:, None])[:, 0])
 
@@ -245,9 +249,16 @@ class BlockSeqConfig(SeqConfig):
     target_mode: str = "cam_sum"
     batch_size: int = 64
     patience: int = 40
+    # nets trained with seeds seed, seed + 1, ...; their per-block log factors are averaged
+    members: int = 1
 
     # quick (the demo, a few hundred windows): batches of 16 give 4x the optimiser steps per epoch
     presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8, "batch_size": 16}}
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.members < 1:
+            raise ModelError(f"BlockSeqConfig.members must be >= 1, got {self.members}")
 
 
 @register_model
@@ -256,9 +267,14 @@ class BlockBiLSTM(SeqModel):
     config_class = BlockSeqConfig
     description = "Bi-LSTM sequence to sequence, each block's time (Chien Fig. 7)"
 
+    config: BlockSeqConfig
+
     def build_nets(self) -> None:
-        setup_torch(self.config.seed)
-        self.nets = {"net": BiLSTMSeq(len(self.inputs), self.config.hidden, self.config.layers)}
+        cfg = self.config
+        self.nets = {}
+        for k in range(getattr(cfg, "members", 1)):
+            setup_torch(cfg.seed + k)
+            self.nets["net" if k == 0 else f"net{k}"] = BiLSTMSeq(len(self.inputs), cfg.hidden, cfg.layers)
 
 
 @dataclass(frozen=True)

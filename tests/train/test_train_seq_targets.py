@@ -65,3 +65,34 @@ def test_cam_sum_learns_block_times_that_add_up():
         err = abs(pred.cycle_time_s / t.measured_cycle_time_s - 1)
         cam_err = abs(cam / t.measured_cycle_time_s - 1)
         assert cam_err > 0.05 and err < cam_err / 2, (t.name, err, cam_err)
+
+
+def test_an_ensemble_averages_its_members_and_round_trips(tmp_path):
+    from feedlog.train import load_checkpoint, save_checkpoint
+
+    tables = synthetic_set(n_train=2, n_test=1, n_blocks=120, seed=7)
+    train = [t for t in tables if t.split == "train"]
+    test = next(t for t in tables if t.split == "test")
+    small = {"epochs": 3, "hidden": 6, "window": 32, "stride": 16}
+    with pytest.raises(ModelError, match="members must be >= 1"):
+        make_config("bilstm-block", members=0)
+    one = make_model("bilstm-block", **small)
+    three = make_model("bilstm-block", members=3, **small)
+    for m in (one, three):
+        m.fit(train, progress=False)
+        m.fingerprint = "synthetic"
+    assert sorted(three.nets) == ["net", "net1", "net2"] and set(three.report) >= {"net", "net1", "net2"}
+    # member 0 is the single model's net; the others differ (their own seeds)
+    for p, q in zip(one.nets["net"].state_dict().values(), three.nets["net"].state_dict().values()):
+        assert torch.equal(p, q)
+    assert not torch.equal(three.nets["net"].head.weight, three.nets["net1"].head.weight)
+    # the ensemble's log factors are the mean of its members'
+    singles = []
+    for key in ("net", "net1", "net2"):
+        alone = make_model("bilstm-block", **small)
+        alone.norms, alone.constants, alone.fingerprint = three.norms, three.constants, "synthetic"
+        alone.nets = {"net": three.nets[key]}
+        singles.append(alone.predict_values(test))
+    assert np.allclose(three.predict_values(test), np.mean(singles, axis=0), atol=1e-6)
+    back = load_checkpoint(save_checkpoint(three, tmp_path / "ens.pt"))
+    assert back.predict(test).cycle_time_s == pytest.approx(three.predict(test).cycle_time_s, rel=1e-6)
