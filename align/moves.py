@@ -254,7 +254,7 @@ def geometry_blocks_by_moves(recording: Recording, alignment: Alignment, *, prog
             raise AlignmentError(f"{src}: no machine profile given and none attached ({PROFILE_ATTACHMENT}); "
                                  "the merge model needs the machine's axes")
         profile = MachineProfile.from_toml(data.decode("utf-8"), source=f"{src}:{PROFILE_ATTACHMENT}")
-    geo = alignment.geometry_blocks
+    geo = alignment.geometry_blocks_base if alignment.geometry_blocks_base is not None else alignment.geometry_blocks
     if geo is None:
         raise AlignmentError(f"{src}: the alignment has no geometry blocks")
     axes = recording.stream(positions)

@@ -5,11 +5,15 @@ Steps (each one a module of its own):
 2. motion span -> measured cycle time, first motion to end of motion (`blocks.motion_span`);
 3. CL points of the program (`toolpath.cl_points`) matched to the measured path under progress and
    distance constraints (`match`); the tolerance per point is `tol_mm` plus the block's own G64 P
-   blending tolerance, since the controller may legitimately cut a corner by that much;
+   blending tolerance and its G64 Q merge tolerance (Q = P when not given, as in LinuxCNC): a block
+   merged into a longer move may sit up to Q off that move's chord, whose corner is then cut by up
+   to P;
 4. feed at every CL point: the recording's own path feed (`feed` stream) when it has one, interpolated
    at the matched time, else the feed from positions (`feed.feed_at`, centred on the matched time);
    per-axis feeds always from positions;
-5. block boundaries from the line stream (ground truth) when there is one, and from geometry always;
+5. block boundaries from the line stream (ground truth) when there is one, and from geometry always
+   (at 1 kHz on a machine whose profile merges like LinuxCNC, `[sim.naive_cam]`, per planner move:
+   `moves.geometry_blocks_by_moves`);
    both are compared in the report (`blocks`); the line stream's clock offset against geometry is
    estimated from the block changes (`clock.event_offset`) and removed when `sync_lines` is set;
 6. toolpath's paper features joined per block and per point (`toolpath.block_features`).
@@ -98,6 +102,7 @@ class Alignment:
     report: dict[str, Any]
     geometry_blocks: pd.DataFrame | None = None
     line_blocks: pd.DataFrame | None = None
+    geometry_blocks_base: pd.DataFrame | None = None  # per block, before the planner-move model (when it ran)
 
 
 def _profile(recording: Recording, profile: MachineProfile | str | Path | None) -> MachineProfile | None:
@@ -205,7 +210,9 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     blocks_tab = prog.blocks.set_index("block")
     blk = cl["block"].to_numpy()
     p_tol = blocks_tab["tol_mm"].reindex(blk).to_numpy(dtype=np.float64)
-    tolerance = cfg.tol_mm + np.nan_to_num(p_tol, nan=0.0)
+    q_tol = blocks_tab["merge_tol_mm"].reindex(blk).to_numpy(dtype=np.float64)
+    q_tol = np.where(np.isnan(q_tol), p_tol, q_tol)  # LinuxCNC: Q defaults to P
+    tolerance = cfg.tol_mm + np.nan_to_num(p_tol, nan=0.0) + np.nan_to_num(q_tol, nan=0.0)
     kind = cl["kind"].astype(str).to_numpy()
     check = np.ones(len(cl), dtype=bool) if cfg.check_rapids else (kind != RAPID)
     check &= kind != "start"  # the parser's assumed initial position is not a programmed point
@@ -253,6 +260,14 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
                                end_leave_ns=leave)
     geo["source"] = "geometry"
     report["boundary"] = boundary
+    base = None
+    if boundary == "leave" and prof is not None and prof.mechanism("naive_cam").get("enabled", False):
+        from feedlog.align.moves import geometry_blocks_by_moves  # noqa: PLC0415 - moves imports this module
+        base = geo
+        geo = geometry_blocks_by_moves(recording, Alignment(points=points, blocks=geo, cycle_time_s=span.duration_s,
+                                                            report=report, geometry_blocks=geo),
+                                       program=prog, profile=prof, positions=cfg.positions)
+    report["geometry_model"] = "per block" if base is None else "planner moves"
     lap("geometry_blocks")
     line_blocks = _line_blocks(recording, cfg, motion, span, geo, report)
     lap("line_blocks")
@@ -268,7 +283,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     lap("features")
     report["timings_s"] = lap.laps
     return Alignment(points=points, blocks=blocks_out, cycle_time_s=span.duration_s, report=report,
-                     geometry_blocks=geo, line_blocks=line_blocks)
+                     geometry_blocks=geo, line_blocks=line_blocks, geometry_blocks_base=base)
 
 
 def _refine_with_sim(span: MotionSpan, t: np.ndarray, xyz: np.ndarray, prog: Program, prof: MachineProfile,
@@ -439,7 +454,8 @@ def _line_blocks(recording: Recording, cfg: AlignConfig, motion: pd.DataFrame, s
         lb = blocks_from_lines(shifted["t_ns"].to_numpy(), shifted["line"].to_numpy(), motion, span=span)
         info["shifted_ns"] = -off.offset_ns
     lb["source"] = "line"
-    info["geometry_vs_line"] = compare_blocks(lb, geo, servo_period_s=_period_s(recording))
+    groups = geo["move"].to_numpy() if "move" in geo.columns else None  # merged moves compared as one
+    info["geometry_vs_line"] = compare_blocks(lb, geo, servo_period_s=_period_s(recording), groups=groups)
     report["line_stream"] = info
     return split_merged(lb, geo)
 
