@@ -171,3 +171,65 @@ def search_chunks(cl: np.ndarray, s_prog: np.ndarray, tol: np.ndarray, speed: np
                 ratio = min(max((new_S - anchor_S) / (new_s - anchor_s), 0.05), 1.0 + drift)
             anchor_s, anchor_S = new_s, new_S
     return seg, u, dist
+
+
+def untangle(cl: np.ndarray, s_prog: np.ndarray, order: np.ndarray, seg: np.ndarray, u: np.ndarray,
+             dist: np.ndarray, path: Path, *, weight: float, min_mm: float, max_cells: int = 4_000_000) -> int:
+    """Re-match runs of points whose matches contradict monotone progress; updates seg, u, dist in place
+    and returns how many points it re-matched.
+
+    The chunk search predicts each point's measured length S from an anchor up to a chunk away; where
+    blends make the measured path shorter than predicted, a point just before a hairpin of short blocks
+    can win on the pass coming back (as close, nearer the prediction), and a running maximum would then
+    drag the points after it there too. A conflict is a run of points (in program order `order`) where
+    some point lies more than `min_mm` of S beyond a later one. Each run is matched again as a whole
+    between the points around it (which agree with everything before and after): every point projected
+    onto every segment in between, scored by distance + weight x |S - prediction| with the prediction
+    interpolated in program length between those two points, and the best non-decreasing sequence of
+    segments chosen by dynamic programming (a running minimum per point). Runs wider than `max_cells`
+    point x segment pairs are left to the running maximum."""
+    k = order[seg[order] >= 0]
+    if len(k) < 3:
+        return 0
+    sv, sv_len = path.sv, path.sv_len
+    S = sv[seg[k]] + u[k] * sv_len[seg[k]]
+    conflict = np.maximum.accumulate(S) > np.minimum.accumulate(S[::-1])[::-1] + min_mm
+    conflict[0] = False  # the start (earliest passage) stays
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], conflict.astype(np.int8), [0]])))
+    redone = 0
+    last = path.nseg - 1
+    for a, b in zip(edges[::2], edges[1::2]):
+        kb = k[a - 1]
+        j0 = int(seg[kb])
+        if b < len(k):
+            ka = k[b]
+            j1 = int(seg[ka])
+            span_s = s_prog[ka] - s_prog[kb]
+            ratio = (S[b] - S[a - 1]) / span_s if span_s > 0 else 1.0
+        else:
+            j1, ratio = last, 1.0
+        run = k[a:b]
+        if (j1 - j0 + 1) * len(run) > max_cells:
+            continue
+        pred = S[a - 1] + ratio * (s_prog[run] - s_prog[kb])
+        uu, dd = project_gathered(cl[run], slice(j0, j1 + 1), path)
+        score = dd + weight * np.abs(sv[j0:j1 + 1] + uu * sv_len[j0:j1 + 1] - pred[:, None])
+        cols = np.arange(j1 - j0 + 1)
+        back = np.empty((len(run), len(cols)), dtype=np.int64)
+        cost = score[0]
+        for r in range(1, len(run)):
+            # best predecessor on this segment or an earlier one (earliest of equal costs)
+            pm = np.minimum.accumulate(cost)
+            new = np.concatenate([[True], cost[1:] < pm[:-1]])
+            back[r] = np.maximum.accumulate(np.where(new, cols, 0))
+            cost = score[r] + pm
+        best = np.empty(len(run), dtype=np.int64)
+        best[-1] = int(np.argmax(cost <= cost.min() + TIE_MM))
+        for r in range(len(run) - 1, 0, -1):
+            best[r - 1] = back[r, best[r]]
+        rows = np.arange(len(run))
+        seg[run] = j0 + best
+        u[run] = uu[rows, best]
+        dist[run] = dd[rows, best]
+        redone += len(run)
+    return redone

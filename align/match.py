@@ -23,8 +23,15 @@ constrained to progress along the program:
    length ratio of the last chunk; this separates a line retraced right after a reversal (equally close,
    far apart in progress) and never moves the foot point on a straight stretch (weight < 1). A best
    candidate on the window's edge means the window was too small: it is widened (up to MAX_WIDEN times).
-4. Progress is made monotone (a running maximum over the matched positions); a point pushed forward is
-   re-measured at its new position.
+   Blends make the measured path shorter than the program, so the prediction may run ahead of the tool;
+   before a hairpin of very short blocks the pass coming back is then as close and nearer the prediction.
+   Runs of matches that contradict monotone progress by more than `coarse_mm` are therefore matched
+   again together (`chunks.untangle`): between the agreeing matches around them, with the prediction
+   interpolated between those two, as the best non-decreasing sequence (dynamic programming).
+4. After the refinement every match slides downhill along the fine path to the closest point of its
+   passage (the progress term chose the passage but, off a straight stretch or on a corner blend, also
+   pulls the foot point towards the prediction). Then progress is made monotone (a running maximum over
+   the matched positions); a point pushed forward is re-measured at its new position.
 
 Every match returns the fractional sample index, the time (interpolated between samples) and the
 distance. Points farther than their tolerance (among those checked) raise `AlignmentError` listing the
@@ -42,7 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feedlog.align.chunks import TIE_MM, Path, Search, project_cols, project_gathered, search_chunks
+from feedlog.align.chunks import TIE_MM, Path, Search, project_cols, project_gathered, search_chunks, untangle
 from feedlog.errors import AlignmentError
 
 
@@ -102,6 +109,7 @@ class Match:
 
 NO_TIME = np.iinfo(np.int64).min
 REFINE_ROWS = 256  # CL points per refinement batch
+DESCENT_BAND = 32  # fine segments a match may slide either way to its closest point
 
 
 def path_length(positions: np.ndarray) -> np.ndarray:
@@ -183,6 +191,39 @@ def _refine(cl, m, seg_of, u_of, sv_c, s_full, fine_keep, pos, weight):
         u_new[ks[part]] = u[rows, best]
         d_new[ks[part]] = dk[rows, best]
     return fine_keep, seg_new, u_new, d_new
+
+
+def _descend(cl, m, keep, seg_of, u_of, dist, pos, band: int = DESCENT_BAND):
+    """Slide every match along the fine path to the nearest local minimum of its distance (in place).
+
+    The progress term of the search picks the passage; inside a curved one (a corner blend) it also pulls
+    the foot point towards the predicted progress, off the closest point. Walking downhill from the
+    chosen point (at most `band` segments either way) never crosses the distance maximum between two
+    passes, so the passage stays and the match becomes the place where the tool passes the point most
+    closely."""
+    ks = np.flatnonzero(m)
+    if not len(ks):
+        return
+    nf = len(keep) - 1
+    offs = np.arange(-band, band + 1)
+    idx = np.minimum(np.maximum(seg_of[ks, None] + offs[None, :], 0), nf - 1)
+    a, b = keep[idx], keep[idx + 1]
+    x0, y0, z0 = pos[a, 0], pos[a, 1], pos[a, 2]
+    dx, dy, dz = pos[b, 0] - x0, pos[b, 1] - y0, pos[b, 2] - z0
+    c = cl[ks]
+    u, dk = project_cols(c[:, 0:1], c[:, 1:2], c[:, 2:3], x0, y0, z0, dx, dy, dz, dx * dx + dy * dy + dz * dz)
+    # steps that go strictly downhill, counted from the match's own segment outwards
+    right = np.cumprod(dk[:, band + 1:] < dk[:, band:-1] - TIE_MM, axis=1).sum(axis=1)
+    left = np.cumprod((dk[:, :band] < dk[:, 1:band + 1] - TIE_MM)[:, ::-1], axis=1).sum(axis=1)
+    step = np.where(right > 0, right, -left)
+    rows = np.arange(len(ks))
+    moved = dk[rows, band + step] < dist[ks] - TIE_MM  # (also: closer inside its own segment)
+    if moved.any():
+        r = np.flatnonzero(moved)
+        col = band + step[r]
+        seg_of[ks[r]] = idx[r, col]
+        u_of[ks[r]] = u[r, col]
+        dist[ks[r]] = dk[r, col]
 
 
 class _LazySegments:
@@ -328,11 +369,14 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
                     chord_allowance=cfg.chord_allowance, chunk_points=cfg.chunk_points, chunk_mm=chunk_mm)
     seg_of[rest], u_of[rest], dist[rest] = search_chunks(cl, s_prog, tol, speed, rest, coarse, search,
                                                          anchor_s=float(anchor_s), anchor_S=float(anchor_S))
+    # 3b. runs of matches that contradict monotone progress (a hairpin's far side) matched again together
+    untangle(cl, s_prog, order, seg_of, u_of, dist, coarse, weight=cfg.progress_weight, min_mm=cfg.coarse_mm)
 
     # refine every match on the fine path, around its coarse segment and the two next to it
     m = seg_of >= 0
     if m.any():
         keep, seg_of, u_of, dist = _refine(cl, m, seg_of, u_of, sv, s_full, fine_keep, pos, cfg.progress_weight)
+        _descend(cl, m, keep, seg_of, u_of, dist, pos)
         sv = s_full[keep]
         nseg = len(keep) - 1
         # fine segment geometry, gathered only where needed
