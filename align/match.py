@@ -109,7 +109,8 @@ class Match:
 
 NO_TIME = np.iinfo(np.int64).min
 REFINE_ROWS = 256  # CL points per refinement batch
-DESCENT_BAND = 32  # fine segments a match may slide either way to its closest point
+DESCENT_HOP = 4    # fine segments a match looks either way per step of its walk to its closest point
+DESCENT_HOPS = 8   # steps at most
 
 
 def path_length(positions: np.ndarray) -> np.ndarray:
@@ -193,37 +194,39 @@ def _refine(cl, m, seg_of, u_of, sv_c, s_full, fine_keep, pos, weight):
     return fine_keep, seg_new, u_new, d_new
 
 
-def _descend(cl, m, keep, seg_of, u_of, dist, pos, band: int = DESCENT_BAND):
+def _descend(cl, m, keep, seg_of, u_of, dist, pos, *, hop: int = DESCENT_HOP, hops: int = DESCENT_HOPS) -> None:
     """Slide every match along the fine path to the nearest local minimum of its distance (in place).
 
-    The progress term of the search picks the passage; inside a curved one (a corner blend) it also pulls
-    the foot point towards the predicted progress, off the closest point. Walking downhill from the
-    chosen point (at most `band` segments either way) never crosses the distance maximum between two
-    passes, so the passage stays and the match becomes the place where the tool passes the point most
-    closely."""
+    The progress term of the search picks the passage; on a curved one (a corner blend) or for a point
+    beside the path it also pulls the foot point towards the predicted progress, off the closest point.
+    Walking downhill from the chosen point never crosses the distance maximum between two passes, so the
+    passage stays and the match becomes the place where the tool passes the point most closely. The walk
+    looks `hop` segments either way at a time; matches still going downhill at the edge walk on, at
+    most `hops` times."""
     ks = np.flatnonzero(m)
-    if not len(ks):
-        return
     nf = len(keep) - 1
-    offs = np.arange(-band, band + 1)
-    idx = np.minimum(np.maximum(seg_of[ks, None] + offs[None, :], 0), nf - 1)
-    a, b = keep[idx], keep[idx + 1]
-    x0, y0, z0 = pos[a, 0], pos[a, 1], pos[a, 2]
-    dx, dy, dz = pos[b, 0] - x0, pos[b, 1] - y0, pos[b, 2] - z0
-    c = cl[ks]
-    u, dk = project_cols(c[:, 0:1], c[:, 1:2], c[:, 2:3], x0, y0, z0, dx, dy, dz, dx * dx + dy * dy + dz * dz)
-    # steps that go strictly downhill, counted from the match's own segment outwards
-    right = np.cumprod(dk[:, band + 1:] < dk[:, band:-1] - TIE_MM, axis=1).sum(axis=1)
-    left = np.cumprod((dk[:, :band] < dk[:, 1:band + 1] - TIE_MM)[:, ::-1], axis=1).sum(axis=1)
-    step = np.where(right > 0, right, -left)
-    rows = np.arange(len(ks))
-    moved = dk[rows, band + step] < dist[ks] - TIE_MM  # (also: closer inside its own segment)
-    if moved.any():
+    offs = np.arange(-hop, hop + 1)
+    for _ in range(hops):
+        if not len(ks):
+            return
+        idx = np.minimum(np.maximum(seg_of[ks, None] + offs[None, :], 0), nf - 1)
+        a, b = keep[idx], keep[idx + 1]
+        x0, y0, z0 = pos[a, 0], pos[a, 1], pos[a, 2]
+        dx, dy, dz = pos[b, 0] - x0, pos[b, 1] - y0, pos[b, 2] - z0
+        c = cl[ks]
+        u, dk = project_cols(c[:, 0:1], c[:, 1:2], c[:, 2:3], x0, y0, z0, dx, dy, dz, dx * dx + dy * dy + dz * dz)
+        # steps that go strictly downhill, counted from the match's own segment outwards
+        right = np.cumprod(dk[:, hop + 1:] < dk[:, hop:-1] - TIE_MM, axis=1).sum(axis=1)
+        left = np.cumprod((dk[:, :hop] < dk[:, 1:hop + 1] - TIE_MM)[:, ::-1], axis=1).sum(axis=1)
+        step = np.where(right > 0, right, -left)
+        col = hop + step
+        rows = np.arange(len(ks))
+        moved = dk[rows, col] < dist[ks] - TIE_MM  # (also: closer inside its own segment)
         r = np.flatnonzero(moved)
-        col = band + step[r]
-        seg_of[ks[r]] = idx[r, col]
-        u_of[ks[r]] = u[r, col]
-        dist[ks[r]] = dk[r, col]
+        seg_of[ks[r]] = idx[r, col[r]]
+        u_of[ks[r]] = u[r, col[r]]
+        dist[ks[r]] = dk[r, col[r]]
+        ks = ks[moved & (np.abs(step) == hop)]
 
 
 class _LazySegments:
