@@ -174,7 +174,7 @@ def search_chunks(cl: np.ndarray, s_prog: np.ndarray, tol: np.ndarray, speed: np
 
 
 def untangle(cl: np.ndarray, s_prog: np.ndarray, order: np.ndarray, seg: np.ndarray, u: np.ndarray,
-             dist: np.ndarray, path: Path, *, weight: float, min_mm: float, max_cells: int = 4_000_000) -> int:
+             dist: np.ndarray, path: Path, *, weight: float, min_mm: float, max_cells: int = 1_000_000) -> int:
     """Re-match runs of points whose matches contradict monotone progress; updates seg, u, dist in place
     and returns how many points it re-matched.
 
@@ -197,7 +197,6 @@ def untangle(cl: np.ndarray, s_prog: np.ndarray, order: np.ndarray, seg: np.ndar
     conflict[0] = False  # the start (earliest passage) stays
     edges = np.flatnonzero(np.diff(np.concatenate([[0], conflict.astype(np.int8), [0]])))
     redone = 0
-    last = path.nseg - 1
     for a, b in zip(edges[::2], edges[1::2]):
         kb = k[a - 1]
         j0 = int(seg[kb])
@@ -206,8 +205,9 @@ def untangle(cl: np.ndarray, s_prog: np.ndarray, order: np.ndarray, seg: np.ndar
             j1 = int(seg[ka])
             span_s = s_prog[ka] - s_prog[kb]
             ratio = (S[b] - S[a - 1]) / span_s if span_s > 0 else 1.0
-        else:
-            j1, ratio = last, 1.0
+        else:  # a run at the end: up to the farthest of its own matches
+            j1, ratio = int(seg[k[a:b]].max()), 1.0
+        j1 = max(j1, j0)
         run = k[a:b]
         if (j1 - j0 + 1) * len(run) > max_cells:
             continue

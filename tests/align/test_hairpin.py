@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from feedlog.align import align_recording
+from feedlog.align.chunks import Path, untangle
 from feedlog.align.match import MatchConfig, match_cl_points
 from feedlog.errors import AlignmentError
 from feedlog.ingest import read_recording
@@ -113,3 +114,34 @@ def test_refused_recordings_are_still_refused(name):
         pytest.skip(f"{path} not present")
     with pytest.raises(AlignmentError, match="farther than their tolerance"):
         align_recording(read_recording(path))
+
+
+def _line_path(vertices: np.ndarray) -> Path:
+    p = np.asarray(vertices, dtype=np.float64)
+    d = np.diff(p, axis=0)
+    dd = (d * d).sum(axis=1)
+    sv = np.concatenate([[0.0], np.cumsum(np.sqrt(dd))])
+    return Path(cols=(p[:-1, 0], p[:-1, 1], p[:-1, 2], d[:, 0], d[:, 1], d[:, 2]), dd=dd, seg_len=np.sqrt(dd),
+                sv=sv, sv_len=np.diff(sv), seg_dt=np.full(len(dd), 1e-3))
+
+
+@pytest.mark.parametrize("wrong", [[4, 5], [8, 9]])  # inside the sequence, and at its end
+def test_untangle_puts_matches_on_the_far_pass_back(wrong):
+    """A line out to x = 10 and back (vertices every 0.5 mm): CL points at x = 0..9 on the way out.
+    Matches on the way back for some of them contradict progress; untangle brings them to the way out."""
+    xs = np.r_[np.arange(0.0, 10.0, 0.5), np.arange(10.0, -0.01, -0.5)]
+    path = _line_path(np.column_stack([xs, np.zeros_like(xs), np.zeros_like(xs)]))
+    cl = np.column_stack([np.arange(10.0), np.zeros(10), np.zeros(10)])
+    s_prog = cl[:, 0].copy()
+    seg = (2 * np.arange(10)).astype(np.int64)  # vertex 2k is x = k on the way out
+    u = np.zeros(10)
+    back = np.array(wrong)
+    seg[back] = 39 - 2 * back  # x = k on the way back: segment 39 - 2k ends there
+    u[back] = 1.0
+    dist = np.zeros(10)
+    order = np.arange(10)
+    n = untangle(cl, s_prog, order, seg, u, dist, path, weight=0.25, min_mm=0.05)
+    assert n >= len(back)
+    S = path.sv[seg] + u * path.sv_len[seg]
+    np.testing.assert_allclose(S, cl[:, 0], atol=1e-9)
+    np.testing.assert_allclose(dist, 0.0, atol=1e-9)
