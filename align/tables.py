@@ -1,7 +1,7 @@
 """align's on-disk output: `points.parquet`, `blocks.parquet` and `report.json` in one folder per recording.
 
 Both Parquet files carry key `feedlog.align` in their schema metadata: a JSON object with
-`format_version`, `table`, `cycle_time_s`, `recording` and `program`. Readers refuse a newer
+`format_version`, `table`, `cycle_time_s`, `recording` (as given), `recording_path` (absolute, when it is a file) and `program`. Readers refuse a newer
 format_version. Columns (units in names):
 - points: point, block, line, kind, x_mm ... c_deg, ori_*, programmed_feed_mm_min, s_mm (program),
   t_ns (matched time), t_rel_s (since motion start), dist_mm, sample (nearest measured sample),
@@ -61,8 +61,11 @@ def write_alignment(outdir: str | Path, alignment: Alignment, *, overwrite: bool
     if existing and not overwrite:
         raise FeedlogError(f"{existing[0]} exists; use --overwrite to replace it")
     out.mkdir(parents=True, exist_ok=True)
+    rec = alignment.report.get("recording")
     base = {"format_version": FORMAT_VERSION, "cycle_time_s": alignment.cycle_time_s,
-            "recording": alignment.report.get("recording"), "program": alignment.report.get("program")}
+            "recording": rec, "program": alignment.report.get("program")}
+    if rec and Path(rec).is_file():  # as given, and absolute: readers elsewhere still find its manifest
+        base["recording_path"] = str(Path(rec).resolve())
     _write(paths[0], alignment.points, {**base, "table": "points"})
     _write(paths[1], alignment.blocks, {**base, "table": "blocks"})
     paths[2].write_text(to_json(alignment.report, indent=2) + "\n")

@@ -40,9 +40,9 @@ def read_manifest(path: str | Path) -> dict[str, dict[str, Any]]:
 
 
 def _manifest_candidates(folder: Path, meta: dict[str, Any]) -> Iterable[Path]:
-    rec = meta.get("recording")
-    if rec:
-        yield Path(rec).parent / MANIFEST
+    for key in ("recording", "recording_path"):  # as given to align (relative to where it ran), absolute
+        if meta.get(key):
+            yield Path(meta[key]).parent / MANIFEST
     for parent in [folder, *folder.resolve().parents]:
         yield parent / MANIFEST
         yield parent / "recordings" / MANIFEST
@@ -74,8 +74,8 @@ def load_aligned(folder: str | Path, *, manifest: str | Path | None = None, spli
                 break
     entry = entries.get(name, {})
     # left out of the manifest beside its recording (or the one given): not part of that data set
-    beside = Path(meta["recording"]).parent / MANIFEST if meta.get("recording") else None
-    unlisted = ({"unlisted_in": str(found[0])} if found and not entry and (manifest is not None or found[0] == beside)
+    beside = {Path(meta[k]).parent / MANIFEST for k in ("recording", "recording_path") if meta.get(k)}
+    unlisted = ({"unlisted_in": str(found[0])} if found and not entry and (manifest is not None or found[0] in beside)
                 else {})
     profile = None
     if entry.get("profile"):

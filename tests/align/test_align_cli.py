@@ -77,6 +77,7 @@ def test_cli_writes_tables_and_prints_json(rec_files, tmp_path, capsys):
     blocks, meta = read_table(folder / "blocks.parquet")
     points, _ = read_table(folder / "points.parquet")
     assert meta["format_version"] == FORMAT_VERSION and meta["table"] == "blocks"
+    assert meta["recording"] == str(rec_files[0]) and meta["recording_path"] == str(Path(rec_files[0]).resolve())
     assert blocks["duration_s"].sum() == pytest.approx(doc["cycle_time_s"], abs=1e-9)
     assert {"length_mm", "corner_start_deg", "nominal_time_s", "vx_nom_mm_min"} <= set(blocks.columns)
     assert {"feed_meas_mm_min", "vx_meas_mm_min", "dist_mm", "t_ns"} <= set(points.columns)

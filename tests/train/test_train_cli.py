@@ -46,6 +46,26 @@ def test_load_many_reads_split_and_profile_from_the_manifest(tmp_path):
         load_many([tmp_path])
 
 
+def test_the_manifest_is_found_from_any_folder(tmp_path, monkeypatch):
+    """align ran in tmp_path with a relative recording path; training runs elsewhere."""
+    (tmp_path / "data").mkdir()
+    (tmp_path / "data" / "manifest.toml").write_text(
+        '[[recording]]\nname = "r"\nsplit = "test"\nprofile = "linuxcnc-xyz"\n')
+    table = synthetic_set(n_train=1, n_test=0, n_blocks=30, seed=2, sim_acc_factor=None)[0]
+    arrow = pa.Table.from_pandas(table.blocks, preserve_index=False)
+    meta = {"format_version": FORMAT_VERSION, "table": "blocks", "recording": "data/r.mcap", "program": "p.ngc",
+            "cycle_time_s": table.measured_cycle_time_s}
+    for with_abs in (False, True):
+        folder = tmp_path / "out" / str(with_abs) / "r"
+        folder.mkdir(parents=True)
+        doc = meta | ({"recording_path": str(tmp_path / "data" / "r.mcap")} if with_abs else {})
+        pq.write_table(arrow.replace_schema_metadata({META_KEY: json.dumps(doc).encode()}), folder / "blocks.parquet")
+    monkeypatch.chdir(tmp_path / "out")
+    without, found = (load_many([tmp_path / "out" / key]) for key in ("False", "True"))
+    assert without[0].profile is None and without[0].split == "train"  # nothing says otherwise
+    assert found[0].profile.name == "linuxcnc-xyz" and found[0].split == "test"
+
+
 def test_train_then_predict(tmp_path, capsys, examples_dir, monkeypatch):
     aligned = _write_aligned(tmp_path)
     out = tmp_path / "models"
