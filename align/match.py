@@ -194,7 +194,8 @@ def _refine(cl, m, seg_of, u_of, sv_c, s_full, fine_keep, pos, weight):
     return fine_keep, seg_new, u_new, d_new
 
 
-def _descend(cl, m, keep, seg_of, u_of, dist, pos, *, hop: int = DESCENT_HOP, hops: int = DESCENT_HOPS) -> None:
+def _descend(cl, m, keep, seg_of, u_of, dist, pos, *, min_gain: float, hop: int = DESCENT_HOP,
+             hops: int = DESCENT_HOPS) -> None:
     """Slide every match along the fine path to the nearest local minimum of its distance (in place).
 
     The progress term of the search picks the passage; on a curved one (a corner blend) or for a point
@@ -202,7 +203,8 @@ def _descend(cl, m, keep, seg_of, u_of, dist, pos, *, hop: int = DESCENT_HOP, ho
     Walking downhill from the chosen point never crosses the distance maximum between two passes, so the
     passage stays and the match becomes the place where the tool passes the point most closely. The walk
     looks `hop` segments either way at a time; matches still going downhill at the edge walk on, at
-    most `hops` times."""
+    most `hops` times. A step must gain more than `min_gain` (the path's resolution): sub-micrometre
+    wiggles while the tool stands (a five-axis exact stop turning A/C) keep the arrival."""
     ks = np.flatnonzero(m)
     nf = len(keep) - 1
     offs = np.arange(-hop, hop + 1)
@@ -221,7 +223,7 @@ def _descend(cl, m, keep, seg_of, u_of, dist, pos, *, hop: int = DESCENT_HOP, ho
         step = np.where(right > 0, right, -left)
         col = hop + step
         rows = np.arange(len(ks))
-        moved = dk[rows, col] < dist[ks] - TIE_MM  # (also: closer inside its own segment)
+        moved = dk[rows, col] < dist[ks] - min_gain  # (also: closer inside its own segment)
         r = np.flatnonzero(moved)
         seg_of[ks[r]] = idx[r, col[r]]
         u_of[ks[r]] = u[r, col[r]]
@@ -379,7 +381,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     m = seg_of >= 0
     if m.any():
         keep, seg_of, u_of, dist = _refine(cl, m, seg_of, u_of, sv, s_full, fine_keep, pos, cfg.progress_weight)
-        _descend(cl, m, keep, seg_of, u_of, dist, pos)
+        _descend(cl, m, keep, seg_of, u_of, dist, pos, min_gain=cfg.resolution_mm)
         sv = s_full[keep]
         nseg = len(keep) - 1
         # fine segment geometry, gathered only where needed
