@@ -21,6 +21,8 @@ from feedlog.errors import ModelError
 from feedlog.profile import MachineProfile
 from feedlog.train.dataset import ProgramTable
 
+OFFSET_SHARE = 0.4  # share of five-axis programs that set a work offset
+
 
 def random_program_text(*, n_blocks: int, feed_mm_min: float, tol_mm: float, seed: int,
                         rotary: bool = False) -> str:
@@ -29,6 +31,9 @@ def random_program_text(*, n_blocks: int, feed_mm_min: float, tol_mm: float, see
     With `rotary` (a five-axis A/C machine) most runs also turn A (kept in -55..0 deg, often near the
     A = 0 singularity) and C by up to a few degrees per block, so that on short segments the rotary
     axes' speed, not L / F, sets the time (as on a five-axis test toolpath); the rest are 3-axis runs.
+    Four programs in ten then set a work offset (G10 L2 P1, X/Y within 15 mm, Z within 5 mm, as the
+    random-mix recordings do): the workpiece's distance from the rotary axes (Chien's Xo, Yo, Zo) changes
+    how far the linear axes travel when A and C turn.
     """
     rng = np.random.default_rng(seed)
     # half of the blended programs forbid LinuxCNC's merging of short collinear segments (Q0)
@@ -36,7 +41,13 @@ def random_program_text(*, n_blocks: int, feed_mm_min: float, tol_mm: float, see
     no_merge = bool(rng.random() < 0.5)
     mode = "G61" if tol_mm <= 0 else f"G64 P{tol_mm:g}" + (" Q0" if no_merge else "")
     start = "G0 X0 Y0 Z5 A-20 C0" if rotary else "G0 X0 Y0 Z5"
-    lines = ["G21 G90 G17", mode, start, f"G1 Z0 F{feed_mm_min:g}"]
+    lines = ["G21 G90 G17", mode]
+    if rotary:  # a workpiece away from the rotary axes' origin in 4 of 10 programs (own stream: same paths)
+        off_rng = np.random.default_rng([seed, 1])
+        if off_rng.random() < OFFSET_SHARE:
+            ox, oy, oz = off_rng.uniform(-15.0, 15.0, 2).tolist() + [float(off_rng.uniform(-5.0, 5.0))]
+            lines += [f"G10 L2 P1 X{ox:.1f} Y{oy:.1f} Z{oz:.1f} A0 C0", "G54"]
+    lines += [start, f"G1 Z0 F{feed_mm_min:g}"]
     x = y = z = heading = 0.0
     a, c = -20.0, 0.0
     count = 0
