@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from feedlog.errors import ModelError
 from feedlog.train.evaluate import DEFAULT_MODELS, format_results, train_and_evaluate
@@ -43,7 +44,8 @@ def run(args: argparse.Namespace) -> int:
         raise ModelError(f"unknown model(s) {', '.join(bad) or '(none given)'}; known: {', '.join(known)}")
     tables = load_many(args.aligned, manifest=args.manifest, test=args.test)
     n_train = sum(t.split == "train" for t in tables)
-    print(f"{len(tables)} aligned recording(s): {n_train} for training, {len(tables) - n_train} held out")
+    print(f"{len(tables)} aligned recording(s): {n_train} for training, {len(tables) - n_train} held out",
+          file=sys.stderr if args.json else sys.stdout)  # --json: stdout is one JSON document
     overrides = {m: {"epochs": args.epochs} for m in models} if args.epochs else None
     results = train_and_evaluate(tables, out_dir=args.outdir, models=models, seed=args.seed, preset=args.preset,
                                  overrides=overrides, overwrite=args.overwrite, sim_augment=args.sim_augment,

@@ -79,6 +79,9 @@ def test_train_then_predict(tmp_path, capsys, examples_dir, monkeypatch):
     assert results["measured_s"].iloc[0] == pytest.approx(load_many([aligned])[0].measured_cycle_time_s)
     assert main(argv) == 1  # outputs exist: refused without --overwrite
     assert "refusing to overwrite" in capsys.readouterr().err
+    assert main([*argv, "--overwrite", "--json", "--models", "mlp"]) == 0
+    doc = json.loads(capsys.readouterr().out)  # nothing but the JSON document on stdout
+    assert [r["recording"] for r in doc["results"]] == ["test-2"] and "mlp" in doc["summary"]
 
     program = tmp_path / "pocket.ngc"
     program.write_text((examples_dir / "pocket.ngc").read_text())
