@@ -28,9 +28,9 @@ constrained to progress along the program:
    Runs of matches that contradict monotone progress by more than `coarse_mm` are therefore matched
    again together (`chunks.untangle`): between the agreeing matches around them, with the prediction
    interpolated between those two, as the best non-decreasing sequence (dynamic programming).
-4. After the refinement every match slides downhill along the fine path to the closest point of its
-   passage (the progress term chose the passage but, off a straight stretch or on a corner blend, also
-   pulls the foot point towards the prediction). Then progress is made monotone (a running maximum over
+4. After the refinement every match of dense data slides downhill along the fine path to the closest
+   point of its passage (the progress term chose the passage but, beside a straight stretch or on a
+   corner blend, also pulls the foot point towards the prediction). Then progress is made monotone (a running maximum over
    the matched positions); a point pushed forward is re-measured at its new position.
 
 Every match returns the fractional sample index, the time (interpolated between samples) and the
@@ -381,7 +381,8 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     m = seg_of >= 0
     if m.any():
         keep, seg_of, u_of, dist = _refine(cl, m, seg_of, u_of, sv, s_full, fine_keep, pos, cfg.progress_weight)
-        _descend(cl, m, keep, seg_of, u_of, dist, pos, min_gain=cfg.resolution_mm)
+        if not sparse:  # sparse samples are long chords: a walk over them may leave the passage
+            _descend(cl, m, keep, seg_of, u_of, dist, pos, min_gain=cfg.resolution_mm)
         sv = s_full[keep]
         nseg = len(keep) - 1
         # fine segment geometry, gathered only where needed
