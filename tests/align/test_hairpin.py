@@ -3,7 +3,7 @@
 A blended path is shorter than the program (every corner is cut), so the chunk search predicts the
 measured length of a point too far ahead. Just before a hairpin the pass coming back lies as close to the
 short blocks as the approach does, and nearer that prediction: the search used to give the points the
-far side of the hairpin, 0.1-0.6 mm away, and the running maximum dragged the next ones there too.
+far side of the hairpin, 0.06-0.6 mm away, and the running maximum dragged the next ones there too.
 Synthetic truth: the program's corners replaced by quadratic blends deviating P = 0.1 mm, moved at a
 constant 1000 mm/min, sampled at 1 kHz."""
 
