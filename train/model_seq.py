@@ -249,11 +249,14 @@ class BlockSeqConfig(SeqConfig):
     target_mode: str = "cam_sum"
     batch_size: int = 64
     patience: int = 40
-    # nets trained with seeds seed, seed + 1, ...; their per-block log factors are averaged
-    members: int = 1
+    # nets trained with seeds seed, seed + 1, ...; their per-block log factors are averaged. One net's
+    # result depends on its seed (19 held-out training recordings, seeds 0-2: 15.7 % (one program +210 %),
+    # 5.5 %, 7.6 % mean |error|); five averaged gave 6.1 % and 6.2 % (seeds 0, 1), worst program 21-27 %
+    members: int = 5
 
-    # quick (the demo, a few hundred windows): batches of 16 give 4x the optimiser steps per epoch
-    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8, "batch_size": 16}}
+    # quick (the demo, a few hundred windows): one net, batches of 16 give 4x the optimiser steps per epoch
+    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8, "batch_size": 16,
+                                                              "members": 1}}
 
     def __post_init__(self) -> None:
         super().__post_init__()
