@@ -195,8 +195,17 @@ def _last_on(t, p, rows, start, hi, a, d, on_path_mm, *, off=False):
     out = np.full(len(rows), -1, dtype=np.int64)
     if not len(rows):
         return out
-    width = int((hi[rows] - start).max()) + 1
-    for sel in np.array_split(np.arange(len(rows)), max(1, len(rows) * width // 2_000_000 + 1)):
+    widths = hi[rows] - start + 1
+    # rows of similar window width together, so a few long windows do not pad every row to their width
+    order = np.argsort(widths, kind="stable")
+    chunks, first = [], 0
+    while first < len(order):  # up to 1024 rows and 2 M samples x rows per chunk
+        widest = max(1, int(widths[order[min(first + 1024, len(order)) - 1]]))
+        size = max(1, min(1024, 2_000_000 // widest))
+        chunks.append(order[first:first + size])
+        first += size
+    for sel in chunks:
+        width = max(1, int(widths[sel].max()))
         part, st = rows[sel], start[sel]
         idx = st[:, None] + np.arange(width)[None, :]
         valid = idx <= hi[part, None]
