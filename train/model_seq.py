@@ -250,7 +250,7 @@ class BlockSeqConfig(SeqConfig):
     batch_size: int = 64
     patience: int = 40
     # nets trained with seeds seed, seed + 1, ...; their per-block log factors are averaged. One net's
-    # result depends on its seed (19 held-out training recordings, seeds 0-2: 15.7 % (one program +210 %),
+    # result depends on its seed (20 held-out training recordings, seeds 0-2: 15.7 % (one program +210 %),
     # 5.5 %, 7.6 % mean |error|); five averaged gave 6.1 % and 6.2 % (seeds 0, 1), worst program 21-27 %
     members: int = 5
 
