@@ -134,7 +134,15 @@ def move_leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndar
         r, last_on, sa, sb = rows[sel], on[sel], ca[sel], cb[sel]
         upto = hi.copy()
         upto[r] = last_on
-        off_before = _last_on(t, p, r, lo[r], upto, sa, sb - sa, on_path_mm, off=True)
+        # only a run shorter than gap_cycles matters: look at its last few samples first; a row with no
+        # sample off the chord there is a long run (unless those samples span too little time: then the
+        # whole window, as before)
+        tail = np.maximum(lo[r], last_on - int(np.ceil(gap_cycles)) - 16)
+        off_before = _last_on(t, p, r, tail, upto, sa, sb - sa, on_path_mm, off=True)
+        unsure = (off_before < 0) & (tail > lo[r]) & (t[last_on] - t[tail] < gap_cycles * period)
+        if unsure.any():
+            off_before[unsure] = _last_on(t, p, r[unsure], lo[r[unsure]], upto, sa[unsure], sb[unsure] - sa[unsure],
+                                          on_path_mm, off=True)
         first_on = off_before + 1
         arrive = _tangent_time(t, p, np.maximum(first_on - 1, 0), -1, sa, sb)
         depart = _tangent_time(t, p, np.minimum(last_on + 1, n - 1), 1, sa, sb)
