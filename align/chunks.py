@@ -52,20 +52,10 @@ class Search:
     chunk_mm: float
 
 
-def project(c: np.ndarray, p0: np.ndarray, d: np.ndarray, dd: np.ndarray):
-    """Project points c (..., 3) onto segments p0 + u d (..., 3); returns u in [0, 1] and distance."""
-    w = c - p0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        u = np.where(dd > 0, (w * d).sum(axis=-1) / np.where(dd > 0, dd, 1.0), 0.0)
-    u = np.clip(u, 0.0, 1.0)
-    r = w - u[..., None] * d
-    return u, np.sqrt((r * r).sum(axis=-1))
-
-
 def project_cols(cx, cy, cz, x0, y0, z0, dx, dy, dz, dd):
-    """`project` on coordinates held as separate (broadcasting) columns: the same operations in the same
-    order per element (numpy sums three values as ((x + y) + z) too), without reductions over a
-    length-3 axis, which numpy does slowly."""
+    """Project points (cx, cy, cz) onto segments (x0, y0, z0) + u (dx, dy, dz) with squared lengths dd,
+    all as separate (broadcasting) columns; returns u in [0, 1] and the distance. Columns, not (..., 3)
+    arrays: numpy reduces over a length-3 axis slowly."""
     wx, wy, wz = cx - x0, cy - y0, cz - z0
     with np.errstate(invalid="ignore", divide="ignore"):
         u = np.where(dd > 0, (wx * dx + wy * dy + wz * dz) / np.where(dd > 0, dd, 1.0), 0.0)
@@ -75,7 +65,7 @@ def project_cols(cx, cy, cz, x0, y0, z0, dx, dy, dz, dd):
 
 
 def project_gathered(c: np.ndarray, idx: np.ndarray | slice, path: Path):
-    """`project` of points c (k, 3) onto the segments idx ((k, m) indices or a slice) of `path`."""
+    """`project_cols` of points c (k, 3) onto the segments idx ((k, m) indices or a slice) of `path`."""
     if isinstance(idx, slice):
         return project_cols(c[..., 0:1], c[..., 1:2], c[..., 2:3], *(a[idx] for a in path.cols), path.dd[idx])
     return project_cols(c[:, 0:1], c[:, 1:2], c[:, 2:3], *(a[idx] for a in path.cols), path.dd[idx])

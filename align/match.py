@@ -179,11 +179,7 @@ def _refine(cl, m, seg_of, u_of, sv_c, s_full, fine_keep, pos, weight):
         idx = lo[part, None] + np.arange(band)[None, :]
         valid = idx <= hi[part, None]
         idx = np.minimum(idx, nf - 1)
-        a, b = fine_keep[idx], fine_keep[idx + 1]
-        x0, y0, z0 = px[a], py[a], pz[a]
-        dx, dy, dz = px[b] - x0, py[b] - y0, pz[b] - z0
-        c = cl[ks[part]]
-        u, dk = project_cols(c[:, 0:1], c[:, 1:2], c[:, 2:3], x0, y0, z0, dx, dy, dz, dx * dx + dy * dy + dz * dz)
+        u, dk = _project_fine(cl[ks[part]], px, py, pz, fine_keep[idx], fine_keep[idx + 1])
         dk = np.where(valid, dk, np.inf)
         score = dk + weight * np.abs(fs[idx] + u * (fs[idx + 1] - fs[idx]) - s_coarse[part, None])
         best = np.argmax(score <= score.min(axis=1, keepdims=True) + TIE_MM, axis=1)
@@ -192,6 +188,13 @@ def _refine(cl, m, seg_of, u_of, sv_c, s_full, fine_keep, pos, weight):
         u_new[ks[part]] = u[rows, best]
         d_new[ks[part]] = dk[rows, best]
     return fine_keep, seg_new, u_new, d_new
+
+
+def _project_fine(c: np.ndarray, px: np.ndarray, py: np.ndarray, pz: np.ndarray, a: np.ndarray, b: np.ndarray):
+    """`project_cols` of points c (k, 3) onto the fine segments from samples a (k, m) to samples b."""
+    x0, y0, z0 = px[a], py[a], pz[a]
+    dx, dy, dz = px[b] - x0, py[b] - y0, pz[b] - z0
+    return project_cols(c[:, 0:1], c[:, 1:2], c[:, 2:3], x0, y0, z0, dx, dy, dz, dx * dx + dy * dy + dz * dz)
 
 
 def _descend(cl, m, keep, seg_of, u_of, dist, pos, *, min_gain: float, hop: int = DESCENT_HOP,
@@ -212,11 +215,7 @@ def _descend(cl, m, keep, seg_of, u_of, dist, pos, *, min_gain: float, hop: int 
         if not len(ks):
             return
         idx = np.minimum(np.maximum(seg_of[ks, None] + offs[None, :], 0), nf - 1)
-        a, b = keep[idx], keep[idx + 1]
-        x0, y0, z0 = pos[a, 0], pos[a, 1], pos[a, 2]
-        dx, dy, dz = pos[b, 0] - x0, pos[b, 1] - y0, pos[b, 2] - z0
-        c = cl[ks]
-        u, dk = project_cols(c[:, 0:1], c[:, 1:2], c[:, 2:3], x0, y0, z0, dx, dy, dz, dx * dx + dy * dy + dz * dz)
+        u, dk = _project_fine(cl[ks], pos[:, 0], pos[:, 1], pos[:, 2], keep[idx], keep[idx + 1])
         # steps that go strictly downhill, counted from the match's own segment outwards
         right = np.cumprod(dk[:, hop + 1:] < dk[:, hop:-1] - TIE_MM, axis=1).sum(axis=1)
         left = np.cumprod((dk[:, :hop] < dk[:, 1:hop + 1] - TIE_MM)[:, ::-1], axis=1).sum(axis=1)

@@ -262,19 +262,26 @@ def geometry_blocks_by_moves(recording: Recording, alignment: Alignment, *, prog
             raise AlignmentError(f"{src}: no machine profile given and none attached ({PROFILE_ATTACHMENT}); "
                                  "the merge model needs the machine's axes")
         profile = MachineProfile.from_toml(data.decode("utf-8"), source=f"{src}:{PROFILE_ATTACHMENT}")
+    # align_recording keeps its per-block estimate apart when it already ran this model
     geo = alignment.geometry_blocks_base if alignment.geometry_blocks_base is not None else alignment.geometry_blocks
     if geo is None:
         raise AlignmentError(f"{src}: the alignment has no geometry blocks")
+    return moves_from_blocks(recording, geo, alignment.points, alignment.report, program=program, profile=profile,
+                             positions=positions)
+
+
+def moves_from_blocks(recording: Recording, geo: pd.DataFrame, points: pd.DataFrame, report: dict, *,
+                      program: Program, profile: MachineProfile, positions: str = "axes") -> pd.DataFrame:
+    """`geometry_blocks_by_moves` from its parts: align's per-block geometry table `geo`, its CL points
+    table and report (config, still_mm, motion span), as `align_recording` has them before it returns."""
     axes = recording.stream(positions)
     t = axes["t_ns"].to_numpy(dtype=np.int64)
     xyz = axes[list(LINEAR)].to_numpy(dtype=np.float64)
     motion = program.motion.reset_index(drop=True)
     if len(motion) != len(geo) or (motion["block"].to_numpy() != geo["block"].to_numpy()).any():
         raise AlignmentError(f"{program.name}: the alignment's blocks are not this program's motion blocks")
-    report = alignment.report
     offset = np.asarray(report.get("config", {}).get("work_offset_mm", (0.0, 0.0, 0.0)), dtype=np.float64)
-    pts = alignment.points
-    last_pt = pts.groupby("block")["t_ns"].last().reindex(motion["block"]).to_numpy()
+    last_pt = points.groupby("block")["t_ns"].last().reindex(motion["block"]).to_numpy()
     arrival = np.where(last_pt == NO_TIME, geo["t_end_ns"].to_numpy(), last_pt).astype(np.int64)
     end_index = np.interp(arrival.astype(np.float64), t.astype(np.float64), np.arange(len(t), dtype=np.float64))
     start = geo["t_start_ns"].to_numpy(dtype=np.int64)

@@ -262,11 +262,9 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     report["boundary"] = boundary
     base = None
     if boundary == "leave" and prof is not None and prof.mechanism("naive_cam").get("enabled", False):
-        from feedlog.align.moves import geometry_blocks_by_moves  # noqa: PLC0415 - moves imports this module
+        from feedlog.align.moves import moves_from_blocks  # noqa: PLC0415 - moves imports this module
         base = geo
-        geo = geometry_blocks_by_moves(recording, Alignment(points=points, blocks=geo, cycle_time_s=span.duration_s,
-                                                            report=report, geometry_blocks=geo),
-                                       program=prog, profile=prof, positions=cfg.positions)
+        geo = moves_from_blocks(recording, geo, points, report, program=prog, profile=prof, positions=cfg.positions)
     report["geometry_model"] = "per block" if base is None else "planner moves"
     lap("geometry_blocks")
     line_blocks = _line_blocks(recording, cfg, motion, span, geo, report)
