@@ -97,13 +97,19 @@ def _nominal(table: ProgramTable, axes: Sequence[str], *, limited: bool) -> tupl
     """Axis feeds (rows x axes, mm/min) and block times (s): nominal, or within the axes' speed limits."""
     b = table.blocks
     v = np.nan_to_num(np.column_stack([b[f"v{a}_nom_mm_min"].to_numpy(np.float64) for a in axes]))
-    nominal = np.nan_to_num(b["nominal_time_s"].to_numpy(np.float64))
     if not limited:
-        return v, nominal
-    lim = limited_time(b, name=table.name, needed_by="mlp")
-    with np.errstate(divide="ignore", invalid="ignore"):
-        scale = np.where(lim > 0, nominal / lim, 1.0)
+        return v, np.nan_to_num(b["nominal_time_s"].to_numpy(np.float64))
+    lim, scale = _limits(table)
     return v * scale[:, None], lim
+
+
+def _limits(table: ProgramTable) -> tuple[np.ndarray, np.ndarray]:
+    """Block times within the axes' speed limits (`features.limited_time`) and the factor (L/F over that
+    time, 1 where it is 0) that brings the nominal axis feeds within those limits."""
+    nominal = np.nan_to_num(table.blocks["nominal_time_s"].to_numpy(np.float64))
+    lim = limited_time(table.blocks, name=table.name, needed_by="mlp")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return lim, np.where(lim > 0, nominal / lim, 1.0)
 
 
 def speed_ratio(nominal: np.ndarray, duration: np.ndarray, *, span: int) -> np.ndarray:
@@ -135,10 +141,7 @@ class PerAxisMLP(Model):
         x = build_inputs(table.blocks, names, what="mlp", source=table.name)
         v = np.nan_to_num(table.blocks[f"v{axis}_nom_mm_min"].to_numpy(np.float64))
         if self.config.limited_feeds:  # axis feeds at n-1, n, n+1 within the axes' speed limits
-            _, lim = _nominal(table, (axis,), limited=True)
-            nominal = np.nan_to_num(table.blocks["nominal_time_s"].to_numpy(np.float64))
-            with np.errstate(divide="ignore", invalid="ignore"):
-                scale = np.where(lim > 0, nominal / lim, 1.0)
+            _, scale = _limits(table)
             shifted = {"": scale, "_prev": np.concatenate([[1.0], scale[:-1]]),
                        "_next": np.concatenate([scale[1:], [1.0]])}
             for j, n in enumerate(names):

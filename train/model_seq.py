@@ -275,7 +275,7 @@ class BlockBiLSTM(SeqModel):
     def build_nets(self) -> None:
         cfg = self.config
         self.nets = {}
-        for k in range(getattr(cfg, "members", 1)):
+        for k in range(cfg.members):
             setup_torch(cfg.seed + k)
             self.nets["net" if k == 0 else f"net{k}"] = BiLSTMSeq(len(self.inputs), cfg.hidden, cfg.layers)
 
