@@ -76,7 +76,7 @@ def test_an_ensemble_averages_its_members_and_round_trips(tmp_path):
     small = {"epochs": 3, "hidden": 6, "window": 32, "stride": 16}
     with pytest.raises(ModelError, match="members must be >= 1"):
         make_config("bilstm-block", members=0)
-    one = make_model("bilstm-block", **small)
+    one = make_model("bilstm-block", members=1, **small)
     three = make_model("bilstm-block", members=3, **small)
     for m in (one, three):
         m.fit(train, progress=False)
@@ -89,7 +89,7 @@ def test_an_ensemble_averages_its_members_and_round_trips(tmp_path):
     # the ensemble's log factors are the mean of its members'
     singles = []
     for key in ("net", "net1", "net2"):
-        alone = make_model("bilstm-block", **small)
+        alone = make_model("bilstm-block", members=1, **small)
         alone.norms, alone.constants, alone.fingerprint = three.norms, three.constants, "synthetic"
         alone.nets = {"net": three.nets[key]}
         singles.append(alone.predict_values(test))
