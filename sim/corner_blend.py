@@ -15,6 +15,9 @@ blendmath.c `blendComputeParameters`, `blendCheckConsume`), re-derived here in v
   acceleration and the next block starts while the current one decelerates from the blend speed
   (this is why LinuxCNC's five-axis G64 is slower than G61);
 - corners sharper than `sharp_corner_deg` from a reversal stop;
+- a rapid (G0) next to a feed move (G1/G2/G3) is never blended: LinuxCNC stops between them
+  (tp.c `handleModeChange` sets the STOP end condition, so neither block's acceleration is halved);
+  `rapid_feed_stop = false` blends them like any other junction;
 - a continuous-mode block that is not blended into a next one (the last move, a move before a
   dwell) keeps the parabolic end condition and so half its acceleration;
 - in G61 (exact path) tangent junctions are still passed without stopping; at the other G61
@@ -33,7 +36,7 @@ import numpy as np
 from feedlog.profile import MachineProfile
 from feedlog.sim.context import Context
 from feedlog.sim.mechanism import Mechanism
-from feedlog.sim.path import Pieces, rows, with_columns
+from feedlog.sim.path import KIND_RAPID, Pieces, rows, with_columns
 
 ACC_RATIO_TANGENTIAL = 0.5
 
@@ -91,6 +94,7 @@ class BlendArcCorner(Mechanism):
     sharp_corner_deg: float = 2.0
     servo_period_s: float = 0.001
     rotary_blend: str = "parabolic"  # or "stop"
+    rapid_feed_stop: bool = True      # stop where the motion switches between rapid and feed
 
     def __post_init__(self) -> None:
         self.check_positive(servo_period_s=self.servo_period_s, tolerance_ratio=self.tolerance_ratio)
@@ -141,6 +145,9 @@ class BlendArcCorner(Mechanism):
         dot = np.clip(np.einsum("ij,ij->i", u1, u2), -1.0, 1.0)
         sharp = moves_xyz & (dot < -math.cos(math.radians(self.sharp_corner_deg)))
         hard |= sharp | (g61 & rotary)
+        rapid = blocks.kind == KIND_RAPID
+        mode_change = (rapid[b1] != rapid[b2]) if self.rapid_feed_stop else np.zeros(m - 1, bool)
+        hard |= mode_change
 
         v_end = np.zeros(m)
         a_max = pc.a_max.copy()
@@ -186,7 +193,7 @@ class BlendArcCorner(Mechanism):
         # condition and so half its acceleration (tcGetOverallMaxAccel): the program's last move and
         # moves before a dwell or other hard stop that is not a sharp corner
         continuous = ~blocks.stop_after[b] | ((np.arange(m) == m - 1) & ~blocks.exact_path[b] & self._continuous(blocks, b))
-        end_stop = np.append(hard & ~sharp, True)
+        end_stop = np.append(hard & ~sharp & ~mode_change, True)
         half = continuous & end_stop & ~halved & (length > 0)
         a_max[half] *= 0.5
         ctx.pieces = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)

@@ -191,6 +191,28 @@ def test_last_continuous_block_runs_at_half_acceleration(plain, gcode):
     assert g61.cycle_time_s == pytest.approx(100 / 50 + 50 / 1000, abs=1e-6)
 
 
+def test_rapid_and_feed_moves_are_never_blended(make_machine, gcode):
+    """LinuxCNC stops between a rapid and a feed move (tp.c handleModeChange: STOP end condition, so
+    the rapid keeps its full acceleration); found on five-axis recordings whose first move is a G0
+    turning A by 20 deg, which LinuxCNC made 0.1 s faster than a parabolic blend at half acceleration."""
+    prof = make_machine(five_axis=True)
+    text = "G21 G90 G64 P0.05\nF3000\nG0 Z2 A-20\nG1 X5 Z2.1 A-21.5\nG1 X10 Z2.2 A-23\n"
+    stop = simulate(gcode(text), prof, mechanisms=["lookahead", "blend_arc"])
+    blend = simulate(gcode(text), prof, mechanisms={"blend_arc": {"rapid_feed_stop": False}})
+    assert blend.notes["parabolic_blends"] == 2 and stop.notes["parabolic_blends"] == 1
+    # the G0 turns A 20 deg at 60 deg/s with its full 600 deg/s^2: 20 / 60 + 60 / 600 s
+    rapid = stop.blocks.iloc[0]
+    assert rapid["duration_s"] == pytest.approx(20 / 60 + 60 / 600, abs=2e-3)
+    assert blend.blocks.iloc[0]["duration_s"] > rapid["duration_s"] + 0.05
+    def slowest_a_near_junction(res):  # deg/s of A within 3 ms of the end of the G0
+        s = res.series
+        va = np.abs(np.gradient(s["a_deg"].to_numpy(), s["t_ns"].to_numpy() / 1e9))
+        near = np.abs(s["t_ns"].to_numpy() - int(res.blocks.iloc[0]["t_end_ns"])) <= 3_000_000
+        return va[near].min()
+
+    assert slowest_a_near_junction(stop) < 1.0 < 10.0 < slowest_a_near_junction(blend)  # standstill vs blend
+
+
 def test_parabolic_blends_keep_the_path_continuous_and_within_limits(make_machine, gcode):
     """Rotary motion: LinuxCNC's parabolic blends overlap two blocks; positions stay continuous,
     axis speeds within limits, and the path still ends at the program's end point."""
