@@ -191,7 +191,8 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     span = motion_span(t, pos, still_mm=still, acc_mm_s2=_acc_limit(prof))
     refined = None
     if timing.period_ns > SPARSE_NS and prof is not None and cfg.model_span:
-        span, refined = _refine_with_sim(span, t, xyz, prog, prof, np.asarray(cfg.work_offset_mm, float), report)
+        span, refined = _refine_with_sim(span, t, pos, cols, prog, prof, np.asarray(cfg.work_offset_mm, float),
+                                         report)
     report["motion"] = {"t_start_ns": span.t_start_ns, "t_end_ns": span.t_end_ns, "cycle_time_s": span.duration_s,
                         "sub_sample_model": refined}
 
@@ -284,8 +285,8 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
                      geometry_blocks=geo, line_blocks=line_blocks, geometry_blocks_base=base)
 
 
-def _refine_with_sim(span: MotionSpan, t: np.ndarray, xyz: np.ndarray, prog: Program, prof: MachineProfile,
-                     offset: np.ndarray, report: dict[str, Any]) -> tuple[MotionSpan, str | None]:
+def _refine_with_sim(span: MotionSpan, t: np.ndarray, pos: np.ndarray, cols: list[str], prog: Program,
+                     prof: MachineProfile, offset: np.ndarray, report: dict[str, Any]) -> tuple[MotionSpan, str | None]:
     model = _model_profile(prof)
     try:
         from feedlog.sim import simulate  # noqa: PLC0415 - only sparse recordings need the model
@@ -294,12 +295,15 @@ def _refine_with_sim(span: MotionSpan, t: np.ndarray, xyz: np.ndarray, prog: Pro
         report["warnings"].append(f"no model for sub-sample motion start/end ({exc}); kinematic estimate used")
         return span, None
     series = sim.series
-    model_xyz = series[list(LINEAR)].to_numpy(dtype=np.float64) + offset
+    shared = [c for c in cols if c in series.columns]  # x/y/z, and the rotary axes both have
+    model_pos = series[shared].to_numpy(dtype=np.float64, copy=True)
+    model_pos[:, :3] += offset
     if set(WORK_OFFSET) <= set(prog.blocks.columns) and "block" in series.columns:  # program -> machine frame
         w = prog.blocks.set_index("block")[list(WORK_OFFSET)].reindex(series["block"].to_numpy())
-        model_xyz = model_xyz + np.nan_to_num(w.to_numpy(dtype=np.float64))
+        model_pos[:, :3] += np.nan_to_num(w.to_numpy(dtype=np.float64))
     source = f"sim:{model.name}" + ("" if model is prof else " (shipped profile's sim settings)")
-    return refine_span(span, t, xyz, series["t_ns"].to_numpy(), model_xyz), source
+    measured = pos[:, [cols.index(c) for c in shared]]
+    return refine_span(span, t, measured, series["t_ns"].to_numpy(), model_pos), source
 
 
 def _model_profile(prof: MachineProfile) -> MachineProfile:

@@ -7,7 +7,9 @@ program (an NC interpolator simulation on the machine's profile) says how long t
 the program start to that place (and from there to the end). Only this local time is taken from the
 model; everything else stays measured. The model sample matching a measured position is the nearest
 one among the model's first (last) `search_s` of motion, so that a later pass over the same place is
-never taken for the start.
+never taken for the start. Positions are compared on every recorded axis, rotary ones included (mm and
+deg as they are): a five-axis program may start with a rotary-only move (G0 A-20), during which x/y/z
+stand still and only the rotary axes say how far the move has come.
 """
 
 from __future__ import annotations
@@ -27,13 +29,15 @@ def refine_span(span: MotionSpan, t_ns: np.ndarray, positions: np.ndarray, model
                 model_positions: np.ndarray, *, still_mm: float = 1e-6, search_s: float | None = None) -> MotionSpan:
     """`span` with start and end moved inside their sampling intervals by the model's local timing.
 
-    `positions` and `model_positions` are (n, 3) x/y/z (same frame); `search_s` defaults to twice the
-    sampling interval at each end.
+    `positions` and `model_positions` are (n, k) with the same k axes in the same frame and order (x/y/z,
+    then any rotary axes); `search_s` defaults to twice the sampling interval at each end.
     """
     t = np.asarray(t_ns, dtype=np.int64)
-    p = np.asarray(positions, dtype=np.float64)[:, :3]
+    p = np.asarray(positions, dtype=np.float64)
     mt = np.asarray(model_t_ns, dtype=np.int64)
-    mp = np.asarray(model_positions, dtype=np.float64)[:, :3]
+    mp = np.asarray(model_positions, dtype=np.float64)
+    if p.ndim != 2 or mp.ndim != 2 or p.shape[1] != mp.shape[1]:
+        raise ValueError(f"positions {p.shape} and model positions {mp.shape} need the same axes")
     if len(mt) < 2 or len(t) < 3:
         return span
     m0, m1 = _moving_range(mp, still_mm)

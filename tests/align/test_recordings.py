@@ -48,7 +48,11 @@ REST = [n for n in _manifest_names() if n not in ALL and n not in ALIGN_REFUSED]
 # 5 Hz: motion start and end inside their 200 ms interval come from feedlog.sim's trajectory
 EXACT_STOP = ["corners_f3000_g61", "test_g61", "pocket_f1000_g61", "5ax_g61", "circle_b_f3000_g61"]
 CONTINUOUS_5HZ = ["corners_f3000_p001", "test_p001", "circle_f3000_p001", "dense002q0", "freeform_f3000_p001",
-                  "5ax_p001", "pocket_f3000_p001", "test_p01", "5ax_near_b_f1000_p01_offset"]
+                  "5ax_p001", "pocket_f3000_p001", "test_p01", "5ax_near_b_f1000_p01_offset",
+                  # five-axis programs that start with a rotary rapid: G0 Z2 A-20 (the model must stop
+                  # between G0 and G1 as LinuxCNC does), G0 A-20 alone (x/y/z stand still: only A
+                  # tells how far the move has come)
+                  "mix5ax_015", "rcl5ax_f1000_p01"]
 
 
 def _load(name: str) -> Recording:
