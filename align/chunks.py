@@ -19,6 +19,8 @@ import numpy as np
 
 MAX_WIDEN = 4
 TIE_MM = 1e-6
+WHOLE_PENALTY = 1000.0  # mm of score per mm outside the tolerance (rematch_whole)
+WHOLE_PIECES = 8        # pieces per segment in rematch_whole
 
 
 @dataclass(frozen=True)
@@ -163,6 +165,55 @@ def search_chunks(cl: np.ndarray, s_prog: np.ndarray, tol: np.ndarray, speed: np
     return seg, u, dist
 
 
+def monotone_path(score: np.ndarray) -> np.ndarray:
+    """Per row (point, in program order) the column (segment) of the non-decreasing sequence with the
+    least summed score (dynamic programming with a running minimum per row; earliest of equal costs)."""
+    n, m = score.shape
+    cols = np.arange(m)
+    back = np.empty((n, m), dtype=np.int64)
+    cost = score[0]
+    for r in range(1, n):
+        # best predecessor on this segment or an earlier one (earliest of equal costs)
+        pm = np.minimum.accumulate(cost)
+        new = np.concatenate([[True], cost[1:] < pm[:-1]])
+        back[r] = np.maximum.accumulate(np.where(new, cols, 0))
+        cost = score[r] + pm
+    best = np.empty(n, dtype=np.int64)
+    best[-1] = int(np.argmax(cost <= cost.min() + TIE_MM))
+    for r in range(n - 1, 0, -1):
+        best[r - 1] = back[r, best[r]]
+    return best
+
+
+def rematch_whole(cl: np.ndarray, run: np.ndarray, j0: int, j1: int, path: Path, allowed: np.ndarray,
+                  speed: np.ndarray | None, *, chord_allowance: float, pieces: int = WHOLE_PIECES,
+                  penalty: float = WHOLE_PENALTY) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(segment, u, distance) of the points `run` (program order) matched all at once to segments j0..j1.
+
+    For sparse data (5 Hz: a sample every few mm, chords across corners), where a prediction of the
+    measured length runs ahead of the tool on zig-zags and the chunk search can settle on a later pass;
+    here the order of all points decides instead. Every segment is cut into `pieces`
+    equal pieces and the non-decreasing sequence of pieces with the least summed score is chosen:
+    distance + `penalty` x how far it exceeds the point's tolerance there (`allowed` + `chord_allowance`
+    x the segment's reach: its chord, or `speed` x its interval if longer). Pieces, not whole segments,
+    so that the points before and after a reversal inside one chord cannot share it out of order
+    (the running maximum afterwards would drag the later ones back to the tip)."""
+    k = max(1, int(pieces))
+    seg = np.repeat(np.arange(j0, j1 + 1), k)
+    frac = np.tile(np.arange(k) / k, j1 - j0 + 1)
+    x0, y0, z0, dx, dy, dz = (a[seg] for a in path.cols)
+    c = cl[run]
+    uu, dd = project_cols(c[:, 0:1], c[:, 1:2], c[:, 2:3], x0 + frac * dx, y0 + frac * dy, z0 + frac * dz,
+                          dx / k, dy / k, dz / k, path.dd[seg] / (k * k))
+    reach = path.seg_len[seg][None, :]
+    if speed is not None:
+        reach = np.maximum(reach, speed[run][:, None] * path.seg_dt[seg][None, :])
+    excess = np.maximum(dd - allowed[run][:, None] - chord_allowance * reach, 0.0)
+    best = monotone_path(dd + penalty * excess)
+    rows = np.arange(len(run))
+    return seg[best], frac[best] + uu[rows, best] / k, dd[rows, best]
+
+
 def untangle(cl: np.ndarray, s_prog: np.ndarray, order: np.ndarray, seg: np.ndarray, u: np.ndarray,
              dist: np.ndarray, path: Path, *, weight: float, min_mm: float, max_cells: int = 1_000_000) -> int:
     """Re-match runs of points whose matches contradict monotone progress; updates seg, u, dist in place
@@ -204,19 +255,7 @@ def untangle(cl: np.ndarray, s_prog: np.ndarray, order: np.ndarray, seg: np.ndar
         pred = S[a - 1] + ratio * (s_prog[run] - s_prog[kb])
         uu, dd = project_gathered(cl[run], slice(j0, j1 + 1), path)
         score = dd + weight * np.abs(sv[j0:j1 + 1] + uu * sv_len[j0:j1 + 1] - pred[:, None])
-        cols = np.arange(j1 - j0 + 1)
-        back = np.empty((len(run), len(cols)), dtype=np.int64)
-        cost = score[0]
-        for r in range(1, len(run)):
-            # best predecessor on this segment or an earlier one (earliest of equal costs)
-            pm = np.minimum.accumulate(cost)
-            new = np.concatenate([[True], cost[1:] < pm[:-1]])
-            back[r] = np.maximum.accumulate(np.where(new, cols, 0))
-            cost = score[r] + pm
-        best = np.empty(len(run), dtype=np.int64)
-        best[-1] = int(np.argmax(cost <= cost.min() + TIE_MM))
-        for r in range(len(run) - 1, 0, -1):
-            best[r - 1] = back[r, best[r]]
+        best = monotone_path(score)
         rows = np.arange(len(run))
         seg[run] = j0 + best
         u[run] = uu[rows, best]

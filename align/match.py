@@ -49,7 +49,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feedlog.align.chunks import TIE_MM, Path, Search, project_cols, project_gathered, search_chunks, untangle
+from feedlog.align.chunks import (TIE_MM, WHOLE_PIECES, Path, Search, project_cols, project_gathered, rematch_whole,
+                                  search_chunks, untangle)
 from feedlog.errors import AlignmentError
 
 
@@ -69,10 +70,16 @@ class MatchConfig:
     coarse_mm: float = 0.05        # vertex spacing of the path the search runs on (then refined)
     still_mm: float = 1e-6         # path length below which the tool has not left a point (departure)
     chord_allowance: float = 0.5   # tolerance += this x the matched sampled chord (a chord cuts corners)
+    # sparse data: match all points at once (least summed distance, monotone) "always", only when the
+    # chunk search leaves points outside their tolerance ("fallback"; kept if fewer are outside), or "off"
+    sparse_whole: str = "always"
+    whole_cells: int = 2_000_000   # largest point x piece table at once for that (longer programs: in groups)
 
     def __post_init__(self) -> None:
         if not self.tol_mm > 0:
             raise AlignmentError(f"tol_mm must be > 0, got {self.tol_mm}")
+        if self.sparse_whole not in ("always", "fallback", "off"):
+            raise AlignmentError(f"sparse_whole must be 'always', 'fallback' or 'off', got {self.sparse_whole!r}")
         if self.window_mm is not None and not self.window_mm > 0:
             raise AlignmentError(f"window_mm must be > 0, got {self.window_mm}")
         if self.drift is not None and not 0 <= self.drift < 1:
@@ -109,6 +116,8 @@ class Match:
 
 NO_TIME = np.iinfo(np.int64).min
 REFINE_ROWS = 256  # CL points per refinement batch
+WHOLE_MARGIN = 25  # segments past the chunk search's farthest match that a group of _match_whole spans
+WHOLE_MIN_GROUP = 64  # points per group at least (fewer: each group's choice becomes greedy)
 DESCENT_HOP = 4    # fine segments a match looks either way per step of its walk to its closest point
 DESCENT_HOPS = 8   # steps at most
 
@@ -150,6 +159,44 @@ def _bin_edges(s: np.ndarray, step: float) -> np.ndarray:
     keep[1:] |= change
     keep[:-1] |= change
     return np.flatnonzero(keep)
+
+
+def _path_on(pos: np.ndarray, t: np.ndarray, keep: np.ndarray, s_full: np.ndarray) -> Path:
+    """The measured path through the samples `keep` as segment columns (see `chunks.Path`)."""
+    vx, vy, vz = pos[keep, 0], pos[keep, 1], pos[keep, 2]
+    dx, dy, dz = np.diff(vx), np.diff(vy), np.diff(vz)
+    dd = dx * dx + dy * dy + dz * dz
+    sv = s_full[keep]
+    seg_dt = np.diff(t[keep]) / 1e9  # sampling interval each segment spans (s), outliers capped
+    if len(seg_dt):
+        seg_dt = np.minimum(seg_dt, 10 * max(float(np.median(seg_dt)), 1e-9))
+    return Path(cols=(vx[:-1], vy[:-1], vz[:-1], dx, dy, dz), dd=dd, seg_len=np.sqrt(dd), sv=sv, sv_len=np.diff(sv),
+                seg_dt=seg_dt)
+
+
+def _match_whole(cl: np.ndarray, rest: np.ndarray, j0: int, found: np.ndarray, path: Path, allowed: np.ndarray,
+                 speed: np.ndarray | None, cfg: MatchConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`chunks.rematch_whole` over all of `rest` in groups that keep each point x piece table within
+    `cfg.whole_cells`: each group spans the segments from where the previous one ended to
+    `WHOLE_MARGIN` segments past the farthest match the chunk search `found` for it; only its first
+    three quarters are kept, the rest is matched again at the head of the next group."""
+    n, last = len(rest), path.nseg - 1
+    seg, u, dist = np.empty(n, dtype=np.int64), np.empty(n), np.empty(n)
+    reach_max = np.maximum.accumulate(np.where(found >= 0, found, 0))
+    i, group = 0, n
+    while i < n:
+        g = min(group, n - i)
+        j1 = min(last, int(reach_max[i + g - 1]) + WHOLE_MARGIN)
+        if g > WHOLE_MIN_GROUP and g * (j1 - j0 + 1) * WHOLE_PIECES > cfg.whole_cells:
+            group = max(WHOLE_MIN_GROUP, g // 2)
+            continue
+        s_g, u_g, d_g = rematch_whole(cl, rest[i:i + g], j0, max(j1, j0), path, allowed, speed,
+                                      chord_allowance=cfg.chord_allowance)
+        keep = g if i + g == n else max(1, (3 * g) // 4)
+        seg[i:i + keep], u[i:i + keep], dist[i:i + keep] = s_g[:keep], u_g[:keep], d_g[:keep]
+        j0 = int(s_g[keep - 1])
+        i += keep
+    return seg, u, dist
 
 
 def _refine(cl, m, seg_of, u_of, sv_c, s_full, fine_keep, pos, weight):
@@ -322,19 +369,9 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     fine_keep, s_full = reduce_path(pos, cfg.resolution_mm)
     # search on a coarse copy of the path (vertices >= coarse_mm apart), refine on the fine one
     keep = fine_keep[_bin_edges(s_full[fine_keep], cfg.coarse_mm)]
-    vx, vy, vz = pos[keep, 0], pos[keep, 1], pos[keep, 2]
-    sv = s_full[keep]
-    dx, dy, dz = np.diff(vx), np.diff(vy), np.diff(vz)
-    dd = dx * dx + dy * dy + dz * dz  # the coarse segments, as columns
-    nseg = len(dd)
-    spacing = float(np.median(np.diff(sv))) if nseg else 0.0
-    sv_len = np.diff(sv)  # path length along each coarse segment
-    seg_dt = np.diff(t[keep]) / 1e9  # sampling interval each coarse segment spans (s), outliers capped
-    if len(seg_dt):
-        seg_dt = np.minimum(seg_dt, 10 * max(float(np.median(seg_dt)), 1e-9))
-    seg_len = np.sqrt(dd)
-    coarse = Path(cols=(vx[:-1], vy[:-1], vz[:-1], dx, dy, dz), dd=dd, seg_len=seg_len, sv=sv, sv_len=sv_len,
-                  seg_dt=seg_dt)
+    coarse = _path_on(pos, t, keep, s_full)
+    sv, sv_len, nseg = coarse.sv, coarse.sv_len, coarse.nseg
+    spacing = float(np.median(sv_len)) if nseg else 0.0
     if period_ns is None:
         dt_all = np.diff(t)
         period = int(np.median(dt_all[dt_all > 0])) if (dt_all > 0).any() else 0
@@ -375,7 +412,6 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
                                                          anchor_s=float(anchor_s), anchor_S=float(anchor_S))
     # 3b. runs of matches that contradict monotone progress (a hairpin's far side) matched again together
     untangle(cl, s_prog, order, seg_of, u_of, dist, coarse, weight=cfg.progress_weight, min_mm=cfg.coarse_mm)
-
     # refine every match on the fine path, around its coarse segment and the two next to it
     m = seg_of >= 0
     if m.any():
@@ -390,6 +426,24 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         seg_len = _LazyLength(pos, keep)
         sv_len = _LazyDiff(sv)
 
+    # 3c. sparse data: the whole program matched at once (on the fine path) where the chunk search
+    # left points too far
+    if sparse and cfg.sparse_whole != "off" and len(rest) and m[start]:
+        fine = _path_on(pos, t, keep, s_full)
+        checked0 = finite_cl if check is None else (np.asarray(check, dtype=bool) & finite_cl)
+
+        def outside(seg: np.ndarray, d: np.ndarray) -> int:
+            reach = fine.seg_len[seg] if speed is None else np.maximum(fine.seg_len[seg], speed[rest] * fine.seg_dt[seg])
+            return int((checked0[rest] & ~(d <= tol[rest] + cfg.chord_allowance * reach)).sum())
+
+        before = outside(seg_of[rest], dist[rest])
+        if cfg.sparse_whole == "always" or before:
+            whole = _match_whole(cl, rest, int(seg_of[start]), seg_of[rest], fine, np.where(checked0, tol, np.inf),
+                                 speed, cfg)
+            if cfg.sparse_whole == "always" or outside(whole[0], whole[2]) < before:
+                seg_of[rest], u_of[rest], dist[rest] = whole
+                m = seg_of >= 0
+
     # 4. monotone progress
     frac = np.where(m, seg_of + np.nan_to_num(u_of), np.nan)
     mono = frac.copy()
@@ -399,7 +453,12 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         j = np.minimum(np.floor(mono[pushed]).astype(np.int64), nseg - 1)
         uu = mono[pushed] - j
         q = p0[j] + uu[:, None] * d[j]
-        dist[pushed] = np.sqrt(((cl[pushed] - q) ** 2).sum(axis=1))
+        moved = np.sqrt(((cl[pushed] - q) ** 2).sum(axis=1))
+        # sparse data: a point pushed along its own sampled chord keeps its distance from it. Where the
+        # tool turned back within one interval (a U-turn, a reversal tip) the chord cannot order the
+        # points before and after the turn; the push only keeps times monotone.
+        same = (j == seg_of[pushed]) if sparse else np.zeros(len(j), dtype=bool)
+        dist[pushed] = np.where(same, dist[pushed], moved)
         seg_of[pushed], u_of[pushed] = j, uu
 
     # map reduced segments back to samples and times

@@ -35,13 +35,16 @@ def test_repeated_passes_match_the_right_pass_at_1khz(motion):
     assert abs(m.t_depart_ns[0] - motion.arrival_ns[0]) <= 1_000_000
 
 
-def test_far_fewer_measured_than_cl_points_5hz(motion):
-    # Sun Fig. 11: ~900 measured vs ~5400 CL points; here 5 Hz vs CL points every 0.1 mm
+@pytest.mark.parametrize("whole", [{}, {"whole_cells": 200_000}, {"sparse_whole": "off"}],
+                         ids=["whole-program", "in-groups", "chunks-only"])
+def test_far_fewer_measured_than_cl_points_5hz(motion, whole):
+    # Sun Fig. 11: ~900 measured vs ~5400 CL points; here 5 Hz vs CL points every 0.1 mm; the whole
+    # program matched at once, in groups of points (a long recording), or by the chunk search alone
     cl, vertex = densify(motion.v, 0.1)
     ax = motion.axes(5.0, phase_ns=77_000_000)
     assert len(cl) > 5 * len(ax)
     m = match_cl_points(cl, ax["t_ns"].to_numpy(), ax[["x_mm", "y_mm", "z_mm"]].to_numpy(),
-                        config=MatchConfig(tol_mm=5.0))
+                        config=MatchConfig(tol_mm=5.0, **whole))
     assert np.all(np.diff(m.t_ns) >= 0)
     # each CL point matched inside the time its own segment of its own pass was travelled (+- 1 sample)
     t_seg0 = motion.arrival_ns[vertex]
@@ -102,3 +105,5 @@ def test_config_checks():
         MatchConfig(tol_mm=0)
     with pytest.raises(AlignmentError, match="drift"):
         MatchConfig(drift=1.5)
+    with pytest.raises(AlignmentError, match="sparse_whole"):
+        MatchConfig(sparse_whole="sometimes")
