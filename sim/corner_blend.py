@@ -166,7 +166,10 @@ class BlendArcCorner(Mechanism):
 
         # tangent (kink) check, LinuxCNC tpSetupTangent
         cand = ~hard & ~rotary & moves_xyz
-        v_kink = np.minimum(v_req[:-1], v_req[1:])
+        # LinuxCNC's segments know nothing of the block rate (the task process feeding the queue):
+        # the kink check uses the feed, axis caps and one servo cycle without the block-time floor
+        v_tp = np.minimum(blocks.feed[b], np.minimum(blocks.v_limit[b], np.where(length > 0, length / cyc, np.inf)))
+        v_kink = np.minimum(v_tp[:-1], v_tp[1:])
         a_inst = v_kink / cyc + pc.a_max[1:]
         acc_scale = np.zeros(m - 1)
         for c in range(u1.shape[1]):  # max over the axes, one column at a time

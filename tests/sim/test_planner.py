@@ -213,6 +213,26 @@ def test_rapid_and_feed_moves_are_never_blended(make_machine, gcode):
     assert slowest_a_near_junction(stop) < 1.0 < 10.0 < slowest_a_near_junction(blend)  # standstill vs blend
 
 
+def test_block_rate_floor_does_not_make_g61_kinks_tangent(make_machine, gcode):
+    """LinuxCNC's tangent check (tpSetupTangent) sees the feed, the axis caps and one servo cycle, not
+    the rate at which the task process feeds blocks: 0.023 mm G61 segments turning 0.4 deg each stop
+    at every junction with or without the block-time floor. Found on the G61 random mixes with dense
+    runs (mix_009: LinuxCNC 9-10 ms per short block, the model 1.7 ms while the floor made them tangent)."""
+    prof = make_machine(vel=100.0)
+    rows, x, y, ang = [], 0.0, 0.0, 0.0
+    for _ in range(30):
+        ang += math.radians(0.4)
+        x, y = x + 0.023 * math.cos(ang), y + 0.023 * math.sin(ang)
+        rows.append(f"G1 X{x:.5f} Y{y:.5f}")
+    prog = gcode("G21 G90 G61\nF1500\n" + "\n".join(rows) + "\n")
+    plain = simulate(prog, prof, mechanisms=["lookahead", "blend_arc"])
+    floored = simulate(prog, prof, mechanisms={"block_time": {"min_block_time_s": 0.00167}})
+    assert plain.notes["tangent_junctions"] == floored.notes["tangent_junctions"] == 0
+    assert floored.cycle_time_s == pytest.approx(plain.cycle_time_s, rel=1e-9)
+    # each block stops: a triangle at 90 % of 1000 mm/s^2 (the G61 kink reduction) over 0.023 mm
+    assert floored.cycle_time_s == pytest.approx(30 * 2 * math.sqrt(0.023 / 900.0), rel=0.03)
+
+
 def test_parabolic_blends_keep_the_path_continuous_and_within_limits(make_machine, gcode):
     """Rotary motion: LinuxCNC's parabolic blends overlap two blocks; positions stay continuous,
     axis speeds within limits, and the path still ends at the program's end point."""
