@@ -197,7 +197,8 @@ def rematch_whole(cl: np.ndarray, run: np.ndarray, j0: int, j1: int, path: Path,
     distance + `penalty` x how far it exceeds the point's tolerance there (`allowed` + `chord_allowance`
     x the segment's reach: its chord, or `speed` x its interval if longer). Pieces, not whole segments,
     so that the points before and after a reversal inside one chord cannot share it out of order
-    (the running maximum afterwards would drag the later ones back to the tip)."""
+    (the running maximum afterwards would drag the later ones back to the tip). The distance returned,
+    and judged against the tolerance, is the one from the whole chord."""
     k = max(1, int(pieces))
     seg = np.repeat(np.arange(j0, j1 + 1), k)
     frac = np.tile(np.arange(k) / k, j1 - j0 + 1)
@@ -211,7 +212,12 @@ def rematch_whole(cl: np.ndarray, run: np.ndarray, j0: int, j1: int, path: Path,
     excess = np.maximum(dd - allowed[run][:, None] - chord_allowance * reach, 0.0)
     best = monotone_path(dd + penalty * excess)
     rows = np.arange(len(run))
-    return seg[best], frac[best] + uu[rows, best] / k, dd[rows, best]
+    # the distance returned (and judged against the tolerance) is the one from the whole chord: where
+    # the tool turned back inside one interval, the chord cannot order the points before and after the
+    # turn, so a point held behind its foot by the order of the pieces is still as close as its foot
+    _, d_chord = project_cols(c[:, 0:1], c[:, 1:2], c[:, 2:3], *(a[seg[best]][:, None] for a in path.cols),
+                              path.dd[seg[best]][:, None])
+    return seg[best], frac[best] + uu[rows, best] / k, d_chord[:, 0]
 
 
 def untangle(cl: np.ndarray, s_prog: np.ndarray, order: np.ndarray, seg: np.ndarray, u: np.ndarray,

@@ -451,6 +451,7 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     pushed = m & (mono > frac)
     if pushed.any():
         j = np.minimum(np.floor(mono[pushed]).astype(np.int64), nseg - 1)
+        j = np.where(mono[pushed] <= seg_of[pushed] + 1, seg_of[pushed], j)  # the end of its own segment
         uu = mono[pushed] - j
         q = p0[j] + uu[:, None] * d[j]
         moved = np.sqrt(((cl[pushed] - q) ** 2).sum(axis=1))

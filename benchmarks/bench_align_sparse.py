@@ -75,10 +75,13 @@ def main() -> None:
     ap.add_argument("--step", type=int, default=200, help="keep every step-th sample (200: 1 kHz -> 5 Hz)")
     ap.add_argument("--phases", default="0,37,74,111,148,185", help="sample offsets (ms at 1 kHz)")
     ap.add_argument("-j", "--jobs", type=int, default=2)
+    ap.add_argument("--names", default="", help="only these recordings (comma-separated)")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     phases = tuple(int(p) for p in args.phases.split(","))
     names = [r["name"] for r in tomllib.loads((ROOT / "manifest.toml").read_text())["recording"]]
+    if args.names:
+        names = [n for n in names if n in args.names.split(",")]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.jobs) as pool:
         results = list(pool.map(run_one, [(n, args.step, phases) for n in names]))
