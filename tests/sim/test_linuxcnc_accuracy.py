@@ -43,15 +43,21 @@ def _recordings() -> list[dict]:
 
 @pytest.mark.skipif(not MANIFEST.is_file(), reason="recordings/manifest.toml not present")
 def test_recorded_sessions_cycle_times():
-    """Every recorded LinuxCNC session (3-axis and xyzac-trt) within 2 %, median well below 1 %."""
-    errors = {}
+    """Every recorded LinuxCNC session (3-axis and xyzac-trt) within 1.5 %, median below 0.2 %, and the
+    exact-stop (G61) sessions not biased: without the rapid/feed stop the median was 0.34 %, without
+    the G61 tangent check on unfloored speeds mix_009 was -16.5 %, without the half-cycle settle at
+    every stop the G61 sessions were 0.6 % fast on average."""
+    errors, g61 = {}, []
     for rec in _recordings():
         res = simulate(parse_program(MANIFEST.parent / rec["program"], lenient=True), rec["profile"])
         errors[rec["name"]] = (res.cycle_time_s - rec["cycle_time_s"]) / rec["cycle_time_s"]
+        if rec.get("tolerance") == "G61":
+            g61.append(errors[rec["name"]])
     assert len(errors) >= 10
     worst = max(errors, key=lambda k: abs(errors[k]))
-    assert abs(errors[worst]) < 0.02, (worst, errors[worst])
-    assert sorted(abs(e) for e in errors.values())[len(errors) // 2] < 0.005
+    assert abs(errors[worst]) < 0.015, (worst, errors[worst])
+    assert sorted(abs(e) for e in errors.values())[len(errors) // 2] < 0.002
+    assert len(g61) >= 5 and abs(sum(g61) / len(g61)) < 0.003
 
 
 def _line_times_ms(rec) -> "pd.Series":

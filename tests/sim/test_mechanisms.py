@@ -60,8 +60,10 @@ def test_linuxcnc_profiles_switch_on_their_measured_mechanisms(plain):
     lcnc = {m.name: m for m in resolve_mechanisms(load_profile("linuxcnc-xyz"))}
     assert lcnc["block_time"].min_block_time_s == pytest.approx(0.00167)
     assert "naive_cam" in lcnc
+    assert lcnc["lookahead"].stop_settle_s == pytest.approx(0.0005)  # half a 1 ms servo period per stop
     five = {m.name: m for m in resolve_mechanisms(load_profile("linuxcnc-xyzac"))}
     assert five["trunnion"].limit_joints is False
+    assert five["lookahead"].stop_settle_s == pytest.approx(0.0005)
     assert "block_time" not in {m.name for m in resolve_mechanisms(plain)}
 
 
