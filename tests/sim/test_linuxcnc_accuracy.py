@@ -43,10 +43,11 @@ def _recordings() -> list[dict]:
 
 @pytest.mark.skipif(not MANIFEST.is_file(), reason="recordings/manifest.toml not present")
 def test_recorded_sessions_cycle_times():
-    """Every recorded LinuxCNC session (3-axis and xyzac-trt) within 1.5 %, median below 0.2 %, and the
+    """Every recorded LinuxCNC session (3-axis and xyzac-trt) within 1 %, median below 0.2 %, and the
     exact-stop (G61) sessions not biased: without the rapid/feed stop the median was 0.34 %, without
     the G61 tangent check on unfloored speeds mix_009 was -16.5 %, without the half-cycle settle at
-    every stop the G61 sessions were 0.6 % fast on average."""
+    every stop the G61 sessions were 0.6 % fast on average, with the block after a parabolic blend
+    halved for its whole length mix5ax_023 was +1.43 %."""
     errors, g61 = {}, []
     for rec in _recordings():
         res = simulate(parse_program(MANIFEST.parent / rec["program"], lenient=True), rec["profile"])
@@ -55,7 +56,7 @@ def test_recorded_sessions_cycle_times():
             g61.append(errors[rec["name"]])
     assert len(errors) >= 10
     worst = max(errors, key=lambda k: abs(errors[k]))
-    assert abs(errors[worst]) < 0.015, (worst, errors[worst])
+    assert abs(errors[worst]) < 0.01, (worst, errors[worst])
     assert sorted(abs(e) for e in errors.values())[len(errors) // 2] < 0.002
     assert len(g61) >= 5 and abs(sum(g61) / len(g61)) < 0.003
 

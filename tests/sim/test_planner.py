@@ -233,6 +233,21 @@ def test_block_rate_floor_does_not_make_g61_kinks_tangent(make_machine, gcode):
     assert floored.cycle_time_s == pytest.approx(30 * 2 * math.sqrt(0.023 / 900.0), rel=0.03)
 
 
+def test_block_after_a_parabolic_blend_stops_at_full_acceleration(make_machine, gcode):
+    """A rotary move entered through a parabolic blend and ending before a rapid (a stop) decelerates
+    with its full acceleration: mix5ax_023's last G1 (C +94 deg) took 1662 ms in LinuxCNC, the model
+    1762 ms while it halved that block for the blend at its start (`halve_after_blend`)."""
+    prof = make_machine(five_axis=True)
+    prog = gcode("G21 G90 G64 P0.05\nF3000\nG1 X5 C10\nG1 X10 C100\nG0 Z5\n")
+    full = simulate(prog, prof, mechanisms=["lookahead", "blend_arc"])
+    half = simulate(prog, prof, mechanisms={"blend_arc": {"halve_after_blend": True}})
+    assert full.notes["parabolic_blends"] == half.notes["parabolic_blends"] == 1
+    t_full, t_half = (r.blocks.iloc[1]["duration_s"] for r in (full, half))
+    # C accelerates out of the blend to 60 deg/s and stops before the G0: each ramp costs v / (2 a) more
+    # time than cruising, 0.05 s at 600 deg/s^2 and 0.1 s at 300, so 0.1 s for the two
+    assert t_half - t_full == pytest.approx(0.1, abs=0.01)
+
+
 def test_parabolic_blends_keep_the_path_continuous_and_within_limits(make_machine, gcode):
     """Rotary motion: LinuxCNC's parabolic blends overlap two blocks; positions stay continuous,
     axis speeds within limits, and the path still ends at the program's end point."""
