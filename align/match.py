@@ -70,16 +70,16 @@ class MatchConfig:
     coarse_mm: float = 0.05        # vertex spacing of the path the search runs on (then refined)
     still_mm: float = 1e-6         # path length below which the tool has not left a point (departure)
     chord_allowance: float = 0.5   # tolerance += this x the matched sampled chord (a chord cuts corners)
-    # sparse data: match all points at once (least summed distance, monotone) "always", only when the
-    # chunk search leaves points outside their tolerance ("fallback"; kept if fewer are outside), or "off"
+    # sparse data: match all points at once after the chunk search ("always", see rematch_whole) or keep
+    # the chunk search's matches ("off")
     sparse_whole: str = "always"
     whole_cells: int = 2_000_000   # largest point x piece table at once for that (longer programs: in groups)
 
     def __post_init__(self) -> None:
         if not self.tol_mm > 0:
             raise AlignmentError(f"tol_mm must be > 0, got {self.tol_mm}")
-        if self.sparse_whole not in ("always", "fallback", "off"):
-            raise AlignmentError(f"sparse_whole must be 'always', 'fallback' or 'off', got {self.sparse_whole!r}")
+        if self.sparse_whole not in ("always", "off"):
+            raise AlignmentError(f"sparse_whole must be 'always' or 'off', got {self.sparse_whole!r}")
         if self.window_mm is not None and not self.window_mm > 0:
             raise AlignmentError(f"window_mm must be > 0, got {self.window_mm}")
         if self.drift is not None and not 0 <= self.drift < 1:
@@ -426,23 +426,14 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
         seg_len = _LazyLength(pos, keep)
         sv_len = _LazyDiff(sv)
 
-    # 3c. sparse data: the whole program matched at once (on the fine path) where the chunk search
-    # left points too far
-    if sparse and cfg.sparse_whole != "off" and len(rest) and m[start]:
-        fine = _path_on(pos, t, keep, s_full)
+    # 3c. sparse data: the whole program matched at once on the fine path (the chunk search's prediction
+    # of measured length runs ahead of the tool on zig-zags sampled at 5 Hz)
+    if sparse and cfg.sparse_whole == "always" and len(rest) and m[start]:
         checked0 = finite_cl if check is None else (np.asarray(check, dtype=bool) & finite_cl)
-
-        def outside(seg: np.ndarray, d: np.ndarray) -> int:
-            reach = fine.seg_len[seg] if speed is None else np.maximum(fine.seg_len[seg], speed[rest] * fine.seg_dt[seg])
-            return int((checked0[rest] & ~(d <= tol[rest] + cfg.chord_allowance * reach)).sum())
-
-        before = outside(seg_of[rest], dist[rest])
-        if cfg.sparse_whole == "always" or before:
-            whole = _match_whole(cl, rest, int(seg_of[start]), seg_of[rest], fine, np.where(checked0, tol, np.inf),
-                                 speed, cfg)
-            if cfg.sparse_whole == "always" or outside(whole[0], whole[2]) < before:
-                seg_of[rest], u_of[rest], dist[rest] = whole
-                m = seg_of >= 0
+        seg_of[rest], u_of[rest], dist[rest] = _match_whole(
+            cl, rest, int(seg_of[start]), seg_of[rest], _path_on(pos, t, keep, s_full),
+            np.where(checked0, tol, np.inf), speed, cfg)
+        m = seg_of >= 0
 
     # 4. monotone progress
     frac = np.where(m, seg_of + np.nan_to_num(u_of), np.nan)

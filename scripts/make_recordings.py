@@ -37,9 +37,9 @@ MIX_3AX, MIX_5AX = 40, 24  # random_mix training programs (sized for the recordi
 MIX_DENSE = 8  # 3-axis random_mix programs weighted to dense runs, G64 with Q0, F2500/F3000 (dense002q0's regime)
 # recorded sessions that feedlog's simulation misses by more than the 2 % of tests/sim/test_linuxcnc_accuracy.py
 # (simulated vs recorded cycle time): listed in recordings/held_back.toml instead of manifest.toml until the
-# simulation or the test changes. Empty since the simulation stops between rapid and feed moves and its G61
-# tangent check ignores the block-rate floor (docs/sim.md): the seven sessions once held back here (mix_000,
-# mix_009, mix_026, mix_033, mix_038 at -2.6 to -16.5 %, mix5ax_011, mix5ax_023 at +2.3/+2.4 %) are within 1.7 %.
+# simulation or the test changes. Empty since the simulation changes of 2026-11-22 (docs/sim.md): the seven
+# sessions once held back here (mix_000, mix_009, mix_026, mix_033, mix_038 at -2.6 to -16.5 %, mix5ax_011,
+# mix5ax_023 at +2.3/+2.4 %) are within 0.4 %.
 HELD_BACK: dict[str, float] = {}
 # cycle times measured on the reference machines for ../shared/linuxcnc (LINUXCNC.md)
 REFERENCE_CYCLE_S = {"test_p001.ngc": 10.065, "test_p01.ngc": 9.651, "test_g61.ngc": 13.788,
