@@ -6,6 +6,7 @@ lists, dicts) and never runs code. `format_version` guards the layout; newer ver
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +17,7 @@ from feedlog.errors import ModelError
 from feedlog.train.features import Normaliser
 from feedlog.train.registry import Model, model_class
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: learners have a `base` time (version 1 models all used base "cam")
 SUFFIX = ".pt"
 
 
@@ -66,7 +67,10 @@ def load_checkpoint(path: str | Path) -> Model:
                          f"(this feedlog reads up to {FORMAT_VERSION})")
     try:
         cls = model_class(data["model"])
-        model = cls(cls.config_class.from_dict(data["config"]))
+        config = dict(data["config"])
+        if version < 2 and "base" in {f.name for f in dataclasses.fields(cls.config_class)}:
+            config.setdefault("base", "cam")  # trained before the kinematic base existed
+        model = cls(cls.config_class.from_dict(config))
         model.norms = {k: Normaliser.from_dict(v) for k, v in data["norms"].items()}
         model.constants = {k: float(v) for k, v in data["constants"].items()}
         model.params = dict(data["params"])

@@ -23,6 +23,11 @@ Models read align's block tables, whose feature columns are `feedlog.toolpath.sc
 - `ori_tol_deg`, `xo_mm`, `yo_mm`, `zo_mm`: machine constants from the profile (Chien Table 1:
   epsilon_ORI and the workpiece offset [Xo, Yo, Zo]); profile defaults when no profile is given.
 - `log_length_mm`, `log_nominal_time_s`: log(L + 1 um), log(L/F + 0.1 ms).
+- `kin_time_s`: the block's local kinematic time (`feedlog.train.kinematic`: one trapezoid per block at
+  the axes' acceleration and speed limits, stopping or blending at its corners, no look-ahead), at least
+  `limited_time_s`; `log_kin_time_s` its log, `kin_ratio` its ratio to `limited_time_s`. The path limits
+  come from the program and profile (`path_acc_mm_s2`, `path_vel_mm_s`; without them the profile's
+  smallest linear acceleration and the feed).
 - `<col>_prev` / `<col>_next`: the value at block n-1 / n+1 of the same program (0 beyond its ends,
   where the machine is at rest), for Sun Table 1's n-1, n, n+1 context.
 """
@@ -37,9 +42,11 @@ import pandas as pd
 
 from feedlog.errors import ModelError
 from feedlog.profile import MachineProfile
+from feedlog.train import kinematic
 
 AXES3 = ("x", "y", "z")
 PROFILE_COLUMNS = ("ori_tol_deg", "xo_mm", "yo_mm", "zo_mm")
+KIN_COLUMNS = ("length_mm", "feed_mm_min", "nominal_time_s", "tol_mm", "corner_end_deg")
 NO_TOLERANCE_MM = -1.0
 
 # derived column -> raw columns it is computed from
@@ -55,6 +62,8 @@ DERIVED: dict[str, tuple[str, ...]] = {
     "log_length_mm": ("length_mm",),
     "log_nominal_time_s": ("nominal_time_s",),
     "log_sim_duration_s": ("sim_duration_s",),
+    # + kind, axis_time_s, path_acc_mm_s2, path_vel_mm_s when present
+    **{c: KIN_COLUMNS for c in ("kin_time_s", "log_kin_time_s", "kin_ratio")},
     **{c: () for c in PROFILE_COLUMNS},
 }
 
@@ -67,10 +76,10 @@ CHIEN_INPUTS = ("feed_eff_mm_min", "length_mm", "corner_start_deg", "corner_end_
                 "merge_tol_eff_mm", "rot_dist_deg", "log_limited_time_s", "exact_stop")
 # program-table columns align's block tables do not carry: G64 Q, the largest rotary axis move and the
 # time the slowest axis needs at its speed limit (with a profile)
-PROGRAM_COLUMNS = ("merge_tol_mm", "rot_dist_deg", "axis_time_s")
-ROTARY = ("a", "b", "c")
+PROGRAM_COLUMNS = ("merge_tol_mm", "rot_dist_deg", "axis_time_s", "path_acc_mm_s2", "path_vel_mm_s")
+ROTARY = kinematic.ROTARY
 LOG_FLOOR = {"log_length_mm": 1e-3, "log_nominal_time_s": 1e-4, "log_sim_duration_s": 1e-4,
-             "log_limited_time_s": 1e-4}  # added before the log (mm, s)
+             "log_limited_time_s": 1e-4, "log_kin_time_s": 1e-4}  # added before the log (mm, s)
 
 
 def sun_inputs(axis: str) -> tuple[str, ...]:
@@ -105,14 +114,17 @@ def require(table: pd.DataFrame, columns: Iterable[str], *, what: str, source: s
 
 
 def profile_constants(profile: MachineProfile | None) -> dict[str, float]:
-    """Machine constants used as inputs (Chien's eps_ORI and workpiece offset)."""
+    """Machine constants used as inputs (Chien's eps_ORI and workpiece offset) and by `kin_time_s`
+    (servo period; the smallest linear axis acceleration where a table lacks `path_acc_mm_s2`)."""
     if profile is None:
         from feedlog.profile import Interpolator, Kinematics
-        ori_tol, offset = Interpolator().orientation_tolerance_deg, Kinematics().workpiece_offset_mm
+        interp, offset, accs = Interpolator(), Kinematics().workpiece_offset_mm, []
     else:
-        ori_tol, offset = profile.interpolator.orientation_tolerance_deg, profile.kinematics.workpiece_offset_mm
-    return {"ori_tol_deg": float(ori_tol), "xo_mm": float(offset[0]), "yo_mm": float(offset[1]),
-            "zo_mm": float(offset[2])}
+        interp, offset = profile.interpolator, profile.kinematics.workpiece_offset_mm
+        accs = [a.acc_max for name, a in profile.axes.items() if name not in ROTARY and a.acc_max > 0]
+    return {"ori_tol_deg": float(interp.orientation_tolerance_deg), "xo_mm": float(offset[0]),
+            "yo_mm": float(offset[1]), "zo_mm": float(offset[2]),
+            "servo_period_s": float(interp.servo_period_s), "acc_mm_s2": float(min(accs)) if accs else kinematic.BIG}
 
 
 def build_inputs(table: pd.DataFrame, inputs: Sequence[str], *, constants: dict[str, float] | None = None,
@@ -158,6 +170,12 @@ def _base_column(table: pd.DataFrame, name: str, constants: dict[str, float]) ->
         return np.full(n, constants.get(name, 0.0))
     if name == "feed_eff_mm_min":
         return effective_feed(table)
+    if name in ("kin_time_s", "log_kin_time_s", "kin_ratio"):
+        kin = kin_time(table, constants)
+        if name == "kin_ratio":
+            limited = limited_time(table)
+            return np.where(limited > 0, kin / np.where(limited > 0, limited, 1.0), 1.0)
+        return kin if name == "kin_time_s" else np.log(kin + LOG_FLOOR[name])
     if name in ("limited_time_s", "log_limited_time_s", "limit_ratio"):
         nominal = np.nan_to_num(table["nominal_time_s"].to_numpy(np.float64))
         limited = limited_time(table)
@@ -199,6 +217,33 @@ def limited_time(table: pd.DataFrame, *, name: str = "", needed_by: str = "") ->
     return np.maximum(nominal, np.nan_to_num(table["axis_time_s"].to_numpy(np.float64)))
 
 
+def kin_time(table: pd.DataFrame, constants: dict[str, float] | None = None) -> np.ndarray:
+    """Per block `kinematic.kinematic_time`, at least `limited_time` (s); `constants` from `profile_constants`."""
+    constants = constants or {}
+    n = len(table)
+    acc = (table["path_acc_mm_s2"].to_numpy(np.float64) if "path_acc_mm_s2" in table
+           else np.full(n, constants.get("acc_mm_s2", kinematic.BIG)))
+    vel = table["path_vel_mm_s"].to_numpy(np.float64) if "path_vel_mm_s" in table else np.full(n, kinematic.BIG)
+    rapid = (table["kind"] == "rapid").to_numpy(bool) if "kind" in table else np.zeros(n, bool)
+    kin = kinematic.kinematic_time(table["length_mm"].to_numpy(np.float64), effective_feed(table), acc, vel,
+                                   table["tol_mm"].to_numpy(np.float64), table["corner_end_deg"].to_numpy(np.float64),
+                                   rapid, constants.get("servo_period_s", 0.0),
+                                   rotary=table["rot_dist_deg"].to_numpy(np.float64) > 0 if "rot_dist_deg" in table else None)
+    return np.maximum(kin, limited_time(table))
+
+
+def base_time(table, base: str, constants: dict[str, float], *, needed_by: str = "") -> np.ndarray:
+    """The time a model's output is a factor on: "cam" (`limited_time`) or "kinematic" (`kin_time`).
+
+    `table` is a ProgramTable; a table without `nominal_time_s` raises ModelError naming it.
+    """
+    limited = limited_time(table.blocks, name=table.name, needed_by=needed_by)
+    if base == "cam":
+        return limited
+    require(table.blocks, KIN_COLUMNS, what=f"{needed_by or 'this model'} (kinematic base time)", source=table.name)
+    return kin_time(table.blocks, constants)
+
+
 def with_program_columns(blocks: pd.DataFrame, program: object, profile: MachineProfile | None = None
                          ) -> pd.DataFrame:
     """`blocks` plus the program-table columns it lacks (`PROGRAM_COLUMNS`), matched on `block`.
@@ -222,6 +267,7 @@ def with_program_columns(blocks: pd.DataFrame, program: object, profile: Machine
             if end in source and start in source and limits.vel_max > 0:
                 times.append(np.nan_to_num((source[end] - source[start]).abs().to_numpy(np.float64)) / limits.vel_max)
         source["axis_time_s"] = np.max(np.column_stack(times), axis=1)
+        source["path_acc_mm_s2"], source["path_vel_mm_s"] = kinematic.path_limits(source, profile)
     missing = [c for c in PROGRAM_COLUMNS if c not in blocks.columns and c in source]
     if not missing:
         return blocks

@@ -19,10 +19,12 @@ import torch
 
 from feedlog.errors import ModelError
 from feedlog.train.dataset import ProgramTable, make_windows, stitch_windows, tail_split, window_sums
-from feedlog.train.features import CHIEN_INPUTS, Normaliser, build_inputs, limited_time, profile_constants
+from feedlog.train.features import CHIEN_INPUTS, Normaliser, build_inputs, profile_constants
 from feedlog.train.fitting import masked_mse, setup_torch, train_net
 from feedlog.train.nets import BiLSTMR, BiLSTMSeq
 from feedlog.train.registry import Model, ModelConfig, TablePrediction, register_model
+
+BASES = ("cam", "kinematic")
 
 PREDICT_BATCH = 4096  # windows per forward pass at prediction time
 LOG_FLOOR_S = 1e-3    # added to block times before the log target
@@ -53,6 +55,10 @@ class SeqConfig(ModelConfig):
     # predictions add up to what the loss saw, which a smoothed "cam_ratio" target does not guarantee
     target_mode: str = "cam_ratio"
     ratio_span: int = 8
+    # the time "CAM" stands for in the two modes above: "cam" (the limited CAM time) or "kinematic"
+    # (`features.kin_time`: one trapezoid per block at the axes' limits, stopping or blending at corners;
+    # on 21 held-out training recordings bilstm-block 1.50 % mean |error| against 5.13 % with "cam")
+    base: str = "kinematic"
     # prediction runs longer windows (0: 4 x window) that overlap by 2 x predict_context blocks, so every
     # block still sees at least predict_context blocks on each side but few blocks are computed twice
     predict_window: int = 0
@@ -77,6 +83,8 @@ class SeqConfig(ModelConfig):
             raise ModelError(f"{type(self).__name__}: target_mode must be one of {', '.join(TARGET_MODES)} and "
                              f"ratio_span >= 0, "
                              f"got {self.target_mode!r}, {self.ratio_span}")
+        if self.base not in BASES:
+            raise ModelError(f"{type(self).__name__}.base must be one of {', '.join(BASES)}, got {self.base!r}")
         if self.val_by not in VAL_BY:
             raise ModelError(f"{type(self).__name__}.val_by must be one of {', '.join(VAL_BY)}, got {self.val_by!r}")
         if self.predict_context < 0 or 2 * self.predict_context >= self.prediction_window:
@@ -135,17 +143,17 @@ class SeqModel(Model):
         if self.config.target_mode == "cam_ratio":
             span = self.config.ratio_span
             measured = window_sums(table.durations(), span)
-            cam = window_sums(limited_time(table.blocks, name=table.name, needed_by="the CAM-ratio target"), span)
+            cam = window_sums(self.base_time(table), span)
             return np.log(measured + RATIO_FLOOR_S) - np.log(cam + RATIO_FLOOR_S)
         return table.durations()
 
     def to_durations(self, table: ProgramTable, values: np.ndarray) -> np.ndarray:
         """Per-block predicted target -> per-block time."""
         if self.config.target_mode == "cam_ratio":
-            cam = limited_time(table.blocks, name=table.name, needed_by="the CAM-ratio target")
+            cam = self.base_time(table)
             return np.maximum((cam + RATIO_FLOOR_S) * np.exp(values) - RATIO_FLOOR_S, 0.0)
         if self.config.target_mode == "cam_sum":
-            return limited_time(table.blocks, name=table.name, needed_by="the CAM-sum target") * np.exp(values)
+            return self.base_time(table) * np.exp(values)
         return np.maximum(values, 0.0)
 
     def _encode(self, y: np.ndarray) -> np.ndarray:
@@ -157,8 +165,8 @@ class SeqModel(Model):
         return np.exp(y) - LOG_FLOOR_S if log else y
 
     def _matrix(self, table: ProgramTable) -> np.ndarray:
-        constants = profile_constants(table.profile) if table.profile is not None else self.constants
-        return build_inputs(table.blocks, self.inputs, constants=constants, what=self.name, source=table.name)
+        return build_inputs(table.blocks, self.inputs, constants=self.table_constants(table), what=self.name,
+                            source=table.name)
 
     def fit(self, tables: Sequence[ProgramTable], *, progress: bool = True) -> None:
         cfg = self.config
@@ -173,8 +181,7 @@ class SeqModel(Model):
         # cam_sum: the net's output is the log factor itself (an untrained net is about CAM)
         self.norms["y"] = (Normaliser((0.0,), (1.0,)) if summed else
                            Normaliser.fit(np.concatenate([y[:h] for y, h in zip(ys, heads)]), bounds=False))
-        cams = [limited_time(t.blocks, name=t.name, needed_by="the CAM-sum target") if summed else None
-                for t in tables]
+        cams = [self.base_time(t) if summed else None for t in tables]
         parts: dict[str, list[tuple[np.ndarray, ...]]] = {"train": [], "val": []}
         for x, y, h, cam in zip(xs, ys, heads, cams):
             xn, yn = self.norms["x"].apply(x), self.norms["y"].apply(y[:, None])[:, 0]

@@ -17,7 +17,7 @@ from torch import nn
 
 from feedlog.errors import ModelError
 from feedlog.train.dataset import ProgramTable
-from feedlog.train.features import Normaliser, raw_columns
+from feedlog.train.features import Normaliser, base_time, profile_constants, raw_columns
 
 MODELS: dict[str, type[Model]] = {}
 PRESETS = ("full", "quick")
@@ -111,7 +111,17 @@ class Model(abc.ABC):
 
     @property
     def required_columns(self) -> list[str]:
-        return raw_columns(self.inputs)
+        base = ("kin_time_s",) if getattr(self.config, "base", "cam") == "kinematic" else ()
+        return raw_columns(self.inputs + base)
+
+    def table_constants(self, table: ProgramTable) -> dict[str, float]:
+        """Machine constants for `table`: from its profile, else the ones the model was trained with."""
+        return profile_constants(table.profile) if table.profile is not None else self.constants
+
+    def base_time(self, table: ProgramTable) -> np.ndarray:
+        """Per block the time a model's output is a factor on: its config's `base` ("cam" without one),
+        `features.base_time`."""
+        return base_time(table, getattr(self.config, "base", "cam"), self.table_constants(table), needed_by=self.name)
 
     @property
     def trained(self) -> bool:

@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 
 from feedlog.train.dataset import ProgramTable
+from feedlog.train.kinematic import blend_radius
 
 DEFAULT_TOL_MM = 1.0  # blend tolerance assumed where the program has none (tol_mm NaN)
 
@@ -21,14 +22,15 @@ DEFAULT_TOL_MM = 1.0  # blend tolerance assumed where the program has none (tol_
 def corner_speed_mm_s(theta_deg: np.ndarray, feed_mm_s: float, tol_mm: float, acc_mm_s2: float) -> np.ndarray:
     """Speed through a corner whose direction changes by theta, on a blend arc within tol."""
     half = np.radians(np.clip(theta_deg, 0.0, 179.9)) / 2.0
-    cos_h = np.cos(half)
-    with np.errstate(divide="ignore"):
-        radius = np.where(half > 1e-9, tol_mm * cos_h / np.maximum(1.0 - cos_h, 1e-300), np.inf)
-    return np.minimum(feed_mm_s, np.sqrt(acc_mm_s2 * radius))
+    return np.minimum(feed_mm_s, np.sqrt(acc_mm_s2 * blend_radius(half, tol_mm)))
 
 
 def trapezoid_time_s(length: np.ndarray, v_in: np.ndarray, v_out: np.ndarray, v_max: float, acc: float) -> np.ndarray:
-    """Time to travel `length` from v_in to v_out, cruising at most at v_max, accelerating at acc."""
+    """Time to travel `length` from v_in to v_out, cruising at most at v_max, accelerating at acc.
+
+    The synthetic law keeps both end speeds even where the length cannot join them (the time is then
+    |v_in - v_out| / acc); `kinematic.trapezoid_time` lowers them to what the length allows.
+    """
     full = length / v_max + (v_max - v_in) ** 2 / (2 * acc * v_max) + (v_max - v_out) ** 2 / (2 * acc * v_max)
     reach = (2 * v_max**2 - v_in**2 - v_out**2) / (2 * acc) <= length
     peak = np.sqrt(np.maximum(acc * length + (v_in**2 + v_out**2) / 2.0, 0.0))

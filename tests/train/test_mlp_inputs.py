@@ -40,7 +40,7 @@ def test_no_extra_inputs_is_sun_table_1_exactly():
 
 def test_limited_feeds_slow_a_block_a_rotary_axis_times():
     t = _table()
-    limited = PerAxisMLP(make_config("mlp", extra_inputs=()))
+    limited = PerAxisMLP(make_config("mlp", extra_inputs=(), base="cam"))
     programmed = PerAxisMLP(make_config("mlp", extra_inputs=(), limited_feeds=False))
     names = limited.axis_inputs("x")
     x_lim, _ = limited._axis_matrix(t, "x")

@@ -94,6 +94,16 @@ def test_newer_checkpoint_format_is_refused(data, tmp_path):
         load_checkpoint(path)
 
 
+def test_a_version_1_checkpoint_keeps_the_cam_base_it_was_trained_with(data, tmp_path):
+    path = save_checkpoint(_fit("mlp", data), tmp_path / "m.pt")
+    assert load_checkpoint(path).config.base == "kinematic"
+    raw = torch.load(path, weights_only=True)
+    raw["format_version"] = 1
+    del raw["config"]["base"]
+    torch.save(raw, path)
+    assert load_checkpoint(path).config.base == "cam"
+
+
 def test_final_model_chunks_long_programs(data):
     model = _fit("bilstm-final", data)
     assert model.params["crop_blocks"] == 40 and model.params["min_blocks"] == 38

@@ -7,6 +7,7 @@ import pytest
 
 from feedlog.profile import load_profile
 from feedlog.toolpath import block_features, parse_program
+from feedlog.train.dataset import ProgramTable
 from feedlog.train.features import build_inputs, limited_time, with_program_columns
 from feedlog.train.model_mlp import PerAxisMLP
 from feedlog.train.registry import make_config
@@ -53,8 +54,8 @@ def test_rotary_move_and_axis_limited_time():
 
 def test_mlp_mirrors_blocks_to_positive_travel():
     t = _table()
-    model = PerAxisMLP(make_config("mlp"))
-    x, sign = model._axis_matrix(type("T", (), {"blocks": t, "name": "t"})(), "x")
+    model = PerAxisMLP(make_config("mlp", base="cam"))
+    x, sign = model._axis_matrix(ProgramTable("t", t), "x")
     names = model.axis_inputs("x")
     v = names.index("vx_nom_mm_min")
     assert sign.tolist() == [1.0, 1.0, 1.0, -1.0]

@@ -1,0 +1,109 @@
+"""The local kinematic time the learners start from (train/kinematic.py) and its use as a base time."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from feedlog.errors import ModelError
+from feedlog.profile import load_profile
+from feedlog.train import ProgramTable, make_model
+from feedlog.train.features import build_inputs, kin_time, limited_time, profile_constants
+from feedlog.train.kinematic import blend_radius, kinematic_time, path_limits, trapezoid_time
+
+A = 1000.0  # mm/s^2
+CYCLE = 0.001
+
+
+def _times(length, feed, tol, corner_end, *, rapid=None, rotary=None, acc=A):
+    n = len(length)
+    return kinematic_time(np.asarray(length, float), np.full(n, feed), np.full(n, acc), np.full(n, np.inf),
+                          np.full(n, tol), np.asarray(corner_end, float),
+                          np.zeros(n, bool) if rapid is None else np.asarray(rapid), CYCLE,
+                          rotary=None if rotary is None else np.asarray(rotary))
+
+
+def test_trapezoid_from_rest_to_rest():
+    # 100 mm at 50 mm/s: cruise 2 s plus v / a for the two ramps
+    assert trapezoid_time(np.array([100.0]), 0.0, 0.0, 50.0, A)[0] == pytest.approx(2.05)
+    # 0.5 mm never reaches 100 mm/s: a triangle, 2 sqrt(L / a)
+    assert trapezoid_time(np.array([0.5]), 0.0, 0.0, 100.0, A)[0] == pytest.approx(2 * math.sqrt(0.5 / A))
+    # an exit speed the length cannot reach is lowered to what it can reach
+    assert trapezoid_time(np.array([0.5]), 0.0, 100.0, 100.0, A)[0] == pytest.approx(math.sqrt(2 * 0.5 / A))
+
+
+def test_corners_stop_in_exact_stop_and_blend_within_the_tolerance():
+    length, feed = [10.0, 10.0], 3000.0  # 50 mm/s
+    straight = _times(length, feed, 0.01, [0.0, 180.0]).sum()
+    assert straight == pytest.approx(20.0 / 50.0 + 50.0 / A)  # collinear: no stop between the blocks
+    g61 = _times(length, feed, 0.0, [0.0, 180.0]).sum()
+    assert g61 == pytest.approx(2 * (10.0 / 50.0 + 50.0 / A))  # G61: a stop at the junction
+    corner = _times(length, feed, 0.1, [90.0, 180.0])
+    radius = 0.1 * math.cos(math.pi / 4) / (1 - math.cos(math.pi / 4))
+    v = math.sqrt(0.5 * A * radius)  # half the acceleration across the path on the blend arc
+    assert blend_radius(np.array([math.pi / 4]), 0.1)[0] == pytest.approx(radius)
+    assert corner[0] == pytest.approx(trapezoid_time(np.array([10.0]), 0.0, v, 50.0, A)[0])
+    assert straight < corner.sum() < g61
+    # a finer tolerance is a slower corner
+    assert _times(length, feed, 0.01, [90.0, 180.0]).sum() > corner.sum()
+
+
+def test_rapid_feed_junctions_stop_and_rotary_junctions_are_parabolic_blends():
+    length = [10.0, 10.0]
+    blended = _times(length, 3000.0, 0.1, [30.0, 180.0]).sum()
+    mode_change = _times(length, 3000.0, 0.1, [30.0, 180.0], rapid=[True, False]).sum()
+    assert mode_change == pytest.approx(2 * (10.0 / 50.0 + 50.0 / A))
+    rotary = _times(length, 3000.0, 0.1, [30.0, 180.0], rotary=[True, True]).sum()
+    assert rotary > blended  # half acceleration on the block that ends in a parabolic blend
+    # in G61 a rotary junction is a plain stop at full acceleration
+    assert _times(length, 3000.0, 0.0, [30.0, 180.0], rotary=[True, True]).sum() == pytest.approx(
+        _times(length, 3000.0, 0.0, [30.0, 180.0]).sum())
+
+
+def test_a_moving_block_takes_at_least_one_servo_period():
+    t = _times([0.0001, 0.0], 3000.0, 0.01, [0.0, 180.0])  # a 0.63 ms triangle
+    assert t[0] == pytest.approx(CYCLE) and t[1] == 0.0
+
+
+def test_path_limits_come_from_the_slowest_axis():
+    profile = load_profile("linuxcnc-xyzac")
+    c = profile.axes["c"]
+    source = pd.DataFrame({"length_mm": [10.0, 10.0], "x0_mm": [0.0, 0.0], "x_mm": [10.0, 10.0],
+                           "c0_deg": [0.0, 0.0], "c_deg": [0.0, 30.0]})
+    acc, vel = path_limits(source, profile)
+    assert acc[0] == pytest.approx(profile.axes["x"].acc_max) and vel[0] == pytest.approx(profile.axes["x"].vel_max)
+    share = 30.0 / 10.0  # deg of C per mm of path
+    assert vel[1] == pytest.approx(min(profile.axes["x"].vel_max, c.vel_max / share))
+    assert acc[1] == pytest.approx(min(profile.axes["x"].acc_max, c.acc_max / share))
+
+
+def _blocks(n=6, **cols):
+    data = {"block": np.arange(n), "kind": ["linear"] * n, "length_mm": np.full(n, 2.0),
+            "feed_mm_min": np.full(n, 3000.0), "nominal_time_s": np.full(n, 2.0 / 50.0),
+            "tol_mm": np.full(n, 0.01), "corner_end_deg": np.r_[np.full(n - 1, 45.0), 180.0],
+            "duration_s": np.full(n, 0.06)}
+    return pd.DataFrame({**data, **cols})
+
+
+def test_kin_time_features_are_at_least_the_limited_cam_time():
+    profile = load_profile("linuxcnc-xyz")
+    blocks = _blocks()
+    kin = kin_time(blocks, profile_constants(profile))
+    assert np.all(kin >= limited_time(blocks)) and kin.sum() > limited_time(blocks).sum() * 1.05
+    x = build_inputs(blocks, ("log_kin_time_s", "kin_ratio"), constants=profile_constants(profile))
+    np.testing.assert_allclose(x[:, 1], kin / limited_time(blocks), rtol=1e-6)
+
+
+def test_a_kinematic_base_needs_its_columns_and_a_known_base_is_required():
+    with pytest.raises(ModelError, match="base must be one of"):
+        make_model("bilstm-block", base="simulated")
+    model = make_model("mlp", base="kinematic")
+    assert {"feed_mm_min", "corner_end_deg", "tol_mm"} <= set(model.required_columns)
+    table = ProgramTable("t", _blocks().drop(columns=["corner_end_deg"]), profile=load_profile("linuxcnc-xyz"))
+    with pytest.raises(ModelError, match="corner_end_deg"):
+        make_model("bilstm-final", base="kinematic").base_time(table)
+    cam = make_model("bilstm-final", base="cam").base_time(table)
+    np.testing.assert_allclose(cam, limited_time(table.blocks))
