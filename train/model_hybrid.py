@@ -52,6 +52,8 @@ class HybridConfig(SeqConfig):
         super().__post_init__()
         if self.residual_span < 0:
             raise ModelError(f"HybridConfig.residual_span must be >= 0, got {self.residual_span}")
+        if self.members != 1:
+            raise ModelError(f"HybridConfig: the hybrid trains one net (members 1), got members {self.members}")
         if self.target_mode == "cam_sum":
             raise ModelError("HybridConfig: the hybrid learns its own residual target; target_mode 'cam_sum' "
                              "does not apply")

@@ -59,6 +59,8 @@ class SeqConfig(ModelConfig):
     # (`features.kin_time`: one trapezoid per block at the axes' limits, stopping or blending at corners;
     # on 21 held-out training recordings bilstm-block 1.50 % mean |error| against 5.13 % with "cam")
     base: str = "kinematic"
+    # nets trained with seeds seed, seed + 1, ...; their per-block outputs are averaged
+    members: int = 1
     # prediction runs longer windows (0: 4 x window) that overlap by 2 x predict_context blocks, so every
     # block still sees at least predict_context blocks on each side but few blocks are computed twice
     predict_window: int = 0
@@ -85,6 +87,8 @@ class SeqConfig(ModelConfig):
                              f"got {self.target_mode!r}, {self.ratio_span}")
         if self.base not in BASES:
             raise ModelError(f"{type(self).__name__}.base must be one of {', '.join(BASES)}, got {self.base!r}")
+        if self.members < 1:
+            raise ModelError(f"{type(self).__name__}.members must be >= 1, got {self.members}")
         if self.val_by not in VAL_BY:
             raise ModelError(f"{type(self).__name__}.val_by must be one of {', '.join(VAL_BY)}, got {self.val_by!r}")
         if self.predict_context < 0 or 2 * self.predict_context >= self.prediction_window:
@@ -216,6 +220,17 @@ class SeqModel(Model):
                 lr=cfg.lr, batch_size=cfg.batch_size, patience=cfg.patience, desc=f"{self.name} {key}",
                 progress=progress)
 
+    def make_net(self) -> torch.nn.Module:
+        """One network of the model (an ensemble builds `members` of them)."""
+        raise NotImplementedError
+
+    def build_nets(self) -> None:
+        cfg = self.config
+        self.nets = {}
+        for k in range(cfg.members):
+            setup_torch(cfg.seed + k)
+            self.nets["net" if k == 0 else f"net{k}"] = self.make_net()
+
     def predict_values(self, table: ProgramTable) -> np.ndarray:
         """Per-block predicted target (in target units)."""
         self.check_trained()
@@ -256,19 +271,14 @@ class BlockSeqConfig(SeqConfig):
     target_mode: str = "cam_sum"
     batch_size: int = 64
     patience: int = 40
-    # nets trained with seeds seed, seed + 1, ...; their per-block log factors are averaged. One net's
-    # result depends on its seed (20 held-out training recordings, seeds 0-2: 15.7 % (one program +210 %),
-    # 5.5 %, 7.6 % mean |error|); five averaged gave 6.1 % and 6.2 % (seeds 0, 1), worst program 21-27 %
+    # five nets (`members`): one net's result depends on its seed (20 held-out training recordings, seeds
+    # 0-2: 15.7 % (one program +210 %), 5.5 %, 7.6 % mean |error|); five averaged gave 6.1 % and 6.2 %
+    # (seeds 0, 1), worst program 21-27 %
     members: int = 5
 
     # quick (the demo, a few hundred windows): one net, batches of 16 give 4x the optimiser steps per epoch
     presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 40, "patience": 8, "batch_size": 16,
                                                               "members": 1}}
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if self.members < 1:
-            raise ModelError(f"BlockSeqConfig.members must be >= 1, got {self.members}")
 
 
 @register_model
@@ -279,12 +289,8 @@ class BlockBiLSTM(SeqModel):
 
     config: BlockSeqConfig
 
-    def build_nets(self) -> None:
-        cfg = self.config
-        self.nets = {}
-        for k in range(cfg.members):
-            setup_torch(cfg.seed + k)
-            self.nets["net" if k == 0 else f"net{k}"] = BiLSTMSeq(len(self.inputs), cfg.hidden, cfg.layers)
+    def make_net(self) -> torch.nn.Module:
+        return BiLSTMSeq(len(self.inputs), self.config.hidden, self.config.layers)
 
 
 @dataclass(frozen=True)
@@ -295,8 +301,12 @@ class BiLSTMRConfig(SeqConfig):
     window: int = 128
     stride: int = 64
     lr: float = 0.002
+    # five nets averaged (21 held-out training recordings, seeds 0 / 1 / 2: one net 2.37 / 2.96 / 3.81 %
+    # mean |error|, five 2.14 / 1.54 / 2.52 %)
+    members: int = 5
 
-    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 30, "patience": 6, "hidden": 24}}
+    presets: ClassVar[dict[str, dict[str, Any]]] = {"quick": {"epochs": 30, "patience": 6, "hidden": 24,
+                                                              "members": 1}}
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -317,7 +327,6 @@ class BiLSTMRModel(SeqModel):
     description = "stacked residual BiLSTM with layer norm and dropout (Lee et al.), per-block time"
     config: BiLSTMRConfig
 
-    def build_nets(self) -> None:
-        setup_torch(self.config.seed)
+    def make_net(self) -> torch.nn.Module:
         cfg = self.config
-        self.nets = {"net": BiLSTMR(len(self.inputs), cfg.hidden, cfg.units, cfg.dropout)}
+        return BiLSTMR(len(self.inputs), cfg.hidden, cfg.units, cfg.dropout)

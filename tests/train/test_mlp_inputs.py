@@ -89,3 +89,24 @@ def test_both_targets_train_and_predict_feeds_along_the_programmed_move(target):
 def test_unknown_target_is_refused():
     with pytest.raises(ModelError, match="target must be one of"):
         make_config("mlp", target="time")
+
+
+def test_an_mlp_ensemble_averages_its_members_log_ratios():
+    tables = synthetic_set(n_train=2, n_test=1, n_blocks=80, seed=3)
+    train, test = tables[:2], tables[2]
+    pair = PerAxisMLP(make_config("mlp", members=2, epochs=3))
+    pair.fit(train, progress=False)
+    pair.fingerprint = "synthetic"
+    assert sorted(pair.nets) == ["x", "x1", "y", "y1", "z", "z1"]
+    first = [next(iter(pair.nets[key].state_dict().values())) for key in ("x", "x1")]
+    assert not np.allclose(first[0], first[1])  # the members have their own seeds
+    feeds = []
+    for k in ("", "1"):
+        alone = PerAxisMLP(make_config("mlp", members=1, epochs=3))
+        alone.norms, alone.constants, alone.fingerprint = pair.norms, pair.constants, "synthetic"
+        alone.nets = {a: pair.nets[a + k] for a in "xyz"}
+        feeds.append(np.abs(alone.axis_feeds(test)))
+    # log-ratio outputs are averaged: the ensemble's feed is the members' geometric mean
+    np.testing.assert_allclose(np.abs(pair.axis_feeds(test)), np.sqrt(feeds[0] * feeds[1]), rtol=1e-5)
+    with pytest.raises(ModelError, match="members must be >= 1"):
+        make_config("mlp", members=0)

@@ -42,6 +42,10 @@ def test_target_mode_is_checked():
         make_config("bilstm-block", target_mode="sum")
     with pytest.raises(ModelError, match="hybrid learns its own residual"):
         make_config("hybrid", target_mode="cam_sum")
+    with pytest.raises(ModelError, match="hybrid trains one net"):
+        make_config("hybrid", members=3)
+    with pytest.raises(ModelError, match="members must be >= 1"):
+        make_config("bilstm-r", members=0)
     assert make_config("bilstm-block").target_mode == "cam_sum"
     assert make_config("bilstm-block", target_mode="cam_ratio").batch_size == 64
 
