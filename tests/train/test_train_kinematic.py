@@ -3,15 +3,20 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from feedlog.align import align_recording
 from feedlog.errors import ModelError
+from feedlog.ingest import read_recording
 from feedlog.profile import load_profile
+from feedlog.toolpath import parse_program
 from feedlog.train import ProgramTable, make_model
-from feedlog.train.features import build_inputs, kin_time, limited_time, profile_constants
+from feedlog.train.features import build_inputs, kin_time, limited_time, profile_constants, with_program_columns
+from feedlog.train.load import read_manifest
 from feedlog.train.kinematic import blend_radius, kinematic_time, path_limits, trapezoid_time
 
 A = 1000.0  # mm/s^2
@@ -107,3 +112,22 @@ def test_a_kinematic_base_needs_its_columns_and_a_known_base_is_required():
         make_model("bilstm-final", base="kinematic").base_time(table)
     cam = make_model("bilstm-final", base="cam").base_time(table)
     np.testing.assert_allclose(cam, limited_time(table.blocks))
+
+
+RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
+
+
+@pytest.mark.parametrize("name", ["rcl_f3000_g61", "freeform_f3000_p001", "rcl5ax_f3000_p01", "rcl5ax_f3000_g61"])
+def test_on_linuxcnc_recordings_the_kinematic_time_is_far_closer_than_cam(name):
+    """Training recordings (3-axis G61 and G64, five-axis G64 with parabolic blends and G61): the one-block
+    trapezoid is within 20 % of LinuxCNC's time and has at most half the error of the limited CAM time."""
+    entry = read_manifest(RECORDINGS / "manifest.toml")[name]
+    assert entry["split"] == "train"
+    profile = load_profile(entry["profile"])
+    program = parse_program((RECORDINGS / entry["program"]).read_text(), name=entry["program"])
+    aligned = align_recording(read_recording(RECORDINGS / entry["file"]), program, profile=profile)
+    blocks = with_program_columns(aligned.blocks, program, profile)
+    measured = blocks["duration_s"].sum()
+    kin_err = kin_time(blocks, profile_constants(profile)).sum() / measured - 1
+    cam_err = limited_time(blocks).sum() / measured - 1
+    assert abs(kin_err) < 0.2 and abs(kin_err) < abs(cam_err) / 2, (kin_err, cam_err)
