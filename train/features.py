@@ -225,10 +225,10 @@ def kin_time(table: pd.DataFrame, constants: dict[str, float] | None = None) -> 
            else np.full(n, constants.get("acc_mm_s2", kinematic.BIG)))
     vel = table["path_vel_mm_s"].to_numpy(np.float64) if "path_vel_mm_s" in table else np.full(n, kinematic.BIG)
     rapid = (table["kind"] == "rapid").to_numpy(bool) if "kind" in table else np.zeros(n, bool)
+    rotary = table["rot_dist_deg"].to_numpy(np.float64) > 0 if "rot_dist_deg" in table else None
     kin = kinematic.kinematic_time(table["length_mm"].to_numpy(np.float64), effective_feed(table), acc, vel,
                                    table["tol_mm"].to_numpy(np.float64), table["corner_end_deg"].to_numpy(np.float64),
-                                   rapid, constants.get("servo_period_s", 0.0),
-                                   rotary=table["rot_dist_deg"].to_numpy(np.float64) > 0 if "rot_dist_deg" in table else None)
+                                   rapid, constants.get("servo_period_s", 0.0), rotary=rotary)
     return np.maximum(kin, limited_time(table))
 
 
