@@ -62,7 +62,7 @@ DERIVED: dict[str, tuple[str, ...]] = {
     "log_length_mm": ("length_mm",),
     "log_nominal_time_s": ("nominal_time_s",),
     "log_sim_duration_s": ("sim_duration_s",),
-    # + kind, axis_time_s, path_acc_mm_s2, path_vel_mm_s when present
+    # + kind, axis_time_s, rot_dist_deg, path_acc_mm_s2, path_vel_mm_s when present
     **{c: KIN_COLUMNS for c in ("kin_time_s", "log_kin_time_s", "kin_ratio")},
     **{c: () for c in PROFILE_COLUMNS},
 }
@@ -237,9 +237,8 @@ def base_time(table, base: str, constants: dict[str, float], *, needed_by: str =
 
     `table` is a ProgramTable; a table without `nominal_time_s` raises ModelError naming it.
     """
-    limited = limited_time(table.blocks, name=table.name, needed_by=needed_by)
     if base == "cam":
-        return limited
+        return limited_time(table.blocks, name=table.name, needed_by=needed_by)
     require(table.blocks, KIN_COLUMNS, what=f"{needed_by or 'this model'} (kinematic base time)", source=table.name)
     return kin_time(table.blocks, constants)
 

@@ -31,7 +31,9 @@ import pandas as pd
 from feedlog.profile import MachineProfile
 
 ROTARY = ("a", "b", "c")
-NORMAL_SHARE = 0.5  # share of the path acceleration a blend arc may use across the path
+# share of the path acceleration a blend arc may use across the path: a round choice, not fitted or tried
+# against others (LinuxCNC's blend arcs use sqrt(1 - 0.5^2) = 0.87, sim/corner_blend.py)
+NORMAL_SHARE = 0.5
 BIG = 1e12
 
 

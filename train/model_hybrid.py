@@ -40,6 +40,7 @@ SCALES = (0.0, 0.25, 0.5, 0.75, 1.0)
 class HybridConfig(SeqConfig):
     inputs: tuple[str, ...] = CHIEN_INPUTS + (SIM_COLUMN, "log_sim_duration_s")
     log_target: bool = False  # the residual is already a log ratio
+    base: str = "cam"  # not used: the hybrid's output is a factor on the simulated time
     # the ratio is taken over sums of 2 x residual_span + 1 neighbouring blocks: align and the simulation
     # may split a corner's time differently between two blocks, which per-block ratios would learn
     residual_span: int = 8
