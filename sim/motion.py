@@ -66,20 +66,24 @@ def junction_caps(pieces: Pieces, *, lookahead: int | None = None) -> np.ndarray
     return w
 
 
+def reachable_speeds_sq(cap_sq: np.ndarray, acc: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """Squared end speeds of a chain of pieces that starts from rest: each as high as its cap allows
+    while every later cap can still be met (backward pass) and it can be reached (forward pass)."""
+    dcum = np.cumsum(2.0 * acc * length)
+    # backward: w[j] = min_{k>=j}(C[k] + D[k]) - D[j]
+    w = np.minimum.accumulate((cap_sq + dcum)[::-1])[::-1] - dcum
+    # forward from rest: u[j] = D[j] + min(0, min_{k<=j}(w[k] - D[k]))
+    u = dcum + np.minimum(0.0, np.minimum.accumulate(w - dcum))
+    return np.clip(np.minimum(u, w), 0.0, None)
+
+
 def plan_speeds(pieces: Pieces, *, lookahead: int | None = None) -> Plan:
     """Junction speeds by backward/forward passes, then a trapezoid per piece."""
     m = len(pieces)
     length = pieces.length
     acc = pieces.a_max
     d = 2.0 * acc * length
-    dcum = np.cumsum(d)
-    cap = junction_caps(pieces, lookahead=lookahead)
-    # backward: w[j] = min_{k>=j}(C[k] + D[k]) - D[j]
-    w = np.minimum.accumulate((cap + dcum)[::-1])[::-1] - dcum
-    # forward from rest: u[j] = D[j] + min(0, min_{k<=j}(w[k] - D[k]))
-    u = dcum + np.minimum(0.0, np.minimum.accumulate(w - dcum))
-    u = np.clip(np.minimum(u, w), 0.0, None)
-    v1 = np.sqrt(u)
+    v1 = np.sqrt(reachable_speeds_sq(junction_caps(pieces, lookahead=lookahead), acc, length))
     v0 = np.concatenate(([0.0], v1[:-1])) if m else v1
     vmax = np.maximum(pieces.v_max, 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
