@@ -1,26 +1,34 @@
-"""A block's local kinematic time: one acceleration-limited trapezoid per block, no look-ahead.
+"""A program's kinematic time per block: one acceleration-limited trapezoid per block, joined by look-ahead.
 
 The learners' default base time (`base = "kinematic"`; also an optional input, `kin_time_s`): with
 base "cam" they start from the axis-limited CAM time L / F, up to 75 % short on our programs. The
-estimate knows only what one block and its two corners say:
+estimate uses what each block and its two corners say, and one look-ahead pass over the program:
 
 - the path limits of the block: acceleration and speed the slowest axis allows along it,
   `path_acc_mm_s2` = min over moving axes of acc_max x L / |d axis| and `path_vel_mm_s` likewise
   with vel_max (rotary axes in deg; arcs also v <= sqrt(a R / 2)); from the program and the machine
   profile (`path_limits`, attached by `features.with_program_columns`);
-- the speed at each end: 0 at rest (corner 180 deg), in G61 (`tol_mm` 0) and where rapid and feed
-  moves meet (LinuxCNC stops there); else the speed on a blend arc that leaves the corner by at most
-  the path tolerance P (or uses at most half the shorter block without P), at half the path
-  acceleration, capped at both blocks' feeds; next to a block that turns a rotary axis, LinuxCNC's
-  parabolic blend instead: half acceleration on the block ending in it, and a blend speed from the
-  half-block triangle and the tolerance;
+- the speed cap at each end: 0 at rest (corner 180 deg), in G61 (`tol_mm` 0) and where rapid and
+  feed moves meet (LinuxCNC stops there); else the speed on a blend arc that leaves the corner by at
+  most the path tolerance P (or uses at most half the shorter block without P), at half the path
+  acceleration, capped at both blocks' feeds;
+- LinuxCNC's parabolic blend next to a block that turns a rotary axis: the block ending in it runs
+  at half acceleration from rest to rest, and the next block starts while it decelerates from the
+  blend speed (from the half-block triangle and the tolerance), so the pair overlaps by
+  v_blend / a;
+- LinuxCNC's kink reduction at G61 corners without a rotary move: both blocks at 90 % acceleration;
+- blend arcs use half the path acceleration along the path: a block's acceleration is lowered by the
+  share of it the arcs at its two ends cover (runs of very short blocks are all arc);
+- look-ahead: the end speeds are lowered to what the blocks before can reach and the blocks after
+  can stop from (the backward and forward passes of `sim.motion.reachable_speeds_sq`);
 - a trapezoid from the start speed to the end speed at the block's feed and path limits, at least one
   servo period for a moving block.
 
-It knows nothing of look-ahead over several short blocks, the block rate, the kink rule or the
-machine's interpolation filter: those are what the learners learn. Over the 100 training recordings
-its sum is off the measured time by 2.9 % (three-axis) and 8.9 % (five-axis) mean |error|, where the
-axis-limited CAM time is 16 % and 39 % short; nothing in it is fitted.
+It knows nothing of the task's block rate (long runs of very short blocks wait for the queue),
+tangent junctions, the exact blend-arc geometry or an interpolation filter: those are what the
+learners learn. Over the 100 training recordings its sum is off the measured time by 1.1 %
+(three-axis and five-axis) mean |error|, where the axis-limited CAM time is 16 % and 39 % short;
+nothing in it is fitted (the kink ratio and the arcs' tangential share are LinuxCNC's constants).
 """
 
 from __future__ import annotations
@@ -29,11 +37,17 @@ import numpy as np
 import pandas as pd
 
 from feedlog.profile import MachineProfile
+from feedlog.sim.motion import reachable_speeds_sq
 
 ROTARY = ("a", "b", "c")
 # share of the path acceleration a blend arc may use across the path: a round choice, not fitted or tried
 # against others (LinuxCNC's blend arcs use sqrt(1 - 0.5^2) = 0.87, sim/corner_blend.py)
 NORMAL_SHARE = 0.5
+# LinuxCNC's kink acceleration reduction (tp.c, sim/corner_blend.py `kink_ratio`), and the smallest
+# direction change (rad) taken as a G61 corner rather than a tangent junction
+KINK_RATIO = 0.1
+KINK_MIN_RAD = 0.01
+TANGENTIAL_SHARE = 0.5  # of the path acceleration a blend arc may use along the path (LinuxCNC)
 BIG = 1e12
 
 
@@ -72,8 +86,8 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
     """Per block the trapezoid time (s) of one program, blocks in order (see the module text).
 
     `rotary` marks blocks that turn a rotary axis: a continuous-mode junction next to one is a
-    parabolic blend (half acceleration on the block ending in it, blend speed from the half-block
-    triangle and the tolerance).
+    parabolic blend (the block ending in it at half acceleration and from rest to rest, the next
+    block starting while it decelerates from the blend speed).
     """
     length = np.maximum(np.nan_to_num(np.asarray(length, np.float64)), 0.0)
     n = len(length)
@@ -97,18 +111,38 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
     a_corner = NORMAL_SHARE * np.minimum(acc, nxt_acc)
     v_end = np.minimum(np.minimum(cruise, nxt_cruise), np.sqrt(a_corner * radius))
     rapid = np.asarray(rapid, bool)
-    stop = (np.nan_to_num(tol, nan=1.0) == 0) | (turn >= np.pi) | np.append(rapid[nxt] != rapid[:-1], True)
-    if rotary is not None:
-        rot = np.asarray(rotary, bool)
-        para = (rot | np.append(rot[nxt], False)) & ~stop
-        acc = np.where(para, acc / 2, acc)
-        v_tri = np.minimum(np.sqrt(acc * length), cruise)
-        # deviation of the parabola: v <= 2 sqrt(a P / sin(corner / 2)) (LinuxCNC's blend tolerance rule)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            v_tol = np.where(np.isfinite(tol) & (half > 0), 2 * np.sqrt(acc * np.nan_to_num(tol) / np.sin(half)), BIG)
-        v_end = np.where(para, np.minimum(np.minimum(v_tri, np.append(v_tri[nxt], 0.0)), v_tol), v_end)
+    mode_change = np.append(rapid[nxt] != rapid[:-1], True)
+    exact = np.nan_to_num(tol, nan=1.0) == 0
+    stop = exact | (turn >= np.pi) | mode_change
+    rot = np.zeros(n, bool) if rotary is None else np.asarray(rotary, bool)
+    rot_junction = rot | np.append(rot[nxt], False)
+    para = rot_junction & ~stop
+    # G61 corners without a rotary move keep LinuxCNC's kink reduction: both blocks at 90 % acceleration
+    kink = exact & (turn > KINK_MIN_RAD) & (turn < np.pi) & ~mode_change & ~rot_junction
+    kink |= np.append(False, kink[:-1])
+    acc = np.where(kink, acc * (1.0 - KINK_RATIO), acc)
+    acc = np.where(para, acc / 2, acc)
+    # blend arcs take at most half the path acceleration along the path (LinuxCNC's tangential share):
+    # lowered by the share of the block the arcs at its two ends cover (each R tan(half) long)
+    arc = ~stop & ~para & (half > 0)
+    with np.errstate(invalid="ignore"):
+        d_arc = np.where(arc, np.minimum(radius * np.tan(half), np.minimum(length, nxt_len) / 2), 0.0)
+    cover = np.clip((d_arc + np.append(0.0, d_arc[:-1])) / np.where(length > 0, length, 1.0), 0.0, 1.0)
+    acc = acc * (1.0 - (1.0 - TANGENTIAL_SHARE) * cover)
+    v_tri = np.minimum(np.sqrt(acc * length), cruise)
+    # deviation of the parabola: v <= 2 sqrt(a P / sin(corner / 2)) (LinuxCNC's blend tolerance rule)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v_tol = np.where(np.isfinite(tol) & (half > 0), 2 * np.sqrt(acc * np.nan_to_num(tol) / np.sin(half)), BIG)
+    v_end = np.where(para, np.minimum(np.minimum(v_tri, np.append(v_tri[nxt], 0.0)), v_tol), v_end)
     v_end = np.where(stop, 0.0, v_end)
-    time = trapezoid_time(length, np.append(0.0, v_end[:-1]), v_end, cruise, acc)
+    # look-ahead: every end speed reachable from the previous stop and able to meet the next one
+    v_end = np.sqrt(reachable_speeds_sq(np.square(v_end), acc, length))
+    # a parabolic blend joins two rest-to-rest moves: the next starts while this one decelerates
+    v_blend = np.where(para, v_end, 0.0)
+    v_end = np.where(para, 0.0, v_end)
+    v_in = np.append(0.0, v_end[:-1])
+    peak = np.minimum(cruise, np.sqrt(acc * length + np.square(v_in) / 2))
+    time = trapezoid_time(length, v_in, v_end, cruise, acc) - np.minimum(v_blend, peak) / acc
     return np.where(length > 0, np.maximum(time, servo_period_s), 0.0)
 
 
