@@ -17,7 +17,10 @@ from feedlog.errors import ModelError
 from feedlog.train.features import Normaliser
 from feedlog.train.registry import Model, model_class
 
-FORMAT_VERSION = 2  # 2: learners have a `base` time (version 1 models all used base "cam")
+# 2: learners have a `base` time (version 1 models all used base "cam"); 3: the kinematic base time
+# joins blocks by look-ahead and runs parabolic blends rest to rest (a version-2 model with base
+# "kinematic" learned its factors on the earlier law and is refused)
+FORMAT_VERSION = 3
 SUFFIX = ".pt"
 
 
@@ -70,6 +73,9 @@ def load_checkpoint(path: str | Path) -> Model:
         config = dict(data["config"])
         if version < 2 and "base" in {f.name for f in dataclasses.fields(cls.config_class)}:
             config.setdefault("base", "cam")  # trained before the kinematic base existed
+        if version < 3 and config.get("base") == "kinematic":
+            raise ModelError(f"model {data['model']!r} was trained on the kinematic base time of checkpoint "
+                             f"format {version}, which this feedlog no longer computes: retrain it")
         model = cls(cls.config_class.from_dict(config))
         model.norms = {k: Normaliser.from_dict(v) for k, v in data["norms"].items()}
         model.constants = {k: float(v) for k, v in data["constants"].items()}

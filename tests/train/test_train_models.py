@@ -104,6 +104,19 @@ def test_a_version_1_checkpoint_keeps_the_cam_base_it_was_trained_with(data, tmp
     assert load_checkpoint(path).config.base == "cam"
 
 
+def test_a_version_2_kinematic_model_is_refused_and_a_cam_one_loads(data, tmp_path):
+    """Version 2 learned its factors on an earlier kinematic base time: predicting with them would be wrong."""
+    path = save_checkpoint(_fit("mlp", data), tmp_path / "m.pt")
+    raw = torch.load(path, weights_only=True)
+    raw["format_version"] = 2
+    torch.save(raw, path)
+    with pytest.raises(ModelError, match="m.pt: .*kinematic base time of checkpoint format 2.*retrain"):
+        load_checkpoint(path)
+    raw["config"]["base"] = "cam"
+    torch.save(raw, path)
+    assert load_checkpoint(path).config.base == "cam"
+
+
 def test_final_model_chunks_long_programs(data):
     model = _fit("bilstm-final", data)
     assert model.params["crop_blocks"] == 40 and model.params["min_blocks"] == 38
