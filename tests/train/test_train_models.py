@@ -85,9 +85,14 @@ def test_untrained_and_broken_checkpoints(tmp_path):
         load_checkpoint(tmp_path / "absent.pt")
 
 
-def test_newer_checkpoint_format_is_refused(data, tmp_path):
+def _saved_mlp(data, tmp_path):
+    """A trained MLP saved to tmp_path / m.pt, and its raw checkpoint dict to edit."""
     path = save_checkpoint(_fit("mlp", data), tmp_path / "m.pt")
-    raw = torch.load(path, weights_only=True)
+    return path, torch.load(path, weights_only=True)
+
+
+def test_newer_checkpoint_format_is_refused(data, tmp_path):
+    path, raw = _saved_mlp(data, tmp_path)
     raw["format_version"] = 99
     torch.save(raw, path)
     with pytest.raises(ModelError, match="format version 99 is not supported"):
@@ -95,9 +100,8 @@ def test_newer_checkpoint_format_is_refused(data, tmp_path):
 
 
 def test_a_version_1_checkpoint_keeps_the_cam_base_it_was_trained_with(data, tmp_path):
-    path = save_checkpoint(_fit("mlp", data), tmp_path / "m.pt")
+    path, raw = _saved_mlp(data, tmp_path)
     assert load_checkpoint(path).config.base == "kinematic"
-    raw = torch.load(path, weights_only=True)
     raw["format_version"] = 1
     del raw["config"]["base"]
     torch.save(raw, path)
@@ -106,8 +110,7 @@ def test_a_version_1_checkpoint_keeps_the_cam_base_it_was_trained_with(data, tmp
 
 def test_a_version_2_kinematic_model_is_refused_and_a_cam_one_loads(data, tmp_path):
     """Version 2 learned its factors on an earlier kinematic base time: predicting with them would be wrong."""
-    path = save_checkpoint(_fit("mlp", data), tmp_path / "m.pt")
-    raw = torch.load(path, weights_only=True)
+    path, raw = _saved_mlp(data, tmp_path)
     raw["format_version"] = 2
     torch.save(raw, path)
     with pytest.raises(ModelError, match="m.pt: .*kinematic base time of checkpoint format 2.*retrain"):
