@@ -171,9 +171,9 @@ def _base_column(table: pd.DataFrame, name: str, constants: dict[str, float]) ->
     if name == "feed_eff_mm_min":
         return effective_feed(table)
     if name in ("kin_time_s", "log_kin_time_s", "kin_ratio"):
-        kin = kin_time(table, constants)
+        limited = limited_time(table)
+        kin = np.maximum(_kinematic_time(table, constants), limited)
         if name == "kin_ratio":
-            limited = limited_time(table)
             return np.where(limited > 0, kin / np.where(limited > 0, limited, 1.0), 1.0)
         return kin if name == "kin_time_s" else np.log(kin + LOG_FLOOR[name])
     if name in ("limited_time_s", "log_limited_time_s", "limit_ratio"):
@@ -219,17 +219,20 @@ def limited_time(table: pd.DataFrame, *, name: str = "", needed_by: str = "") ->
 
 def kin_time(table: pd.DataFrame, constants: dict[str, float] | None = None) -> np.ndarray:
     """Per block `kinematic.kinematic_time`, at least `limited_time` (s); `constants` from `profile_constants`."""
-    constants = constants or {}
+    return np.maximum(_kinematic_time(table, constants or {}), limited_time(table))
+
+
+def _kinematic_time(table: pd.DataFrame, constants: dict[str, float]) -> np.ndarray:
+    """`kinematic.kinematic_time` of a block table: path limits from its columns, else the constants."""
     n = len(table)
     acc = (table["path_acc_mm_s2"].to_numpy(np.float64) if "path_acc_mm_s2" in table
            else np.full(n, constants.get("acc_mm_s2", kinematic.BIG)))
     vel = table["path_vel_mm_s"].to_numpy(np.float64) if "path_vel_mm_s" in table else np.full(n, kinematic.BIG)
     rapid = (table["kind"] == "rapid").to_numpy(bool) if "kind" in table else np.zeros(n, bool)
     rotary = table["rot_dist_deg"].to_numpy(np.float64) > 0 if "rot_dist_deg" in table else None
-    kin = kinematic.kinematic_time(table["length_mm"].to_numpy(np.float64), effective_feed(table), acc, vel,
-                                   table["tol_mm"].to_numpy(np.float64), table["corner_end_deg"].to_numpy(np.float64),
-                                   rapid, constants.get("servo_period_s", 0.0), rotary=rotary)
-    return np.maximum(kin, limited_time(table))
+    return kinematic.kinematic_time(table["length_mm"].to_numpy(np.float64), effective_feed(table), acc, vel,
+                                    table["tol_mm"].to_numpy(np.float64), table["corner_end_deg"].to_numpy(np.float64),
+                                    rapid, constants.get("servo_period_s", 0.0), rotary=rotary)
 
 
 def base_time(table, base: str, constants: dict[str, float], *, needed_by: str = "") -> np.ndarray:
