@@ -94,10 +94,11 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
     profile_name, profile_toml = profile_toml_for(profile, ini_cfg)
     session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s, stop_event=stop_event,
                           priority=priority)
-    error = session_error(session.report, program)
-    if error is not None and not has_samples(session.sample_files):
+    sampled = has_samples(session.sample_files)
+    error = session_error(session.report, program, sampled=sampled)
+    if error is not None and not sampled:
         cleanup(session)
-        raise error  # failed before anything was sampled
+        raise error  # failed or stopped before anything was sampled
     with keep_captures_on_failure(session.workdir):
         captured, missing = load_capture(session.sample_files, session.layout, period_ns=ini_cfg.servo_period_ns,
                                         linear_units=ini_cfg.linear_units, source=str(program))

@@ -125,9 +125,10 @@ def attach_linuxcnc(ini: str | Path, out: str | Path, *, program: str | Path | N
                       "abort": f"the attached recorder stopped without a report: {(log or '').strip()[-400:]}"}
         program_path = Path(program) if program else (Path(report["program_file"]) if report.get("program_file")
                                                       else None)
-        error = session_error(report, program_path or Path("<running program>"))
+        sampled = has_samples(sample_files)
+        error = session_error(report, program_path or Path("<running program>"), sampled=sampled)
         program_bytes = program_path.read_bytes() if program_path and program_path.is_file() else None
-        if error is not None and not has_samples(sample_files):
+        if error is not None and not sampled:
             raise error
         with keep_captures_on_failure(workdir):
             streams, missing = load_capture(sample_files, layout, period_ns=ini_cfg.servo_period_ns,

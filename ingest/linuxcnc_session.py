@@ -362,12 +362,19 @@ def cleanup(result: SessionResult) -> None:
     shutil.rmtree(result.workdir, ignore_errors=True)
 
 
-def session_error(report: dict, program: Path) -> FeedlogError | None:
-    """What went wrong in a session, as our error; None when it ran to the end."""
+def session_error(report: dict, program: Path, *, sampled: bool = True) -> FeedlogError | None:
+    """What went wrong in a session, as our error; None when it ran to the end.
+
+    A stop on request is not a failure (a shorter recording) unless it came before anything was
+    sampled (`sampled` False): then there is nothing to write, and the error says so.
+    """
     if report.get("errors"):
         return program_error(report, program)
     if report.get("stopped"):
-        return None  # stopped on request: a shorter recording, not a failure
+        if not sampled:
+            return IngestError("stopped before the machine started recording; nothing was written",
+                               file=str(program))
+        return None
     if report.get("abort") or not report.get("ok"):
         return IngestError(f"LinuxCNC session aborted in phase {report.get('phase')}: "
                            f"{report.get('abort', 'unknown reason')}", file=str(program))

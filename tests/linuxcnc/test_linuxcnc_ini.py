@@ -75,6 +75,15 @@ def test_gcode_error_becomes_program_error_with_file_and_line(tmp_path):
     assert isinstance(aborted, IngestError) and "timed out" in str(aborted)
 
 
+def test_a_stop_is_an_error_only_when_nothing_was_sampled(tmp_path):
+    program = tmp_path / "p.ngc"
+    stopped = {"ok": False, "errors": [], "phase": "startup", "stopped": True}
+    assert session_error(stopped, program) is None  # a shorter recording
+    err = session_error(stopped, program, sampled=False)
+    assert isinstance(err, IngestError) and err.file == str(program)
+    assert "nothing was written" in str(err)
+
+
 def test_error_line_falls_back_to_the_interpreter_position(tmp_path):
     program = tmp_path / "p.ngc"
     program.write_text("G21\nG1 X1 F100\n")

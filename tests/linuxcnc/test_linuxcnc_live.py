@@ -122,10 +122,10 @@ def test_stop_event_stops_the_machine_and_keeps_what_was_recorded(tmp_path):
     import threading
 
     program = tmp_path / "long.ngc"
-    program.write_text("G21 G90 G64 P0.01\nF1000\nG0 X0 Y0 Z0\nG1 X100\nG1 X0\nM2\n")  # ~12 s
+    program.write_text("G21 G90 G64 P0.01\nF300\nG0 X0 Y0 Z0\nG1 X100\nG1 X0\nM2\n")  # 20 s per move
     out = tmp_path / "long.mcap"
     stop = threading.Event()
-    timer = threading.Timer(4.0, stop.set)
+    timer = threading.Timer(8.0, stop.set)  # start-up takes 1.5-4 s: the stop comes during the first move
     timer.start()
     try:
         summary = record_linuxcnc(CONFIGS / "xyz.ini", program, out, isolate=ISOLATE, timeout_s=60,
@@ -137,7 +137,22 @@ def test_stop_event_stops_the_machine_and_keeps_what_was_recorded(tmp_path):
     assert rec.metadata["status"] == "stopped"
     x = rec.stream("axes")["x_mm"].to_numpy()
     assert 0.5 < x.max() < 99.0  # moved, but not to the end of the first move
-    assert summary["wall_s"] < 11.0
+    assert np.ptp(x[-50:]) < 1e-6  # the machine stood still at the end, it was not just the recording that ended
+
+
+def test_a_stop_before_the_machine_starts_says_nothing_was_recorded(tmp_path):
+    import threading
+
+    from feedlog.errors import IngestError
+
+    program = tmp_path / "line.ngc"
+    program.write_text("G21 G90 G64 P0.01\nF1000\nG0 X0 Y0 Z0\nG1 X100\nM2\n")
+    out = tmp_path / "line.mcap"
+    stop = threading.Event()
+    stop.set()
+    with pytest.raises(IngestError, match=r"line\.ngc.*stopped before the machine started recording"):
+        record_linuxcnc(CONFIGS / "xyz.ini", program, out, isolate=ISOLATE, timeout_s=60, stop_event=stop)
+    assert not out.exists()
 
 
 def test_timeout_keeps_what_was_recorded_and_says_so(tmp_path):
