@@ -288,7 +288,8 @@ def mix_settings(seed: int, *, five_axis: bool) -> dict:
 
 def random_mix(feed: float, tolerance: str, *, seed: int, lines: int, five_axis: bool = False,
                offset: tuple[float, float, float] = (0.0, 0.0, 0.0), box_mm: float = 30.0,
-               min_time_s: float = 2.0, weights: tuple[int, int, int, int] = (2, 3, 3, 2)) -> str:
+               min_time_s: float = 2.0, weights: tuple[int, int, int, int] = (2, 3, 3, 2),
+               dense_count: tuple[int, int] = (20, 80)) -> str:
     """A short random CL-line toolpath (Chien et al. §2) made of pieces drawn at random until `lines`
     CL lines: a long line (5-30 mm) after a sharp (interior 10-60 deg) or obtuse (120-175 deg) corner;
     a few medium lines (1-8 mm) with random corners; a curved run of short segments (0.1-1 mm, radius
@@ -297,7 +298,8 @@ def random_mix(feed: float, tolerance: str, *, seed: int, lines: int, five_axis:
     -55..0, a third of them within 2 deg of the A = 0 singularity) and turns C (up to 180 deg over a
     piece, at most 1.5 and 4 deg per mm of the piece). A long line comes whenever the path so far is
     shorter than its share of `min_time_s` at `feed`, so that even a dense program moves for a while.
-    `weights`: how often a long line, medium lines, a short run and a dense run are drawn.
+    `weights`: how often a long line, medium lines, a short run and a dense run are drawn;
+    `dense_count`: the range of a dense run's segment count.
     Deterministic for a given `seed`; stays within +-`box_mm` in X and Y and 0..6 mm in Z.
     """
     import random
@@ -329,7 +331,7 @@ def random_mix(feed: float, tolerance: str, *, seed: int, lines: int, five_axis:
             dense = kind == "dense_run"
             seg = rng.uniform(0.02, 0.06) if dense else rng.uniform(0.1, 1.0)
             radius = rng.uniform(1.0, 10.0) if dense else rng.uniform(2.0, 20.0)
-            count = rng.randint(20, 80) if dense else rng.randint(5, 40)
+            count = rng.randint(*dense_count) if dense else rng.randint(5, 40)
             bend = rng.choice((-1, 1)) * math.degrees(seg / radius)
             first_turn = rng.choice((-1, 1)) * rng.uniform(0.0, 90.0)
             steps = [(seg, first_turn if k == 0 else bend) for k in range(count)]

@@ -122,3 +122,17 @@ def test_committed_training_sessions_are_compact_and_test_sessions_full():
         rec = read_recording(RECORDINGS / row["file"])
         assert set(rec.streams) == expected, row["name"]
         assert len(rec.stream("feed")) == row["samples"]
+
+
+def test_long_dense_programs_have_runs_long_enough_to_empty_the_motion_queue():
+    entries = [e for e in make_recordings.catalogue() if e.family == "long_dense"]
+    assert len(entries) >= 6 and {e.split for e in entries} == {"train"} and {e.machine for e in entries} == {"xyz"}
+    assert {e.tol_mm for e in entries} == {0.01, 0.05, 0.1} and sum(e.tolerance.endswith("Q0") for e in entries) >= 5
+    tests = {e.text.split("\n", 2)[2] for e in make_recordings.catalogue() if e.split == "test"}
+    for e in entries:
+        assert e.text.split("\n", 2)[2] not in tests, e.name
+        xy = np.array([[float(w[1:]) for w in ln.split()[1:3]] for ln in e.text.splitlines() if ln.startswith("G1 ")])
+        dense = np.linalg.norm(np.diff(xy, axis=0), axis=1) < 0.07
+        edges = np.flatnonzero(np.diff(np.r_[0, dense.astype(int), 0]))
+        longest = int(np.max(edges[1::2] - edges[::2]))
+        assert longest >= 200, (e.name, longest)  # the mixdense runs are at most 80
