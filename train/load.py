@@ -4,7 +4,9 @@ An aligned folder (`feedlog align ... -o OUT` writes OUT/<recording>/) holds `bl
 `points.parquet`. The recordings' `manifest.toml` (recordings/manifest.toml: `[[recording]]` tables
 with `name`, `split`, `profile`, `program`, `family`) says which recordings are held out for testing.
 It is found next to the recording named in the tables' metadata, or in a parent of the aligned folder
-(or its `recordings/` subfolder), unless given explicitly.
+(or its `recordings/` subfolder), unless given explicitly. Sessions listed in `held_back.toml` beside
+it (recorded alike, but kept out of the simulation's accuracy test because it misses them) are data
+like the others: the learners train on them.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from feedlog.profile import load_profile
 from feedlog.train.dataset import ProgramTable
 
 MANIFEST = "manifest.toml"
+HELD_BACK = "held_back.toml"
 
 
 def read_manifest(path: str | Path) -> dict[str, dict[str, Any]]:
@@ -68,7 +71,8 @@ def load_aligned(folder: str | Path, *, manifest: str | Path | None = None, spli
     candidates = [Path(manifest)] if manifest is not None else _manifest_candidates(folder, meta)
     for cand in candidates:
         if cand.is_file():
-            entries = read_manifest(cand)
+            held_back = cand.parent / HELD_BACK
+            entries = {**(read_manifest(held_back) if held_back.is_file() else {}), **read_manifest(cand)}
             found.append(cand)
             if name in entries:
                 break

@@ -112,7 +112,8 @@ def test_train_then_predict(tmp_path, capsys, examples_dir, monkeypatch):
 
 
 def test_a_recording_its_manifest_leaves_out_is_not_trained_on(tmp_path):
-    """recordings/held_back.toml: aligned beside the manifest but not listed in it -> noted, not trained on."""
+    """Aligned beside the manifest but listed neither in it nor in held_back.toml -> noted, not trained on;
+    listed in held_back.toml (the simulation misses it) -> trained on like the others."""
     from feedlog.train import train_and_evaluate
 
     aligned = _write_aligned(tmp_path)
@@ -133,6 +134,12 @@ def test_a_recording_its_manifest_leaves_out_is_not_trained_on(tmp_path):
                                  log=notes.append)
     assert any(n.startswith("held-back: not trained on: not listed in") for n in notes)
     assert list(results["recording"]) == ["test-2"]
+    (tmp_path / "held_back.toml").write_text('[[recording]]\nname = "held-back"\nsplit = "train"\n'
+                                             'sim_cycle_time_error = 0.175\n')
+    held = next(t for t in load_many([aligned]) if t.name == "held-back")
+    assert "unlisted_in" not in held.metadata and held.split == "train"
+    assert held.metadata["sim_cycle_time_error"] == "0.175"
+    (tmp_path / "held_back.toml").unlink()
     # without a manifest beside the recordings nothing is left out
     (tmp_path / "manifest.toml").unlink()
     assert all("unlisted_in" not in t.metadata for t in load_many([aligned]))
