@@ -18,9 +18,11 @@ from feedlog.train.features import Normaliser
 from feedlog.train.registry import Model, model_class
 
 # 2: learners have a `base` time (version 1 models all used base "cam"); 3: the kinematic base time
-# joins blocks by look-ahead and runs parabolic blends rest to rest (a version-2 model with base
-# "kinematic" learned its factors on the earlier law and is refused)
-FORMAT_VERSION = 3
+# joins blocks by look-ahead and runs parabolic blends rest to rest; 4: it runs blend arcs as pieces of
+# their own. A model with base "kinematic" from before KINEMATIC_SINCE learned its factors on an earlier
+# law and is refused.
+FORMAT_VERSION = 4
+KINEMATIC_SINCE = 4
 SUFFIX = ".pt"
 
 
@@ -73,7 +75,7 @@ def load_checkpoint(path: str | Path) -> Model:
         config = dict(data["config"])
         if version < 2 and "base" in {f.name for f in dataclasses.fields(cls.config_class)}:
             config.setdefault("base", "cam")  # trained before the kinematic base existed
-        if version < 3 and config.get("base") == "kinematic":
+        if version < KINEMATIC_SINCE and config.get("base") == "kinematic":
             raise ModelError(f"model {data['model']!r} was trained on the kinematic base time of checkpoint "
                              f"format {version}, which this feedlog no longer computes: retrain it")
         model = cls(cls.config_class.from_dict(config))

@@ -232,7 +232,8 @@ def _kinematic_time(table: pd.DataFrame, constants: dict[str, float]) -> np.ndar
     rotary = table["rot_dist_deg"].to_numpy(np.float64) > 0 if "rot_dist_deg" in table else None
     return kinematic.kinematic_time(table["length_mm"].to_numpy(np.float64), effective_feed(table), acc, vel,
                                     table["tol_mm"].to_numpy(np.float64), table["corner_end_deg"].to_numpy(np.float64),
-                                    rapid, constants.get("servo_period_s", 0.0), rotary=rotary)
+                                    rapid, constants.get("servo_period_s", 0.0), rotary=rotary,
+                                    arc_acc=constants.get("acc_mm_s2"))
 
 
 def base_time(table, base: str, constants: dict[str, float], *, needed_by: str = "") -> np.ndarray:

@@ -10,25 +10,27 @@ estimate uses what each block and its two corners say, and one look-ahead pass o
   profile (`path_limits`, attached by `features.with_program_columns`);
 - the speed cap at each end: 0 at rest (corner 180 deg), in G61 (`tol_mm` 0) and where rapid and
   feed moves meet (LinuxCNC stops there); else the speed on a blend arc that leaves the corner by at
-  most the path tolerance P (or uses at most half the shorter block without P), at half the path
-  acceleration, capped at both blocks' feeds;
+  most the path tolerance P (and uses at most half the shorter block), at 0.87 of the smallest linear
+  axis acceleration across the path (LinuxCNC's normal share), capped at both blocks' feeds;
 - LinuxCNC's parabolic blend next to a block that turns a rotary axis: the block ending in it runs
   at half acceleration from rest to rest, and the next block starts while it decelerates from the
   blend speed (from the half-block triangle and the tolerance), so the pair overlaps by
   v_blend / a;
 - LinuxCNC's kink reduction at G61 corners without a rotary move: both blocks at 90 % acceleration;
-- blend arcs use half the path acceleration along the path: a block's acceleration is lowered by the
-  share of it the arcs at its two ends cover (runs of very short blocks are all arc);
+- blend arcs use half the path acceleration along the path: for look-ahead a block's acceleration is
+  lowered by the share of it the arcs at its two ends cover (runs of very short blocks are all arc);
 - look-ahead: the end speeds are lowered to what the blocks before can reach and the blocks after
   can stop from (the backward and forward passes of `sim.motion.reachable_speeds_sq`);
-- a trapezoid from the start speed to the end speed at the block's feed and path limits, at least one
-  servo period for a moving block.
+- a trapezoid from the start speed to the end speed at the block's feed and path limits; a block with
+  a blend arc at an end runs as LinuxCNC plans it, in pieces: the half arcs at no more than the arc's
+  speed and at half acceleration, the line between their tangent points as a trapezoid
+  (`arc_pieces_time`); at least one servo period for a moving block.
 
 It knows nothing of the task's block rate (long runs of very short blocks wait for the queue),
-tangent junctions, the exact blend-arc geometry or an interpolation filter: those are what the
-learners learn. Over the 100 training recordings its sum is off the measured time by 1.1 %
-(three-axis and five-axis) mean |error|, where the axis-limited CAM time is 16 % and 39 % short;
-nothing in it is fitted (the kink ratio and the arcs' tangential share are LinuxCNC's constants).
+tangent junctions or an interpolation filter: those are what the learners learn. Over the 100
+training recordings other than the long dense runs it is off the measured sums by 1.0 % (three-axis)
+and 1.1 % (five-axis) mean |error|, where the axis-limited CAM time is 16 % and 39 % short; nothing in it is
+fitted (the kink ratio and the arcs' normal and tangential shares are LinuxCNC's constants).
 """
 
 from __future__ import annotations
@@ -40,10 +42,13 @@ from feedlog.profile import MachineProfile
 from feedlog.sim.motion import reachable_speeds_sq
 
 ROTARY = ("a", "b", "c")
-# share of the path acceleration a blend arc may use across the path: a round choice, not fitted
-# (LinuxCNC's blend arcs use sqrt(1 - 0.5^2) = 0.87, sim/corner_blend.py; 0.87 gave 2.7 % against 2.1 %
-# mean |error| on the three-axis training recordings' sums, before the tangential rule below)
+# share of the path acceleration a G2/G3 arc may use across the path (`path_limits`): a round choice,
+# not fitted
 NORMAL_SHARE = 0.5
+# share of the arc plane's acceleration (the smallest linear axis acceleration) a blend arc may use
+# across the path: LinuxCNC's sqrt(1 - TANGENTIAL_SHARE^2) (sim/corner_blend.py); with the blend arc run
+# as a piece of its own it gave 1.64 % against 2.05 % for 0.5 on the three-axis training recordings' sums
+BLEND_NORMAL_SHARE = 0.87
 # LinuxCNC's kink acceleration reduction (tp.c, sim/corner_blend.py `kink_ratio`), and the smallest
 # direction change (rad) taken as a G61 corner rather than a tangent junction
 KINK_RATIO = 0.1
@@ -83,12 +88,14 @@ def path_limits(source: pd.DataFrame, profile: MachineProfile) -> tuple[np.ndarr
 
 def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray, vel: np.ndarray,
                    tol_mm: np.ndarray, corner_end_deg: np.ndarray, rapid: np.ndarray,
-                   servo_period_s: float, rotary: np.ndarray | None = None) -> np.ndarray:
+                   servo_period_s: float, rotary: np.ndarray | None = None,
+                   arc_acc: float | None = None) -> np.ndarray:
     """Per block the trapezoid time (s) of one program, blocks in order (see the module text).
 
     `rotary` marks blocks that turn a rotary axis: a continuous-mode junction next to one is a
     parabolic blend (the block ending in it at half acceleration and from rest to rest, the next
-    block starting while it decelerates from the blend speed).
+    block starting while it decelerates from the blend speed). `arc_acc` (mm/s^2): the acceleration
+    limit of a blend arc's plane (the smallest linear axis acceleration); else the blocks' path limits.
     """
     length = np.maximum(np.nan_to_num(np.asarray(length, np.float64)), 0.0)
     n = len(length)
@@ -109,7 +116,7 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
         # ... and the arc's tangent points within half of the shorter block: R tan(half) <= min(L) / 2
         r_len = np.where(half > 0, np.minimum(length, nxt_len) / 2.0 / np.tan(half), BIG)
     radius = np.nan_to_num(np.minimum(blend_radius(half, tol), r_len), nan=BIG, posinf=BIG)
-    a_corner = NORMAL_SHARE * np.minimum(acc, nxt_acc)
+    a_corner = BLEND_NORMAL_SHARE * (np.minimum(acc, nxt_acc) if arc_acc is None else np.full(n, float(arc_acc)))
     v_end = np.minimum(np.minimum(cruise, nxt_cruise), np.sqrt(a_corner * radius))
     rapid = np.asarray(rapid, bool)
     mode_change = np.append(rapid[nxt] != rapid[:-1], True)
@@ -129,6 +136,8 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
     with np.errstate(invalid="ignore"):
         d_arc = np.where(arc, np.minimum(radius * np.tan(half), np.minimum(length, nxt_len) / 2), 0.0)
     cover = np.clip((d_arc + np.append(0.0, d_arc[:-1])) / np.where(length > 0, length, 1.0), 0.0, 1.0)
+    line_acc = acc
+    arc_cap = np.where(arc, v_end, 0.0)  # the arc's own speed limit, before look-ahead
     acc = acc * (1.0 - (1.0 - TANGENTIAL_SHARE) * cover)
     v_tri = np.minimum(np.sqrt(acc * length), cruise)
     # deviation of the parabola: v <= 2 sqrt(a P / sin(corner / 2)) (LinuxCNC's blend tolerance rule)
@@ -144,7 +153,37 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
     v_in = np.append(0.0, v_end[:-1])
     peak = np.minimum(cruise, np.sqrt(acc * length + np.square(v_in) / 2))
     time = trapezoid_time(length, v_in, v_end, cruise, acc) - np.minimum(v_blend, peak) / acc
+    # a block with blend arcs at its ends: the half arcs at no more than their own speed, the line between
+    with np.errstate(invalid="ignore"):
+        s_arc = np.where(arc, np.nan_to_num(radius * half), 0.0)
+    plain = ~para & ~np.append(False, para[:-1])
+    pieces = plain & (arc | np.append(False, arc[:-1])) & (length > 0)
+    if pieces.any():
+        time = np.where(pieces, arc_pieces_time(length, v_in, v_end, cruise, line_acc, d_arc, s_arc, arc_cap), time)
     return np.where(length > 0, np.maximum(time, servo_period_s), 0.0)
+
+
+def arc_pieces_time(length, v_in, v_end, cruise, acc, tangent, arc_len, cap):
+    """Per block the time (s) of its three pieces: the second half of the blend arc at its start, the
+    line left between the arcs' tangent points, the first half of the arc at its end. The block's
+    length reaches to the corners; an arc replaces `tangent` of it at each end by `arc_len` of arc,
+    run at no more than the arc's speed `cap` and at TANGENTIAL_SHARE of the acceleration (LinuxCNC
+    plans a blend arc as a segment of its own). Arrays per block; `tangent`, `arc_len` and `cap` are
+    per end junction (0 where no arc)."""
+    t_s, t_e = np.append(0.0, tangent[:-1]), tangent
+    s_s, s_e = np.append(0.0, arc_len[:-1]), arc_len
+    c_s, c_e = np.append(0.0, cap[:-1]), cap
+    line = np.maximum(length - t_s - t_e, 0.0)
+    a_arc = TANGENTIAL_SHARE * acc
+    u_s = np.where(s_s > 0, np.minimum(np.minimum(c_s, cruise), np.sqrt(np.square(v_in) + 2 * a_arc * s_s)), v_in)
+    u_e = np.where(s_e > 0, np.minimum(np.minimum(c_e, cruise), np.sqrt(np.square(v_end) + 2 * a_arc * s_e)), v_end)
+    u_s = np.minimum(u_s, np.sqrt(np.square(u_e) + 2 * acc * line))
+    u_e = np.minimum(u_e, np.sqrt(np.square(u_s) + 2 * acc * line))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        first = np.where(s_s > 0, trapezoid_time(s_s, v_in, u_s, np.maximum(c_s, 1e-9), a_arc), 0.0)
+        last = np.where(s_e > 0, trapezoid_time(s_e, u_e, v_end, np.maximum(c_e, 1e-9), a_arc), 0.0)
+        middle = np.where(line > 0, trapezoid_time(line, u_s, u_e, cruise, acc), 0.0)
+    return np.nan_to_num(first) + np.nan_to_num(middle) + np.nan_to_num(last)
 
 
 def blend_radius(half_turn: np.ndarray, tol_mm: np.ndarray | float) -> np.ndarray:

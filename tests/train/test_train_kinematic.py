@@ -48,11 +48,14 @@ def test_corners_stop_in_exact_stop_and_blend_within_the_tolerance():
     assert g61 == pytest.approx(2 * (10.0 / 50.0 + 50.0 / A))  # G61: a stop at the junction
     corner = _times(length, feed, 0.1, [90.0, 180.0])
     radius = 0.1 * math.cos(math.pi / 4) / (1 - math.cos(math.pi / 4))
-    v = math.sqrt(0.5 * A * radius)  # half the acceleration across the path on the blend arc
+    v = math.sqrt(0.87 * A * radius)  # LinuxCNC's share of the acceleration across the path on a blend arc
     assert blend_radius(np.array([math.pi / 4]), 0.1)[0] == pytest.approx(radius)
-    # the arc covers R tan(45 deg) = R of each block, which runs at (1 - R / 10 mm / 2) of A along the path
-    a_block = A * (1 - 0.5 * radius / 10.0)
-    assert corner[0] == pytest.approx(trapezoid_time(np.array([10.0]), 0.0, v, 50.0, a_block)[0])
+    # the arc replaces R tan(45 deg) = R of each block by a quarter circle's half, R pi / 4, run at its
+    # own speed: the first block is a 10 - R mm line from rest to v, then that half arc at v
+    line = trapezoid_time(np.array([10.0 - radius]), 0.0, v, 50.0, A)[0]
+    assert corner[0] == pytest.approx(line + radius * math.pi / 4 / v)
+    assert corner[1] == pytest.approx(radius * math.pi / 4 / v + trapezoid_time(np.array([10.0 - radius]), v, 0.0,
+                                                                                  50.0, A)[0])
     assert straight < corner.sum() < g61
     # a finer tolerance is a slower corner
     assert _times(length, feed, 0.01, [90.0, 180.0]).sum() > corner.sum()

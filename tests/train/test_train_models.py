@@ -108,12 +108,13 @@ def test_a_version_1_checkpoint_keeps_the_cam_base_it_was_trained_with(data, tmp
     assert load_checkpoint(path).config.base == "cam"
 
 
-def test_a_version_2_kinematic_model_is_refused_and_a_cam_one_loads(data, tmp_path):
-    """Version 2 learned its factors on an earlier kinematic base time: predicting with them would be wrong."""
+@pytest.mark.parametrize("version", [2, 3])
+def test_an_older_kinematic_model_is_refused_and_a_cam_one_loads(data, tmp_path, version):
+    """Versions 2 and 3 learned their factors on earlier kinematic base times: predicting with them would be wrong."""
     path, raw = _saved_mlp(data, tmp_path)
-    raw["format_version"] = 2
+    raw["format_version"] = version
     torch.save(raw, path)
-    with pytest.raises(ModelError, match="m.pt: .*kinematic base time of checkpoint format 2.*retrain"):
+    with pytest.raises(ModelError, match=f"m.pt: .*kinematic base time of checkpoint format {version}.*retrain"):
         load_checkpoint(path)
     raw["config"]["base"] = "cam"
     torch.save(raw, path)
