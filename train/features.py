@@ -230,10 +230,11 @@ def _kinematic_time(table: pd.DataFrame, constants: dict[str, float]) -> np.ndar
     vel = table["path_vel_mm_s"].to_numpy(np.float64) if "path_vel_mm_s" in table else np.full(n, kinematic.BIG)
     rapid = (table["kind"] == "rapid").to_numpy(bool) if "kind" in table else np.zeros(n, bool)
     rotary = table["rot_dist_deg"].to_numpy(np.float64) > 0 if "rot_dist_deg" in table else None
+    arc_acc = constants.get("acc_mm_s2", kinematic.BIG)  # without a profile: the blocks' own path limits
     return kinematic.kinematic_time(table["length_mm"].to_numpy(np.float64), effective_feed(table), acc, vel,
                                     table["tol_mm"].to_numpy(np.float64), table["corner_end_deg"].to_numpy(np.float64),
                                     rapid, constants.get("servo_period_s", 0.0), rotary=rotary,
-                                    arc_acc=constants.get("acc_mm_s2"))
+                                    arc_acc=arc_acc if arc_acc < kinematic.BIG else None)
 
 
 def base_time(table, base: str, constants: dict[str, float], *, needed_by: str = "") -> np.ndarray:

@@ -28,9 +28,10 @@ estimate uses what each block and its two corners say, and one look-ahead pass o
 
 It knows nothing of the task's block rate (long runs of very short blocks wait for the queue),
 tangent junctions or an interpolation filter: those are what the learners learn. Over the 100
-training recordings other than the long dense runs it is off the measured sums by 1.0 % (three-axis)
-and 1.1 % (five-axis) mean |error|, where the axis-limited CAM time is 16 % and 39 % short; nothing in it is
-fitted (the kink ratio and the arcs' normal and tangential shares are LinuxCNC's constants).
+training recordings other than the long dense runs it is off the measured sums by 1.0 %
+(three-axis) and 1.1 % (five-axis) mean |error|, where the axis-limited CAM time is 16 % and 39 %
+short; nothing in it is fitted (the kink ratio and the arcs' normal and tangential shares are
+LinuxCNC's constants).
 """
 
 from __future__ import annotations
