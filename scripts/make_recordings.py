@@ -42,7 +42,7 @@ LONG_DENSE = (  # feed, tolerance, CL lines
     (3000.0, "G64 P0.05 Q0", 1800), (1500.0, "G64 P0.01 Q0", 900), (2500.0, "G64 P0.01", 1400))
 # recorded sessions that feedlog's simulation misses by more than the 2 % of tests/sim/test_linuxcnc_accuracy.py
 # (simulated vs recorded cycle time): listed in recordings/held_back.toml instead of manifest.toml until the
-# simulation or the test changes. Empty since the simulation changes of 2026-11-22 (docs/sim.md): the seven
+# simulation or the test changes. After the simulation changes of 2026-11-22 (docs/sim.md) the seven
 # sessions once held back here (mix_000, mix_009, mix_026, mix_033, mix_038 at -2.6 to -16.5 %, mix5ax_011,
 # mix5ax_023 at +2.3/+2.4 %) are within 0.4 %. The long dense runs of 2026-11-23 show that the simulation's
 # one block-rate floor (1.67 ms per block, fitted to dense002q0) is not LinuxCNC's mechanism: their blocks
