@@ -35,8 +35,8 @@ MACHINES = {"xyz": ("configs/xyz.ini", "linuxcnc-xyz"), "xyzac": ("configs/xyzac
 OFFSET_B = (15.0, -10.0, 5.0)
 MIX_3AX, MIX_5AX = 40, 24  # random_mix training programs (sized for the recordings/ budget of 30 MB)
 MIX_DENSE = 8  # 3-axis random_mix programs weighted to dense runs, G64 with Q0, F2500/F3000 (dense002q0's regime)
-# 3-axis random_mix programs whose dense runs are 200-900 segments long: long enough to empty LinuxCNC's
-# motion queue, so that the task's block rate sets their speed (as in dense002q0's 3142-segment circle)
+# 3-axis random_mix programs whose dense runs are 200-900 segments long, meant to show LinuxCNC's block rate
+# over long stretches (as dense002q0's 3142-segment circle does; the mixdense runs have at most 80)
 LONG_DENSE = (  # feed, tolerance, CL lines
     (3000.0, "G64 P0.01 Q0", 1400), (2500.0, "G64 P0.05 Q0", 1200), (2000.0, "G64 P0.1 Q0", 1000),
     (3000.0, "G64 P0.05 Q0", 1800), (1500.0, "G64 P0.01 Q0", 900), (2500.0, "G64 P0.01", 1400))

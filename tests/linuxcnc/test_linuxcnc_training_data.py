@@ -124,7 +124,7 @@ def test_committed_training_sessions_are_compact_and_test_sessions_full():
         assert len(rec.stream("feed")) == row["samples"]
 
 
-def test_long_dense_programs_have_runs_long_enough_to_empty_the_motion_queue():
+def test_long_dense_programs_have_runs_of_hundreds_of_dense_segments():
     entries = [e for e in make_recordings.catalogue() if e.family == "long_dense"]
     assert len(entries) >= 6 and {e.split for e in entries} == {"train"} and {e.machine for e in entries} == {"xyz"}
     assert {e.tol_mm for e in entries} == {0.01, 0.05, 0.1} and sum(e.tolerance.endswith("Q0") for e in entries) >= 5
