@@ -74,11 +74,11 @@ class Driver:
             self.stop_requested = True
         return self.stop_requested
 
-    def abort_if_stopped(self, before):
-        """A stop requested while every wait so far was already satisfied is seen here, `before` a step."""
+    def abort_if_stopped(self, when):
+        """Abort the run if a stop was requested; `when` says where ("before ...", "while waiting for ...")."""
         if self.check_stop():
             self.result["stopped"] = True
-            raise Abort(f"stopped on request before {before}")
+            raise Abort(f"stopped on request {when}")
 
     def wait(self, what, predicate, timeout_s):
         end = min(time.monotonic() + timeout_s, self.deadline)
@@ -87,9 +87,7 @@ class Driver:
             self.poll_errors()
             if predicate(self.stat):
                 return
-            if self.check_stop():
-                self.result["stopped"] = True
-                raise Abort(f"stopped on request while waiting for {what}")
+            self.abort_if_stopped(f"while waiting for {what}")
             if time.monotonic() > end:
                 raise Abort(f"timed out waiting for {what}")
             time.sleep(POLL_S)
@@ -184,7 +182,7 @@ class Driver:
         self.poll_errors()
         self.result["phase"] = "run"
         if self.job["channels"]:
-            self.abort_if_stopped("recording")
+            self.abort_if_stopped("before recording")
             self.start_samplers()
             time.sleep(0.3)  # halsampler attached before the gate opens
             self.halcmd("sets", self.job["enable_signal"], "1")
@@ -195,7 +193,7 @@ class Driver:
         self.result["program_file"] = self.stat.file
         self.result["motion_time_start_s"] = self.motion_time()
         self.result["run_wall_start"] = time.time()
-        self.abort_if_stopped("the program started")
+        self.abort_if_stopped("before the program started")
         self.cmd.auto(linuxcnc.AUTO_RUN, 0)
         try:  # a program without motion may be over before the first poll sees it run
             self.wait("program start", lambda s: s.interp_state != linuxcnc.INTERP_IDLE or s.queue > 0, 1.0)
