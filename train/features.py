@@ -25,7 +25,7 @@ Models read align's block tables, whose feature columns are `feedlog.toolpath.sc
 - `log_length_mm`, `log_nominal_time_s`: log(L + 1 um), log(L/F + 0.1 ms).
 - `kin_time_s`: the block's kinematic time (`feedlog.train.kinematic`: one trapezoid per block at
   the axes' acceleration and speed limits, stopping or blending at its corners, joined by
-  look-ahead), at least `limited_time_s`; `log_kin_time_s` its log, `kin_ratio` its ratio to
+  look-ahead, blend arcs run as pieces of their own), at least `limited_time_s`; `log_kin_time_s` its log, `kin_ratio` its ratio to
   `limited_time_s`. The path limits come from the program and profile (`path_acc_mm_s2`,
   `path_vel_mm_s`; without them the profile's smallest linear acceleration and the feed).
 - `<col>_prev` / `<col>_next`: the value at block n-1 / n+1 of the same program (0 beyond its ends,

@@ -57,8 +57,8 @@ class SeqConfig(ModelConfig):
     ratio_span: int = 8
     # the time "CAM" stands for in the two modes above: "cam" (the limited CAM time) or "kinematic"
     # (`features.kin_time`: a trapezoid per block at the axes' limits, stopping or blending at corners,
-    # joined by look-ahead; on 21 held-out training recordings bilstm-block 0.93 % mean |error| with it,
-    # 5.13 % with "cam", docs/train.md)
+    # joined by look-ahead, blend arcs as pieces; on 21 held-out training recordings bilstm-block 1.07 /
+    # 1.25 % mean |error| with it (seeds 0 / 1), 5.13 % with "cam" (an earlier run), docs/train.md)
     base: str = "kinematic"
     # nets trained with seeds seed, seed + 1, ...; their per-block outputs are averaged
     members: int = 1
@@ -272,7 +272,7 @@ class BlockSeqConfig(SeqConfig):
     target_mode: str = "cam_sum"
     batch_size: int = 64
     patience: int = 40
-    # sums over 65 blocks: on 21 held-out training recordings with the kinematic base (seeds 0 / 1)
+    # sums over 65 blocks: on 21 held-out training recordings with the second kinematic base (seeds 0 / 1)
     # 0.93 / 0.76 % mean |error|, against 1.32 / 1.06 % over 17 blocks (span 8), 1.13 / 0.79 % (16)
     # and 1.10 / 1.26 % (64)
     ratio_span: int = 32
@@ -306,7 +306,8 @@ class BiLSTMRConfig(SeqConfig):
     window: int = 128
     stride: int = 64
     lr: float = 0.002
-    # 65-block sums: 0.72 / 0.88 % on the held-out training recordings (seeds 0 / 1), against 1.99 / 0.97 %
+    # 65-block sums: 0.72 / 0.88 % on the held-out training recordings (seeds 0 / 1; second kinematic
+    # base), against 1.99 / 0.97 %
     # (span 8), 1.44 / 1.02 % (16) and 0.66 / 1.09 % (64); dropout 0.5 gave 2.01 / 1.54 %
     ratio_span: int = 32
     # one net: five averaged did better on 21 held-out training recordings (seeds 0 / 1 / 2: 2.37 / 2.96 /
