@@ -1,10 +1,12 @@
 """Block processing time floor: the controller prepares at most 1 / min_block_time_s blocks per second.
 
 Source: NC block processing time (e.g. Fanuc/Siemens "block cycle time", 0.5-4 ms per block on
-classic kernels; Sun et al. 2021 §2 lists it among the reasons short segments run below F). In
-LinuxCNC the task process hands blocks to the motion queue at a limited rate: dense002q0.ngc (3142
-segments of 0.02 mm at F3000) measured 5.466 s, i.e. 1.74 ms per block. Modelled as a minimum
-duration of every moving block (its cruise speed is capped at length / min_block_time_s).
+classic kernels; Sun et al. 2021 §2 lists it among the reasons short segments run below F). Modelled
+as a minimum duration of every moving block (its cruise speed is capped at length / min_block_time_s).
+Off in the LinuxCNC profiles: LinuxCNC's slow runs of very short blocks come from its segments'
+sample-rate clamp (sim/planner.py), not from the block rate. A dense002q0 run behind a 5 s slow move,
+which lets the task fill the motion queue first, took as long as the plain run (5.26 s for the
+3142 blocks either way; docs/sim.md).
 """
 
 from __future__ import annotations

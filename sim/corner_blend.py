@@ -171,8 +171,8 @@ class BlendArcCorner(Mechanism):
 
         # tangent (kink) check, LinuxCNC tpSetupTangent
         cand = ~hard & ~rotary & moves_xyz
-        # LinuxCNC's segments know nothing of the block rate (the task process feeding the queue):
-        # the kink check uses the feed, axis caps and one servo cycle without the block-time floor
+        # the kink check sees each line as LinuxCNC has it when the next one arrives: its feed, axis caps
+        # and its full length in one servo cycle (tcClampVelocityByLength), before any arc trims it
         v_tp = np.minimum(blocks.feed[b], np.minimum(blocks.v_limit[b], np.where(length > 0, length / cyc, np.inf)))
         v_kink = np.minimum(v_tp[:-1], v_tp[1:])
         a_inst = v_kink / cyc + pc.a_max[1:]
@@ -285,7 +285,9 @@ class BlendArcCorner(Mechanism):
         length = pc.length - trim_end - trim_start
         p0 = pc.p0 + pc.dir * trim_start[:, None]
         v_max = pc.v_max.copy()
-        clamp = pc.clamp_len.copy()
+        # LinuxCNC clamps a line's speed by what the arcs left of it (tcFinalizeLength): a 0.02 mm block
+        # with an arc at one end keeps a 0.01 mm piece of line, a segment of its own
+        clamp = np.where(pc.clamp_len > 0, np.minimum(pc.clamp_len, length), pc.clamp_len)
         v_end = v_end.copy()
         # consumed lines: a short remainder before the arc runs at the arc speed, as part of it
         v_plan = arcs["v"][ja]

@@ -49,7 +49,9 @@ class Plan:
 
 
 def junction_caps(pieces: Pieces, *, lookahead: int | None = None) -> np.ndarray:
-    """Squared speed caps at the end of each piece: corner law, both pieces' limits, stopping distance."""
+    """Squared speed caps at the end of each piece: corner law, both pieces' limits, stopping distance
+    within the next `lookahead` queue entries (pieces with a clamp length; a consumed line rides with
+    its arc)."""
     m = len(pieces)
     vmax = pieces.v_max
     nxt = np.append(vmax[1:], 0.0)
@@ -61,7 +63,10 @@ def junction_caps(pieces: Pieces, *, lookahead: int | None = None) -> np.ndarray
     if lookahead is not None and m:
         d = 2.0 * pieces.a_max * pieces.length
         dcum = np.cumsum(d)
-        ahead = dcum[np.minimum(np.arange(m) + lookahead, m - 1)] - dcum
+        # the window counts the controller's queue entries: a consumed line (clamp_len 0) is part of its arc
+        entry = np.cumsum(pieces.clamp_len > 0)
+        last = np.searchsorted(entry, entry + lookahead, side="right") - 1
+        ahead = dcum[np.clip(last, 0, m - 1)] - dcum
         w = np.minimum(w, ahead)
     return w
 

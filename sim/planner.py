@@ -6,9 +6,13 @@ blocks need, forward pass for the achievable acceleration; e.g. LinuxCNC src/emc
 each block's direction (`feedlog.sim.path.prepare_blocks`); arcs (G2/G3 and blend arcs) split the
 acceleration into a tangential and a normal share, so their speed is limited by the centripetal
 acceleration v^2 / R <= a_n (LinuxCNC `BLEND_ACC_RATIO_TANGENTIAL` = 0.5, normal sqrt(1 - 0.5^2)).
-The look-ahead window guarantees that the tool can stop within the next `lookahead_blocks` pieces.
-Each piece lasts at least `min_piece_cycles` servo periods (LinuxCNC clamps a segment's speed to
-length / cycle time). Without a corner law every junction is an exact stop; `stop_settle_s` adds a
+The look-ahead window guarantees that the tool can stop within the next `lookahead_blocks` queue
+entries (a line a blend arc consumed is part of that arc's entry, as in LinuxCNC's queue). Each
+piece lasts at least `min_piece_cycles` servo periods over its clamp length: LinuxCNC caps a
+segment's speed at length / (TP_MIN_SEGMENT_CYCLES = 1.02 cycles), the length being what is left
+of a line after the blend arcs at its ends trimmed it (tcFinalizeLength, tpComputeOptimalVelocity).
+On runs of very short blocks this is what sets the speed: dense002q0's 0.02 mm blocks leave 0.01 mm
+line pieces next to their blend arcs, run at under 10 mm/s. Without a corner law every junction is an exact stop; `stop_settle_s` adds a
 standstill at each exact stop (an in-position wait of controllers that check the following error
 before the next block; 0 by default and for LinuxCNC).
 """
@@ -34,7 +38,7 @@ class LookAheadPlanner(Mechanism):
 
     lookahead_blocks: int = 50
     arc_acc_ratio_tangential: float = 0.5
-    min_piece_cycles: float = 1.0
+    min_piece_cycles: float = 1.02
     servo_period_s: float = 0.001
     path_acc_max_mm_s2: float = math.inf  # cap on the TCP acceleration of every block (inf: axes only)
     stop_settle_s: float = 0.0  # standstill added at every exact stop inside the program

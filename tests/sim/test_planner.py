@@ -283,3 +283,44 @@ def test_block_durations_add_up_to_the_cycle_time(plain, gcode, mechs):
     b = res.blocks
     assert b["duration_s"].sum() == pytest.approx(res.cycle_time_s, abs=1e-6)
     assert (b["t_start_ns"].to_numpy()[1:] == b["t_end_ns"].to_numpy()[:-1]).all()
+
+
+def test_line_piece_left_next_to_a_blend_arc_is_clamped_by_its_own_length(make_machine, gcode):
+    """LinuxCNC caps a segment's speed at its length per 1.02 servo cycles, the length being what the
+    blend arcs left of the line (tcFinalizeLength): 0.02 mm blocks turning 0.5 deg at every other
+    junction keep 0.01 mm pieces of line next to their arcs, run at under 10 mm/s. With the cap on the
+    untrimmed length dense002q0 came out 38 % fast."""
+    prof = make_machine(vel=100.0)
+    rows, x, y, ang = [], 0.0, 0.0, 0.0
+    for i in range(200):
+        ang += math.radians(0.5) if i % 2 == 0 else 0.0
+        x, y = x + 0.02 * math.cos(ang), y + 0.02 * math.sin(ang)
+        rows.append(f"G1 X{x:.6f} Y{y:.6f}")
+    res = simulate(gcode("G21 G90 G64 P0.01\nF3000\n" + "\n".join(rows) + "\n"), prof,
+                   mechanisms=["lookahead", "blend_arc"])
+    assert res.notes["blend_arcs"] >= 80 and res.notes["tangent_junctions"] >= 80
+    # every 0.01 mm piece of line is a segment of its own: the run averages well under 0.02 mm per ms
+    mean_speed = 200 * 0.02 / res.cycle_time_s
+    assert mean_speed < 15.0
+    # and no faster than a 0.03 mm segment (arc plus consumed line) in 1.02 cycles anywhere
+    assert res.series["feed_mm_min"].max() / 60 < 0.03 / 0.00102 + 1e-6
+
+
+def test_lookahead_counts_queue_entries_not_consumed_lines():
+    """A line consumed by its blend arc is part of the arc's queue entry in LinuxCNC: the stopping
+    distance within `lookahead` entries reaches past it (longdense_003 was +8.2 % while the window
+    counted consumed lines as entries)."""
+    from feedlog.sim.motion import junction_caps
+    from feedlog.sim.path import with_columns
+
+    m = 6
+    ones = np.ones(m)
+    pieces = Pieces(block=np.arange(m), length=ones, p0=np.zeros((m, 3)), dir=np.tile([1.0, 0, 0], (m, 1)),
+                    e1=np.zeros((m, 3)), e2=np.zeros((m, 3)), radius=np.zeros(m), omega=np.zeros(m),
+                    v_max=np.full(m, 1e3), a_max=np.full(m, 100.0), v_end=np.full(m, 1e3), hold_s=np.zeros(m),
+                    blend=np.zeros(m, bool), overlap=np.zeros(m, bool), clamp_len=ones.copy())
+    entries = junction_caps(pieces, lookahead=2)
+    consumed = junction_caps(with_columns(pieces, clamp_len=np.array([1, 0, 1, 0, 1, 1.0])), lookahead=2)
+    # piece 0 may still stop within the next 2 entries: 2 pieces, or 4 when two of them ride with arcs
+    assert entries[0] == pytest.approx(2 * 100 * 2)
+    assert consumed[0] == pytest.approx(2 * 100 * 4)
