@@ -19,10 +19,11 @@ from feedlog.train.registry import Model, model_class
 
 # 2: learners have a `base` time (version 1 models all used base "cam"); 3: the kinematic base time
 # joins blocks by look-ahead and runs parabolic blends rest to rest; 4: it runs blend arcs as pieces of
-# their own. A model with base "kinematic" from before KINEMATIC_SINCE learned its factors on an earlier
-# law and is refused.
-FORMAT_VERSION = 4
-KINEMATIC_SINCE = 4
+# their own; 5: it passes LinuxCNC's tangent junctions without an arc and holds each planner segment at
+# least 1.02 servo cycles. A model with base "kinematic" from before KINEMATIC_SINCE learned its
+# factors on an earlier law and is refused.
+FORMAT_VERSION = 5
+KINEMATIC_SINCE = 5
 SUFFIX = ".pt"
 
 

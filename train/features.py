@@ -76,7 +76,7 @@ CHIEN_INPUTS = ("feed_eff_mm_min", "length_mm", "corner_start_deg", "corner_end_
                 "merge_tol_eff_mm", "rot_dist_deg", "log_limited_time_s", "exact_stop")
 # program-table columns align's block tables do not carry: G64 Q, the largest rotary axis move and the
 # time the slowest axis needs at its speed limit (with a profile)
-PROGRAM_COLUMNS = ("merge_tol_mm", "rot_dist_deg", "axis_time_s", "path_acc_mm_s2", "path_vel_mm_s")
+PROGRAM_COLUMNS = ("merge_tol_mm", "rot_dist_deg", "axis_time_s", "path_acc_mm_s2", "path_vel_mm_s", "kink_s2_mm")
 ROTARY = kinematic.ROTARY
 LOG_FLOOR = {"log_length_mm": 1e-3, "log_nominal_time_s": 1e-4, "log_sim_duration_s": 1e-4,
              "log_limited_time_s": 1e-4, "log_kin_time_s": 1e-4}  # added before the log (mm, s)
@@ -231,10 +231,13 @@ def _kinematic_time(table: pd.DataFrame, constants: dict[str, float]) -> np.ndar
     rapid = (table["kind"] == "rapid").to_numpy(bool) if "kind" in table else np.zeros(n, bool)
     rotary = table["rot_dist_deg"].to_numpy(np.float64) > 0 if "rot_dist_deg" in table else None
     arc_acc = constants.get("acc_mm_s2", kinematic.BIG)  # without a profile: the blocks' own path limits
+    merge = np.nan_to_num(table["merge_tol_mm"].to_numpy(np.float64)) > 0 if "merge_tol_mm" in table else None
+    kink = table["kink_s2_mm"].to_numpy(np.float64) if "kink_s2_mm" in table else None
     return kinematic.kinematic_time(table["length_mm"].to_numpy(np.float64), effective_feed(table), acc, vel,
                                     table["tol_mm"].to_numpy(np.float64), table["corner_end_deg"].to_numpy(np.float64),
                                     rapid, constants.get("servo_period_s", 0.0), rotary=rotary,
-                                    arc_acc=arc_acc if arc_acc < kinematic.BIG else None)
+                                    arc_acc=arc_acc if arc_acc < kinematic.BIG else None, merge=merge,
+                                    kink=kink)
 
 
 def base_time(table, base: str, constants: dict[str, float], *, needed_by: str = "") -> np.ndarray:
@@ -272,6 +275,7 @@ def with_program_columns(blocks: pd.DataFrame, program: object, profile: Machine
                 times.append(np.nan_to_num((source[end] - source[start]).abs().to_numpy(np.float64)) / limits.vel_max)
         source["axis_time_s"] = np.max(np.column_stack(times), axis=1)
         source["path_acc_mm_s2"], source["path_vel_mm_s"] = kinematic.path_limits(source, profile)
+        source["kink_s2_mm"] = kinematic.junction_kink(source, profile)
     missing = [c for c in PROGRAM_COLUMNS if c not in blocks.columns and c in source]
     if not missing:
         return blocks

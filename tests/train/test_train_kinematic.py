@@ -17,18 +17,19 @@ from feedlog.toolpath import parse_program
 from feedlog.train import ProgramTable, make_model
 from feedlog.train.features import build_inputs, kin_time, limited_time, profile_constants, with_program_columns
 from feedlog.train.load import read_manifest
-from feedlog.train.kinematic import blend_radius, kinematic_time, path_limits, trapezoid_time
+from feedlog.train.kinematic import blend_radius, junction_kink, kinematic_time, path_limits, trapezoid_time
 
 A = 1000.0  # mm/s^2
 CYCLE = 0.001
 
 
-def _times(length, feed, tol, corner_end, *, rapid=None, rotary=None, acc=A):
+def _times(length, feed, tol, corner_end, *, rapid=None, rotary=None, acc=A, merge=None):
     n = len(length)
     return kinematic_time(np.asarray(length, float), np.full(n, feed), np.full(n, acc), np.full(n, np.inf),
                           np.full(n, tol), np.asarray(corner_end, float),
                           np.zeros(n, bool) if rapid is None else np.asarray(rapid), CYCLE,
-                          rotary=None if rotary is None else np.asarray(rotary))
+                          rotary=None if rotary is None else np.asarray(rotary),
+                          merge=None if merge is None else np.full(n, merge))
 
 
 def test_trapezoid_from_rest_to_rest():
@@ -99,9 +100,51 @@ def test_blocks_covered_by_blend_arcs_accelerate_at_half_the_path_acceleration()
     assert t > 1.2 * at[2]  # what full acceleration would give
 
 
-def test_a_moving_block_takes_at_least_one_servo_period():
-    t = _times([0.0001, 0.0], 3000.0, 0.01, [0.0, 180.0])  # a 0.63 ms triangle
-    assert t[0] == pytest.approx(CYCLE) and t[1] == 0.0
+def test_a_moving_block_takes_at_least_its_segment_minimum():
+    """LinuxCNC caps a segment's speed at its length per 1.02 servo cycles (TP_MIN_SEGMENT_CYCLES)."""
+    t = _times([0.0001, 0.0], 3000.0, 0.01, [0.0, 180.0])  # a 0.63 ms triangle without the cap
+    cap = 0.0001 / (1.02 * CYCLE)
+    assert t[0] == pytest.approx(trapezoid_time(np.array([0.0001]), 0.0, 0.0, cap, A)[0]) and t[1] == 0.0
+    assert t[0] > 1.02 * CYCLE
+
+
+def _dense_run(turn_deg, n=200):
+    """n blocks of 0.02 mm at F3000 in G64 P0.01 Q0, turning `turn_deg` at every other junction."""
+    corners = [turn_deg if k % 2 == 0 else 0.0 for k in range(n - 1)] + [180.0]
+    return np.asarray([0.02] * n), corners
+
+
+def test_a_blend_arc_next_to_a_straight_junction_leaves_a_slow_rest_of_line():
+    """dense002q0's regime: a 0.5 deg corner between 0.02 mm lines gets a blend arc that takes half of
+    each line; the line after it keeps 0.01 mm up to the next (straight) junction, a segment of its own
+    at under 0.01 mm / 1.02 ms. Every junction touches such a rest, so the run crawls at about 10 mm/s
+    (2 ms per block; LinuxCNC ran dense002q0 at 1.67 ms per block)."""
+    length, corners = _dense_run(0.5)
+    t = _times(length, 3000.0, 0.01, corners)
+    rest_speed = 0.01 / (1.02 * CYCLE)
+    assert t[1:-1].sum() > (len(t) - 2) * 0.02 / (1.1 * rest_speed)
+    assert t[1:-1].mean() == pytest.approx(2.0 * CYCLE, rel=0.1)
+
+
+def test_a_tiny_corner_is_a_tangent_junction_without_an_arc():
+    """A 0.05 deg corner needs under 10 % of the axis acceleration in one servo cycle at 20 mm/s
+    (LinuxCNC tpSetupTangent): no arc, each 0.02 mm block is one segment of 1.02 servo cycles."""
+    length, corners = _dense_run(0.05)
+    t = _times(length, 3000.0, 0.01, corners)
+    # the run is one trapezoid at that cap: 4 mm from rest to rest at 0.02 mm per 1.02 ms
+    assert t.sum() == pytest.approx(trapezoid_time(np.array([4.0]), 0.0, 0.0, 0.02 / (1.02 * CYCLE), A)[0], rel=0.01)
+    # the same corners as blend arcs would leave the slow rests of the test above
+    length, corners = _dense_run(0.5)
+    assert t[1:-1].mean() < 0.6 * _times(length, 3000.0, 0.01, corners)[1:-1].mean()
+
+
+def test_merged_lines_are_not_held_to_the_segment_minimum():
+    """With G64 Q > 0 the interpreter joins nearly collinear lines before the planner sees them: the
+    program's blocks are shorter than LinuxCNC's segments, so no per-segment cap applies."""
+    length, corners = _dense_run(0.5)
+    merged = _times(length, 3000.0, 0.01, corners, merge=True)
+    assert merged[1:-1].mean() < 0.6 * _times(length, 3000.0, 0.01, corners)[1:-1].mean()
+    assert merged[1:-1].min() >= CYCLE  # still one servo period per block
 
 
 def test_path_limits_come_from_the_slowest_axis():
@@ -162,3 +205,25 @@ def test_on_linuxcnc_recordings_the_kinematic_time_is_far_closer_than_cam(name):
     kin_err = kin_time(blocks, profile_constants(profile)).sum() / measured - 1
     cam_err = limited_time(blocks).sum() / measured - 1
     assert abs(kin_err) < 0.04 and abs(kin_err) < abs(cam_err) / 4, (kin_err, cam_err)
+
+
+def test_junction_kink_weighs_each_axis_by_its_acceleration():
+    """LinuxCNC's tangent check takes the largest per-axis share of the direction change: a corner
+    split over two axes weighs less than the same turn on one axis; arcs are left to the corner angle."""
+    profile = load_profile("linuxcnc-xyz")
+    turn = math.radians(0.3)
+    source = pd.DataFrame({"x0_mm": [0.0, 1.0, 1.0 + math.cos(turn), 0.0],
+                           "x_mm": [1.0, 1.0 + math.cos(turn), 2.0, 0.0],
+                           "y0_mm": [0.0, 0.0, math.sin(turn), 0.0], "y_mm": [0.0, math.sin(turn), 1.0, 0.0],
+                           "z0_mm": [0.0] * 4, "z_mm": [0.0] * 4, "radius_mm": [np.nan, np.nan, 5.0, np.nan]})
+    kink = junction_kink(source, profile)
+    acc = profile.axes["y"].acc_max
+    # X then 0.3 deg up: the change is almost all on Y
+    assert kink[0] == pytest.approx(math.sin(turn) / acc, rel=1e-6)
+    assert np.isnan(kink[1]) and np.isnan(kink[2]) and np.isnan(kink[3])  # an arc; no next move
+    # the same turn at 45 deg between X and Y: each axis gets 1/sqrt(2) of it
+    h, ang = math.sqrt(0.5), math.pi / 4 + turn
+    diag = pd.DataFrame({"x0_mm": [0.0, h], "x_mm": [h, h + math.cos(ang)],
+                         "y0_mm": [0.0, h], "y_mm": [h, h + math.sin(ang)]})
+    assert junction_kink(diag, profile)[0] == pytest.approx(2 * math.sin(turn / 2) * math.sin(math.pi / 4 + turn / 2) / acc,
+                                                            rel=1e-6)

@@ -108,9 +108,9 @@ def test_a_version_1_checkpoint_keeps_the_cam_base_it_was_trained_with(data, tmp
     assert load_checkpoint(path).config.base == "cam"
 
 
-@pytest.mark.parametrize("version", [2, 3])
+@pytest.mark.parametrize("version", [2, 3, 4])
 def test_an_older_kinematic_model_is_refused_and_a_cam_one_loads(data, tmp_path, version):
-    """Versions 2 and 3 learned their factors on earlier kinematic base times: predicting with them would be wrong."""
+    """Versions 2 to 4 learned their factors on earlier kinematic base times: predicting with them would be wrong."""
     path, raw = _saved_mlp(data, tmp_path)
     raw["format_version"] = version
     torch.save(raw, path)
