@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from feedlog.errors import FeedlogError
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording
+from feedlog.ingest.recording import PROGRAM_ATTACHMENT, Recording
 from feedlog.viz.prepare import ModelPrediction, ViewData, prepare_view
 from feedlog.viz.sources import Gathered, finite_or_none, gather
 from feedlog.viz.stages import StageMissing, availability, stage_function
@@ -51,7 +51,8 @@ class RecordingEntry:
     split: str = "train"
     family: str = ""                      # manifest's program family (corners, pocket, ...)
     program_path: Path | None = None      # manifest's program file (used when none is attached)
-    profile: str | None = None            # manifest's machine profile (used when none is attached)
+    profile: str | None = None            # manifest's machine profile (before an attached one: its [sim]
+                                          # tables are today's model, an attachment's those of the recording day)
     expected: dict[str, Any] = field(default_factory=dict)   # manifest's samples, dropped_frames, cycle_time_s
 
 
@@ -227,7 +228,7 @@ def run_demo(config: DemoConfig) -> DemoResult:
         run.gathered = _guarded(run, "gather", lambda run=run: gather(
             run.recording, name=run.entry.name, catch_bugs=True, lenient=True,
             program=None if PROGRAM_ATTACHMENT in run.recording.attachments else run.entry.program_path,
-            profile=None if PROFILE_ATTACHMENT in run.recording.attachments else run.entry.profile))
+            profile=run.entry.profile))
         if run.gathered is not None:
             for note in run.gathered.notes:
                 (run.errors if "failed" in note else run.notes).append(note)
