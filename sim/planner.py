@@ -12,9 +12,9 @@ piece lasts at least `min_piece_cycles` servo periods over its clamp length: Lin
 segment's speed at length / (TP_MIN_SEGMENT_CYCLES = 1.02 cycles), the length being what is left
 of a line after the blend arcs at its ends trimmed it (tcFinalizeLength, tpComputeOptimalVelocity).
 On runs of very short blocks this is what sets the speed: dense002q0's 0.02 mm blocks leave 0.01 mm
-line pieces next to their blend arcs, run at under 10 mm/s. Without a corner law every junction is an exact stop; `stop_settle_s` adds a
-standstill at each exact stop (an in-position wait of controllers that check the following error
-before the next block; 0 by default and for LinuxCNC).
+line pieces next to their blend arcs, run at under 10 mm/s. Without a corner law every junction is
+an exact stop; `stop_settle_s` adds a standstill at each exact stop (an in-position wait of
+controllers that check the following error before the next block; 0 by default and for LinuxCNC).
 """
 
 from __future__ import annotations
