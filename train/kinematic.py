@@ -175,13 +175,14 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
     tangent = np.zeros(n, bool)
     scale = np.zeros(n)
     own = np.ones(n, bool) if merge is None else ~np.asarray(merge, bool)  # the block is its own segment
+    own_pair = own & np.append(own[nxt], True)  # ... and so is the one after its end junction
     if servo_period_s > 0:
         v_line = np.minimum(cruise, length / servo_period_s)
         v_kink = np.minimum(v_line, np.append(v_line[nxt], 0.0))
         by_angle = 2 * np.sin(half) / a_plane
         kink = by_angle if kink is None else np.where(np.isfinite(kink), kink, by_angle)
         scale = np.nan_to_num((v_kink / servo_period_s + nxt_acc) * np.asarray(kink, np.float64))
-        tangent = ~stop & ~para & (half > 0) & (scale < KINK_RATIO) & own & np.append(own[nxt], True)
+        tangent = ~stop & ~para & (half > 0) & (scale < KINK_RATIO) & own_pair
         v_end = np.where(tangent, np.minimum(np.minimum(cruise, nxt_cruise), v_kink), v_end)
     # G61 corners without a rotary move keep LinuxCNC's kink reduction: both blocks at 90 % acceleration
     kink_g61 = exact & (turn > KINK_MIN_RAD) & (turn < np.pi) & ~mode_change & ~rot_junction
@@ -207,7 +208,7 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
         t_min = MIN_SEGMENT_CYCLES * servo_period_s
         rest = np.maximum(length - d_arc - np.append(0.0, d_arc[:-1]), 0.0)
         eaten = arc & (rest < GAP_CYCLES * servo_period_s * arc_cap)
-        seg_cap = np.where(arc & own & np.append(own[nxt], True), (2 * s_arc + np.where(eaten, rest, 0.0)) / t_min, BIG)
+        seg_cap = np.where(arc & own_pair, (2 * s_arc + np.where(eaten, rest, 0.0)) / t_min, BIG)
         rest_cap = np.where(eaten | (rest <= 0) | ~own, BIG, rest / t_min)
         arc_cap = np.where(arc, np.minimum(arc_cap, seg_cap), arc_cap)
         line_cruise = np.minimum(cruise, np.where(eaten, np.maximum(arc_cap, 1e-9), rest_cap))
