@@ -18,6 +18,8 @@ blendmath.c `blendComputeParameters`, `blendCheckConsume`), re-derived here in v
   so the model leaves it whole (`halve_after_blend = true` halves it for its whole length, as the
   model did before: mix5ax_023 +1.43 % instead of -0.04 %);
 - corners sharper than `sharp_corner_deg` from a reversal stop;
+- `tolerance_scale` is the share of the programmed tolerance the controller blends within (1 in
+  LinuxCNC; controllers that keep part of the tolerance for smoothing or compression use less);
 - a rapid (G0) next to a feed move (G1/G2/G3) is never blended: LinuxCNC stops between them
   (tp.c `handleModeChange` sets the STOP end condition, so neither block's acceleration is halved);
   `rapid_feed_stop = false` blends them like any other junction;
@@ -94,6 +96,7 @@ class BlendArcCorner(Mechanism):
     kink_ratio: float = 0.1
     gap_cycles: float = 4.0
     tolerance_ratio: float = 0.25   # default tolerance as a fraction of the block length (no G64 P)
+    tolerance_scale: float = 1.0    # share of the programmed G64 P the controller blends within
     sharp_corner_deg: float = 2.0
     servo_period_s: float = 0.001
     rotary_blend: str = "parabolic"  # or "stop"
@@ -101,7 +104,8 @@ class BlendArcCorner(Mechanism):
     halve_after_blend: bool = False   # halve the acceleration of the block after a parabolic blend too
 
     def __post_init__(self) -> None:
-        self.check_positive(servo_period_s=self.servo_period_s, tolerance_ratio=self.tolerance_ratio)
+        self.check_positive(servo_period_s=self.servo_period_s, tolerance_ratio=self.tolerance_ratio,
+                            tolerance_scale=self.tolerance_scale)
         self.check_non_negative(kink_ratio=self.kink_ratio, gap_cycles=self.gap_cycles,
                                 sharp_corner_deg=self.sharp_corner_deg)
         if self.rotary_blend not in ("parabolic", "stop"):
@@ -223,7 +227,7 @@ class BlendArcCorner(Mechanism):
         t_reach = np.minimum(l1 / v1, l2 / v2)
         t_blend = np.minimum(t_reach, np.maximum(v1 / a1, v2 / a2))
         v_b = np.minimum(v1, t_blend * a1)
-        tol = blocks.tol[pc.block[jp]]
+        tol = blocks.tol[pc.block[jp]] * self.tolerance_scale
         theta = np.arccos(np.clip(-np.einsum("ij,ij->i", u1, u2), -1, 1)) / 2.0
         cos_t = np.cos(theta)
         has_tol = (tol > 0) & (cos_t > math.cos(math.pi / 2 - 1e-3)) & moves_xyz
@@ -245,7 +249,7 @@ class BlendArcCorner(Mechanism):
         a_plane = inscribed_limit(binormal, acc_bound)
         v_plane = inscribed_limit(binormal, vel_bound)
         a_n = a_plane * math.sqrt(1 - ACC_RATIO_TANGENTIAL ** 2)
-        tol_piece = blocks.tol[pc.block]
+        tol_piece = blocks.tol[pc.block] * self.tolerance_scale
         tol1, tol2 = tol_piece[:-1], tol_piece[1:]
         t1 = np.where(tol1 > 0, tol1, n1 * self.tolerance_ratio)
         t2 = np.where(tol2 > 0, tol2, n2 * self.tolerance_ratio)

@@ -1,10 +1,13 @@
 """Measurement model: what a data logger would record of a simulated run.
 
 Turns a `SimResult` into a `feedlog.ingest.recording.Recording` with the standard streams `axes`,
-`feed` and `line` (and `joints` when the machine has five-axis kinematics), sampled at `rate_hz` (5 Hz .. 1 kHz) with a constant latency (the logger sees
-the motion `latency_s` late), Gaussian timestamp jitter, position quantisation (encoder or
-fieldbus resolution) and Gaussian measurement noise. Continuous channels (positions, feed) are
-interpolated, the executing line holds its last value. Deterministic for a given `seed`.
+`feed` and `line` (and `joints` when the machine has five-axis kinematics or the profile models
+feedback: `jN_pos` commanded, `jN_pos_fb` through the feedback mechanisms), sampled at `rate_hz`
+(5 Hz .. 1 kHz) with a constant latency (the logger sees the motion `latency_s` late), Gaussian
+timestamp jitter, position quantisation (encoder or fieldbus resolution) and Gaussian measurement
+noise. Continuous channels (positions, feed) are
+interpolated, the executing line holds its last value. Noise and quantisation apply to measured
+positions (axes, joint feedback), not to the joint commands. Deterministic for a given `seed`.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ class MeasurementModel:
     noise_mm: float = 0.0            # standard deviation of position noise
     noise_deg: float = 0.0
     feed_noise_mm_min: float = 0.0
+    rest_s: float = 0.0              # standstill recorded before the motion starts and after it ends
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -38,7 +42,7 @@ class MeasurementModel:
             raise SimulationError(f"measurement rate_hz must be within {MIN_RATE_HZ:g}..{MAX_RATE_HZ:g}, "
                                   f"got {self.rate_hz}")
         for name in ("latency_s", "jitter_s", "quantum_mm", "quantum_deg", "noise_mm", "noise_deg",
-                     "feed_noise_mm_min"):
+                     "feed_noise_mm_min", "rest_s"):
             if not getattr(self, name) >= 0:
                 raise SimulationError(f"measurement {name} must be >= 0, got {getattr(self, name)}")
         if self.jitter_s >= 0.5 / self.rate_hz:
@@ -56,25 +60,26 @@ def measure(result: SimResult, model: MeasurementModel | None = None, *, program
     if not len(t_sim):
         raise SimulationError("the simulation produced no samples to measure")
     period = 1.0 / model.rate_hz
-    n = int(np.floor((t_sim[-1] + model.latency_s) / period)) + 1
-    t_nominal = np.arange(n) * period
+    n = int(np.floor((t_sim[-1] + model.latency_s + 2 * model.rest_s) / period)) + 1
+    t_nominal = np.arange(n) * period - model.rest_s   # positions hold before the start and after the end
     t_log = t_nominal + (rng.normal(0.0, model.jitter_s, n) if model.jitter_s > 0 else 0.0)
-    t_log = np.maximum.accumulate(np.clip(t_log, 0.0, None))
+    t_log = np.maximum.accumulate(np.clip(t_log, -model.rest_s, None))
     t_seen = t_log - model.latency_s   # the motion state the logger actually captures
-    t_ns = (start_time_ns + np.rint(t_log * 1e9)).astype(np.int64)
+    t_ns = (start_time_ns + np.rint((t_log + model.rest_s) * 1e9)).astype(np.int64)
 
-    axes_cols = [c for c in series.columns if c.endswith("_mm") or c.endswith("_deg")]
-    axes = {"t_ns": t_ns}
-    for col in axes_cols:
-        values = np.interp(t_seen, t_sim, series[col].to_numpy(np.float64))
-        rotary = col.endswith("_deg")
+    def measured(values: np.ndarray, rotary: bool) -> np.ndarray:
         sigma = model.noise_deg if rotary else model.noise_mm
         if sigma > 0:
             values = values + rng.normal(0.0, sigma, n)
         q = model.quantum_deg if rotary else model.quantum_mm
         if q > 0:
             values = np.round(values / q) * q
-        axes[col] = values
+        return values
+
+    axes_cols = [c for c in series.columns if c.endswith("_mm") or c.endswith("_deg")]
+    axes = {"t_ns": t_ns}
+    for col in axes_cols:
+        axes[col] = measured(np.interp(t_seen, t_sim, series[col].to_numpy(np.float64)), col.endswith("_deg"))
     feed = np.interp(t_seen, t_sim, series["feed_mm_min"].to_numpy(np.float64))
     if model.feed_noise_mm_min > 0:
         feed = np.clip(feed + rng.normal(0.0, model.feed_noise_mm_min, n), 0.0, None)
@@ -83,11 +88,18 @@ def measure(result: SimResult, model: MeasurementModel | None = None, *, program
 
     streams = {"axes": pd.DataFrame(axes), "feed": pd.DataFrame({"t_ns": t_ns, "feed_mm_min": feed}),
                "line": pd.DataFrame({"t_ns": t_ns, "line": line})}
-    joints = result.joints
-    if joints is not None:  # five-axis kinematics: machine joint positions, sampled the same way
+    joints = result.feedback   # commanded and feedback joint positions, when the profile models feedback
+    if joints is None:
+        joints = result.joints  # five-axis kinematics: machine joint positions
+    if joints is not None:  # sampled the same way as the axes
         jt = joints["t_ns"].to_numpy(np.int64) / 1e9
-        streams["joints"] = pd.DataFrame({"t_ns": t_ns, **{c: np.interp(t_seen, jt, joints[c].to_numpy(np.float64))
-                                                          for c in joints.columns if c != "t_ns"}})
+        rotary_joint = {f"j{i}": a not in ("x", "y", "z") for i, a in enumerate(result.profile.axis_names)}
+        table = {"t_ns": t_ns}
+        for c in joints.columns[1:]:
+            values = np.interp(t_seen, jt, joints[c].to_numpy(np.float64))
+            # feedback is measured (noise, resolution); the command is a number the controller computed
+            table[c] = measured(values, rotary_joint.get(c.split("_")[0], False)) if c.endswith("_fb") else values
+        streams["joints"] = pd.DataFrame(table)
     profile = result.profile
     metadata = {"machine": profile.name, "controller": f"feedlog.sim ({profile.controller or 'simulated'})",
                 "units": "mm", "nominal_rate_hz": f"{model.rate_hz:g}", "start_time": str(start_time_ns),

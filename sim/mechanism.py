@@ -7,7 +7,9 @@ chain it acts:
 - `limits`:       adjusts per-block limits before planning (feed override, kinematics, block time)
 - `corner`:       decides the speed through block junctions (blend arc, junction deviation)
 - `interpolator`: turns the prepared blocks into motion over time (look-ahead planner, FIR, CAM)
-- `series`:       changes the sampled motion afterwards (following lag)
+- `series`:       changes the sampled motion afterwards (jerk filter)
+- `feedback`:     turns commanded axis (joint) positions into the reported feedback positions (feedback
+                  delay, following lag); the commanded motion and the cycle time stay as they are
 
 Mechanisms are looked up by name in `REGISTRY` (name -> "module:Class"; adding one is one file plus
 one line here). A machine profile switches them on or off and sets their parameters with
@@ -23,10 +25,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+import numpy as np
+
 from feedlog.errors import SimulationError
 from feedlog.profile import MachineProfile
 
-KINDS = ("limits", "corner", "interpolator", "series")
+KINDS = ("limits", "corner", "interpolator", "series", "feedback")
 
 # name -> "module:Class" (imported on first use). One line per mechanism.
 REGISTRY: dict[str, str] = {
@@ -42,6 +46,7 @@ REGISTRY: dict[str, str] = {
     "block_time": "feedlog.sim.block_time:BlockTimeFloor",
     "reversal_dwell": "feedlog.sim.reversal_dwell:ReversalDwell",
     "following_lag": "feedlog.sim.following_lag:FollowingLag",
+    "feedback_delay": "feedlog.sim.feedback_delay:FeedbackDelay",
     "jerk_filter": "feedlog.sim.jerk_filter:JerkFilter",
 }
 
@@ -91,6 +96,14 @@ class Mechanism:
     def after(self, ctx, trajectory):
         """Change the sampled trajectory; return the new one."""
         return trajectory
+
+    def feedback(self, dt_s: float, axes: tuple[str, ...], pos: np.ndarray) -> np.ndarray:
+        """Feedback positions (n, k) from commanded ones sampled every `dt_s` (feedback mechanisms)."""
+        return pos
+
+    def settle_s(self) -> float:
+        """Standstill a feedback mechanism needs after the command ends to settle (s)."""
+        return 0.0
 
     def params(self) -> dict[str, Any]:
         """Current parameter values (unit-named), e.g. for writing a fitted profile back."""

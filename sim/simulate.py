@@ -17,6 +17,7 @@ import pandas as pd
 from feedlog.profile import MachineProfile, load_profile
 from feedlog.sim.cam import cam_block_times
 from feedlog.sim.context import Context, Trajectory
+from feedlog.sim.feedback import feedback_chain, feedback_table
 from feedlog.sim.mechanism import Mechanism, MechanismSpec, resolve_mechanisms
 from feedlog.sim.path import Blocks, build_pieces, prepare_blocks
 from feedlog.toolpath.schema import AXIS_UNITS
@@ -42,6 +43,7 @@ class SimResult:
         self._ctx_blocks = ctx.blocks
         self.blocks = _block_table(ctx.blocks, trajectory)
         self._series: pd.DataFrame | None = None
+        self.trajectory_dt_s = ctx.dt_s
 
     @property
     def series(self) -> pd.DataFrame:
@@ -55,6 +57,24 @@ class SimResult:
         if callable(joints):
             joints = self.notes["joints"] = joints()
         return joints if isinstance(joints, pd.DataFrame) else None
+
+    @property
+    def feedback(self) -> pd.DataFrame | None:
+        """`t_ns`, `jN_pos` (commanded joints: the axes, or the five-axis machine joints) and `jN_pos_fb`
+        (through the profile's feedback mechanisms); None when the profile has none."""
+        chain = feedback_chain(self.mechanisms)
+        if not chain:
+            return None
+        joints = self.joints
+        if joints is not None:
+            cols = [c for c in joints.columns if c != "t_ns"]
+            t_ns, cmd = joints["t_ns"].to_numpy(np.int64), joints[cols].to_numpy(np.float64)
+        else:
+            series = self.series
+            cols = [f"{a}_{AXIS_UNITS[a]}" for a in self.profile.axis_names]
+            t_ns, cmd = series["t_ns"].to_numpy(np.int64), series[cols].to_numpy(np.float64)
+        axes = self.profile.axis_names[:cmd.shape[1]]
+        return feedback_table(chain, t_ns, axes, cmd, self.trajectory_dt_s)
 
     @property
     def mechanism_params(self) -> dict[str, dict[str, Any]]:
