@@ -26,6 +26,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "align": ("feedlog.align.cli", "align recordings with their part program"),
     "train": ("feedlog.train.cli_train", "train feed and cycle-time models on aligned data"),
     "predict": ("feedlog.train.cli_predict", "predict cycle time of a part program with a trained model"),
+    "diagnose": ("feedlog.diagnose.cli", "find what the simulation gets wrong on recordings, name the cause, "
+                 "extend the profile"),
     "view": ("feedlog.viz.cli", "show a recording in Rerun"),
     "demo": ("feedlog.viz.demo", "run the whole pipeline on the bundled recordings"),
 }

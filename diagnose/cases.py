@@ -1,0 +1,257 @@
+"""A recording prepared for diagnosis: aligned once, with the measured quantities every level compares.
+
+`prepare_case(source, profile)` reads a recording (or takes a `Recording`), parses its program (the
+attached `program.ngc` or one given), aligns the two (`feedlog.align`) and keeps what the residuals
+need: the measured cycle time and block ends (relative to motion start), the sampling period, the
+commanded and feedback joint positions when the recording has them, and the line stream's offset
+against the geometry. Everything a simulation is compared with is measured here, once.
+
+Bad input is refused with one clear line (`DiagnoseError`): a recording without a program, without
+motion, whose axes the profile's kinematics cannot have produced (a rotary axis moving under a
+Cartesian profile, or the other way round).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from feedlog.align.blocks import NO_TIME
+from feedlog.diagnose.progress import block_end_progress, crossing_times, sample_progress
+from feedlog.errors import FeedlogError
+from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
+from feedlog.profile import LINEAR_AXES, MachineProfile
+from feedlog.toolpath.schema import AXIS_UNITS
+
+ROTARY_COLUMNS = {"a": "a_deg", "b": "b_deg", "c": "c_deg"}
+MOVE_MM = 1e-3  # an axis that moves less than this (mm or deg) over a recording does not move
+SPARSE_S = 0.005  # sampling periods above this are monitoring data (5 Hz), not a servo trace
+
+
+class DiagnoseError(FeedlogError):
+    """Input that cannot be diagnosed: names the recording and what is wrong with it."""
+
+
+@dataclass
+class FeedbackData:
+    """Commanded and feedback positions of the machine joints on a regular grid."""
+
+    t_ns: np.ndarray
+    cmd: np.ndarray       # (n, k)
+    fb: np.ndarray        # (n, k)
+    axes: tuple[str, ...]  # the profile axis each joint column belongs to
+    dt_s: float
+
+    @property
+    def linear(self) -> list[int]:
+        return [i for i, a in enumerate(self.axes) if a in LINEAR_AXES]
+
+
+@dataclass
+class CLPolyline:
+    """The program's cutter-location points: program and machine frame, arc length, block, measured time."""
+
+    xyz: np.ndarray            # (m, 3) program frame (what the simulation moves in)
+    machine_xyz: np.ndarray    # (m, 3) with the work offsets (what the recording shows)
+    s: np.ndarray              # (m,) arc length along the program
+    block: np.ndarray          # (m,) block of each point
+    t: np.ndarray              # (m,) when the recording passed it, from motion start (interpolated where unmatched)
+
+
+def cl_polyline(points: pd.DataFrame, t0_ns: int) -> CLPolyline:
+    xyz = points[["x_mm", "y_mm", "z_mm"]].to_numpy(np.float64)
+    off = (points[["wx_mm", "wy_mm", "wz_mm"]].to_numpy(np.float64) if {"wx_mm", "wy_mm", "wz_mm"} <= set(points.columns)
+           else np.zeros_like(xyz))
+    s = points["s_mm"].to_numpy(np.float64)
+    t_ns = points["t_ns"].to_numpy(np.int64)
+    ok = (t_ns != NO_TIME) & np.isfinite(xyz).all(axis=1)
+    t = (t_ns - t0_ns) / 1e9
+    t = np.interp(s, s[ok], t[ok]) if ok.any() else np.zeros(len(s))
+    good = np.isfinite(xyz).all(axis=1)
+    return CLPolyline(xyz=xyz[good], machine_xyz=(xyz + np.nan_to_num(off))[good], s=s[good],
+                      block=points["block"].to_numpy(np.int64)[good], t=np.maximum.accumulate(t[good]))
+
+
+@dataclass
+class Case:
+    """One recording with its program, aligned, and what was measured."""
+
+    name: str
+    source: str
+    recording: Recording
+    program: Any                     # feedlog.toolpath.Program
+    alignment: Any                   # feedlog.align.Alignment
+    period_s: float                  # sampling period of the positions (median)
+    t0_ns: int                       # motion start
+    cycle_s: float                   # measured cycle time
+    block_end_s: pd.Series           # block -> measured end time relative to motion start
+    block_source: str                # 'line', 'geometry', ... (where the block times came from)
+    feedback: FeedbackData | None = None
+    line_offset_s: float | None = None   # line stream minus geometry, from align (None: no line stream)
+    machine: dict[str, str] = field(default_factory=dict)
+    still_mm: float = 1e-6               # align's rest threshold (noise at rest), for the motion span
+    sample_offsets_s: np.ndarray | None = None  # position sample times from motion start (sparse data)
+    cl: CLPolyline | None = None         # the program's CL points with their measured times (sparse data)
+    span_acc_mm_s2: float = float("inf")  # acceleration align assumed leaving / reaching rest
+
+    @property
+    def sparse(self) -> bool:
+        return self.period_s > SPARSE_S
+
+    @property
+    def boundary_sigma_s(self) -> float:
+        """Timing resolution of one measured block boundary: a uniform error over one sampling period."""
+        return self.period_s / np.sqrt(12.0)
+
+
+def _program(rec: Recording, program: Any, name: str, lenient: bool):
+    from feedlog.toolpath import Program, parse_program  # noqa: PLC0415
+
+    if isinstance(program, Program):
+        return program
+    if program is not None:
+        return parse_program(Path(program), lenient=lenient)
+    text = rec.program_text
+    if text is None:
+        raise DiagnoseError(f"{name}: the recording carries no part program (program.ngc); give one with --program")
+    return parse_program(text, lenient=lenient, name=f"{name}:program.ngc")
+
+
+def _check_axes(rec: Recording, profile: MachineProfile, name: str) -> pd.DataFrame:
+    if "axes" not in rec.streams:
+        raise DiagnoseError(f"{name}: the recording has no 'axes' stream (positions); "
+                            f"it has: {', '.join(rec.streams) or 'nothing'}")
+    axes = rec.streams["axes"]
+    if len(axes) < 3:
+        raise DiagnoseError(f"{name}: the recording has {len(axes)} position sample(s); nothing to diagnose")
+    for axis, col in ROTARY_COLUMNS.items():
+        if col in axes.columns and axis not in profile.axes:
+            values = axes[col].to_numpy(np.float64)
+            if np.isfinite(values).any() and np.nanmax(values) - np.nanmin(values) > MOVE_MM:
+                raise DiagnoseError(f"{name}: the recording moves the {axis.upper()} axis, which machine profile "
+                                    f"{profile.name!r} ({profile.kinematics.type}) does not have; give the profile "
+                                    "of the machine that recorded it")
+    missing = [a for a in profile.kinematics.rotary_axes if ROTARY_COLUMNS[a] not in axes.columns]
+    if missing:
+        raise DiagnoseError(f"{name}: profile {profile.name!r} is a {profile.kinematics.type} machine but the "
+                            f"recording has no {', '.join(m.upper() for m in missing)} positions; give the profile "
+                            "of the machine that recorded it")
+    lin = [c for c in ("x_mm", "y_mm", "z_mm") if c in axes.columns]
+    if len(lin) < 3:
+        raise DiagnoseError(f"{name}: stream 'axes' lacks {', '.join(sorted({'x_mm', 'y_mm', 'z_mm'} - set(lin)))}")
+    pos = axes[lin + [ROTARY_COLUMNS[a] for a in profile.kinematics.rotary_axes]].to_numpy(np.float64)
+    finite = np.isfinite(pos).all(axis=1)
+    if not finite.any() or (np.nanmax(pos[finite], axis=0) - np.nanmin(pos[finite], axis=0)).max() <= MOVE_MM:
+        raise DiagnoseError(f"{name}: the recording shows no motion (every axis stays within {MOVE_MM} mm/deg)")
+    return axes
+
+
+def feedback_data(rec: Recording, profile: MachineProfile) -> FeedbackData | None:
+    """Joint command and feedback pairs (`jN_pos`, `jN_pos_fb`) of a regularly sampled recording."""
+    joints = rec.streams.get("joints")
+    if joints is None:
+        return None
+    axes = profile.axis_names
+    pairs = [i for i in range(len(axes)) if f"j{i}_pos" in joints.columns and f"j{i}_pos_fb" in joints.columns]
+    if not pairs or len(joints) < 10:
+        return None
+    t = joints["t_ns"].to_numpy(np.int64)
+    step = np.diff(t)
+    dt = float(np.median(step))
+    if dt <= 0 or np.abs(step - dt).max() > 0.01 * dt:  # a servo trace has a regular grid; anything else is not one
+        return None
+    cmd = joints[[f"j{i}_pos" for i in pairs]].to_numpy(np.float64)
+    fb = joints[[f"j{i}_pos_fb" for i in pairs]].to_numpy(np.float64)
+    if not (np.isfinite(cmd).all() and np.isfinite(fb).all()):
+        return None
+    return FeedbackData(t_ns=t, cmd=cmd, fb=fb, axes=tuple(axes[i] for i in pairs), dt_s=dt / 1e9)
+
+
+def machine_identity(rec: Recording) -> dict[str, str]:
+    """What names the machine a recording came from (compared across the recordings of one diagnosis)."""
+    out = {k: rec.metadata[k] for k in ("machine", "controller", "ini", "servo_period_ns") if rec.metadata.get(k)}
+    ini = rec.attachments.get("machine.ini")
+    if ini is not None:
+        import hashlib  # noqa: PLC0415
+
+        out["machine.ini"] = hashlib.sha256(ini).hexdigest()[:16]
+    return out
+
+
+def attached_profile(rec: Recording, name: str) -> MachineProfile | None:
+    data = rec.attachments.get(PROFILE_ATTACHMENT)
+    if data is None:
+        return None
+    return MachineProfile.from_toml(data.decode("utf-8", errors="replace"), source=f"{name}:{PROFILE_ATTACHMENT}")
+
+
+def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, program: Any = None,
+                 lenient: bool = False, align_overrides: dict[str, Any] | None = None) -> Case:
+    """Read, check and align one recording for diagnosis on `profile`."""
+    from feedlog.align import align_recording  # noqa: PLC0415
+    from feedlog.ingest import read_recording  # noqa: PLC0415
+
+    rec = source if isinstance(source, Recording) else read_recording(source)
+    src = rec.source or (str(source) if not isinstance(source, Recording) else "recording")
+    name = Path(src).stem or "recording"
+    axes = _check_axes(rec, profile, name)
+    prog = _program(rec, program, name, lenient)
+    try:
+        alignment = align_recording(rec, prog, profile=profile, **(align_overrides or {}))
+    except FeedlogError as exc:
+        raise DiagnoseError(f"{name}: cannot align the recording with its program: {exc}") from None
+    t = axes["t_ns"].to_numpy(np.int64)
+    period = float(np.median(np.diff(t))) / 1e9
+    t0 = int(alignment.report["motion"]["t_start_ns"])
+    blocks = alignment.blocks
+    ends = pd.Series((blocks["t_end_ns"].to_numpy(np.int64) - t0) / 1e9, index=blocks["block"].to_numpy(np.int64))
+    source_kind = str(blocks["source"].iloc[0]) if "source" in blocks.columns and len(blocks) else "geometry"
+    cl = None
+    if period > SPARSE_S:
+        # sparse data: when the tool's progress along the program reached each block's end, interpolated
+        # between samples, is closer to the truth than the first sample showing the next line
+        cl = cl_polyline(alignment.points, t0)
+        pos = axes[["x_mm", "y_mm", "z_mm"]].to_numpy(np.float64)
+        rel = (t - t0) / 1e9
+        s = sample_progress(rel, pos, cl.machine_xyz, cl.s, cl.t)
+        ids = blocks["block"].to_numpy(np.int64)
+        target = block_end_progress(cl.block, cl.s, ids)
+        ends = pd.Series(np.where(np.isfinite(target), crossing_times(rel, s, np.nan_to_num(target)), np.nan), index=ids)
+        source_kind = "progress"
+    line_info = alignment.report.get("line_stream") or {}
+    offset = (line_info.get("offset_vs_geometry") or {}).get("offset_ns")
+    return Case(name=name, source=src, recording=rec, program=prog, alignment=alignment, period_s=period, t0_ns=t0,
+                cycle_s=float(alignment.cycle_time_s), block_end_s=ends, block_source=source_kind,
+                feedback=feedback_data(rec, profile), line_offset_s=None if offset is None else offset / 1e9,
+                machine=machine_identity(rec), still_mm=float(alignment.report.get("still_mm", 1e-6)),
+                sample_offsets_s=(t - t0) / 1e9 if period > SPARSE_S else None, cl=cl,
+                span_acc_mm_s2=span_acceleration(profile))
+
+
+def span_acceleration(profile: MachineProfile) -> float:
+    """The acceleration align assumes when it places motion start and end between rest samples."""
+    from feedlog.align.pipeline import _acc_limit  # noqa: PLC0415
+
+    return _acc_limit(profile)
+
+
+def check_same_machine(cases: list[Case]) -> None:
+    """Recordings of one diagnosis must come from one machine."""
+    if len(cases) < 2:
+        return
+    first = cases[0]
+    for case in cases[1:]:
+        for key in ("machine.ini", "servo_period_ns", "machine"):
+            a, b = first.machine.get(key), case.machine.get(key)
+            if a is not None and b is not None and a != b:
+                what = "machine INI" if key == "machine.ini" else key
+                raise DiagnoseError(f"{case.name}: recorded on another machine than {first.name} ({what} "
+                                    f"{b!r} vs {a!r}); diagnose recordings of one machine together")
+
+
+def position_columns(profile: MachineProfile) -> list[str]:
+    return [f"{a}_{AXIS_UNITS[a]}" for a in profile.axis_names]

@@ -1,0 +1,69 @@
+"""`feedlog diagnose REC... --profile P -o DIR`: what the simulation gets wrong, the cause, the gain.
+
+Prints the answer in a few lines (or one JSON object with `--json`) and writes DIR/report.md,
+DIR/diagnose.json, DIR/profile.toml (the extended profile, usable with --profile everywhere) and
+DIR/diagnose.rrd. Input that cannot be diagnosed is one error line and exit code 2; nothing is
+written then.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from feedlog.errors import FeedlogError
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("recordings", nargs="+", metavar="RECORDING", help="recordings of one machine (.mcap)")
+    parser.add_argument("--profile", help="machine profile to diagnose: shipped name or .toml (default: the "
+                                          "profile the recordings carry)")
+    parser.add_argument("--program", "-p", help="part program (default: each recording's program.ngc)")
+    parser.add_argument("-o", "--out", type=Path, help="output folder (report.md, diagnose.json, profile.toml, "
+                                                       "diagnose.rrd); nothing is written without it")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of the text summary")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    parser.add_argument("--min-effect", type=float, default=1.0, metavar="PCT",
+                        help="a cause must lower the held-out timing error by this many percentage points "
+                             "(default %(default)s)")
+    parser.add_argument("--min-gain", type=float, default=0.2, metavar="SHARE",
+                        help="share of the remaining held-out residual a cause must remove (default %(default)s)")
+    parser.add_argument("--families", help="comma-separated hypothesis families (default: all)")
+    parser.add_argument("--no-learned", action="store_true", help="do not fit a learned correction")
+    parser.add_argument("--no-rrd", action="store_true", help="do not write diagnose.rrd")
+    parser.add_argument("--lenient", action="store_true", help="skip unsupported program codes")
+    parser.add_argument("--jobs", "-j", type=int, default=1, help="parallel hypothesis fits (default 1)")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress messages")
+
+
+def run(args: argparse.Namespace) -> int:
+    from feedlog.diagnose.engine import DiagnoseConfig, diagnose  # noqa: PLC0415
+    from feedlog.diagnose.summary import summary_lines, to_json  # noqa: PLC0415
+    from feedlog.diagnose.write import write_outputs  # noqa: PLC0415
+
+    try:
+        if args.out is not None and args.out.exists() and not args.overwrite and (
+                not args.out.is_dir() or any(args.out.iterdir())):
+            raise FeedlogError(f"{args.out} exists; pass --overwrite to replace it")
+        families = tuple(f.strip() for f in args.families.split(",")) if args.families else None
+        config = DiagnoseConfig(min_effect_pct=args.min_effect, min_gain=args.min_gain, families=families,
+                                learned=not args.no_learned, jobs=max(1, args.jobs))
+        say = None if args.quiet or args.json else (lambda msg: print(f"  {msg}", file=sys.stderr, flush=True))
+        dx = diagnose(args.recordings, args.profile, program=args.program, config=config, lenient=args.lenient,
+                      progress=say)
+        if args.out is not None:
+            write_outputs(dx, args.out, overwrite=args.overwrite, rrd=not args.no_rrd)
+    except FeedlogError as exc:
+        print(f"feedlog diagnose: error: {exc}", file=sys.stderr)
+        return 2
+    if args.json:
+        json.dump(to_json(dx), sys.stdout, allow_nan=False)
+        sys.stdout.write("\n")
+    else:
+        print("\n".join(summary_lines(dx)))
+        if args.out is not None:
+            print(f"wrote {args.out}/: report.md, diagnose.json, profile.toml"
+                  + ("" if args.no_rrd else ", diagnose.rrd (rerun FILE)"))
+    return 0

@@ -1,0 +1,275 @@
+"""`diagnose(recordings, profile)`: what the simulation gets wrong, the named cause, the extended profile, the gain.
+
+1. Every recording is read, checked and aligned with its program (`cases.prepare_case`); all of them
+   must come from one machine.
+2. Evidence is gathered from the data alone (`evidence.gather`).
+3. Per residual level (timing, feedback) the candidates of the hypothesis registry are selected
+   greedily on held-out data (`select.select`): leave one recording out when there are several,
+   held-out stretches of the one recording otherwise.
+4. The accepted values extend the profile (`keys.with_values`); what remains systematic but no
+   hypothesis explains is reported as unexplained, with where it lives (`unexplained`).
+5. Before and after are measured at every level the data supports (`levels`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from feedlog.diagnose import keys
+from feedlog.diagnose.cases import Case, DiagnoseError, attached_profile, check_same_machine, prepare_case
+from feedlog.diagnose.evidence import Evidence, describe, gather
+from feedlog.diagnose.fit import Scorer
+from feedlog.diagnose.hypothesis import candidates
+from feedlog.diagnose.select import Judged, SelectConfig, Selection, select
+from feedlog.errors import FeedlogError
+from feedlog.ingest.recording import Recording
+from feedlog.profile import MachineProfile, load_profile
+
+LEVELS = ("timing", "feedback")
+
+
+@dataclass(frozen=True)
+class DiagnoseConfig:
+    min_gain: float = 0.2              # share of the remaining held-out loss a cause must remove
+    min_effect_pct: float = 1.0        # timing: held-out error must drop by this many percentage points
+    min_effect_feedback_mm: float = 0.001
+    max_causes: int = 3
+    families: tuple[str, ...] | None = None
+    min_segment_s: float | None = None
+    learned: bool = True               # fit a learned correction where a systematic residual is unexplained
+    jobs: int = 1                      # parallel hypothesis fits
+
+    def select_config(self, level: str, noise_mm: float = 0.0) -> SelectConfig:
+        effect = self.min_effect_pct if level == "timing" else max(self.min_effect_feedback_mm, 2 * noise_mm)
+        return SelectConfig(min_gain=self.min_gain, min_effect=effect, max_causes=self.max_causes)
+
+
+@dataclass
+class Finding:
+    parameter: str
+    profile_value: Any
+    fitted_value: Any
+    unit: str
+    interval: tuple[float, float] | None
+    gain_pct: float                 # share of the level's held-out loss it removed at its step
+    error_before: float             # the level's held-out error before and after this cause
+    error_after: float
+    kind: str                       # parameter | mechanism
+    level: str
+    family: str
+    evidence: str
+    predicts: str
+    alternatives: list[dict[str, Any]] = field(default_factory=list)
+    fold_values: list[Any] = field(default_factory=list)
+    where: str = ""                 # the block classes its change of the residual sits in
+    scheme: str = ""                # how it was held out
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"parameter": self.parameter, "profile_value": _plain(self.profile_value),
+                "fitted_value": _plain(self.fitted_value), "unit": self.unit,
+                "interval": None if self.interval is None else [_plain(self.interval[0]), _plain(self.interval[1])],
+                "gain_pct": round(self.gain_pct, 3), "error_before": _plain(self.error_before),
+                "error_after": _plain(self.error_after), "kind": self.kind, "level": self.level,
+                "family": self.family, "evidence": self.evidence, "predicts": self.predicts,
+                "alternatives": self.alternatives, "fold_values": [_plain(v) for v in self.fold_values],
+                "where": self.where, "held_out": self.scheme}
+
+
+def _plain(v: Any) -> Any:
+    if isinstance(v, (np.floating, float)):
+        v = float(v)
+        return round(v, 10 - int(np.floor(np.log10(abs(v)))) if v else 0) if np.isfinite(v) else None
+    if isinstance(v, np.integer):
+        return int(v)
+    return v
+
+
+@dataclass
+class Diagnosis:
+    profile: MachineProfile
+    extended: MachineProfile
+    cases: list[Case]
+    evidence: Evidence
+    selections: dict[str, Selection]
+    scorers: dict[str, Scorer]
+    findings: list[Finding]
+    unexplained: list[dict[str, Any]] = field(default_factory=list)
+    levels: dict[str, Any] = field(default_factory=dict)
+    held_out: dict[str, Any] = field(default_factory=dict)
+    where: dict[str, Any] = field(default_factory=dict)
+    timings_s: dict[str, float] = field(default_factory=dict)
+    noise_floor: dict[str, Any] = field(default_factory=dict)
+    profile_out: str | None = None
+    sims: dict[str, list[Any]] = field(default_factory=dict)
+    learned_model: Any = None
+
+    @property
+    def diff(self) -> list[tuple[str, Any, Any]]:
+        """(key, given, extended) for every profile value the diagnosis changed."""
+        return keys.diff(self.profile, self.extended)
+
+    @property
+    def recordings(self) -> list[str]:
+        return [c.source for c in self.cases]
+
+
+def load_cases(sources: Sequence[str | Path | Recording], profile: MachineProfile | str | Path | None, *,
+               program: Any = None, lenient: bool = False) -> tuple[MachineProfile, list[Case]]:
+    """Read and align every recording; the profile is the given one or the one the recordings carry."""
+    if not sources:
+        raise DiagnoseError("no recordings to diagnose")
+    if profile is None:
+        from feedlog.ingest import read_recording  # noqa: PLC0415
+
+        first = sources[0] if isinstance(sources[0], Recording) else read_recording(sources[0])
+        prof = attached_profile(first, Path(first.source).stem)
+        if prof is None:
+            raise DiagnoseError(f"{first.source}: carries no machine profile; give one with --profile")
+        sources = [first, *sources[1:]]
+    else:
+        prof = profile if isinstance(profile, MachineProfile) else load_profile(profile)
+    cases = [prepare_case(s, prof, program=program, lenient=lenient) for s in sources]
+    check_same_machine(cases)
+    names = [c.name for c in cases]
+    if len(set(names)) != len(names):
+        raise DiagnoseError(f"two recordings share the name {next(n for n in names if names.count(n) > 1)!r}")
+    return prof, cases
+
+
+def timing_error(scorer: Scorer, *, floor: bool = True) -> Callable[[np.ndarray, list[int]], float]:
+    """RMS-based share of misplaced time (%) above the noise floor: 100 sqrt(n (sum r^2 - floor)) / T over
+    the units' segments (equals sum |r| / T when every segment is off by the same amount)."""
+    def error(losses: np.ndarray, units: list[int]) -> float:
+        n = total = 0.0
+        for u in units:
+            unit = scorer.units[u]
+            w = scorer.weights[unit.case][unit.lo:unit.hi]
+            n += float(w.sum())
+            total += float((scorer.segments[unit.case].measured_s[unit.lo:unit.hi] * w).sum())
+        excess = float(np.sum(losses[units])) - (float(np.sum(scorer.floor[units])) if floor else 0.0)
+        return 100.0 * float(np.sqrt(n * max(excess, 0.0))) / total if total > 0 else 0.0
+    return error
+
+
+def feedback_error(scorer: Scorer, *, floor: bool = True) -> Callable[[np.ndarray, list[int]], float]:
+    """RMS of the feedback position residual above its noise, over the units' samples and joints (mm / deg)."""
+    def error(losses: np.ndarray, units: list[int]) -> float:
+        count = sum((scorer.units[u].hi - scorer.units[u].lo) * scorer.cases[scorer.units[u].case].feedback.cmd.shape[1]
+                    for u in units)
+        excess = float(np.sum(losses[units])) - (float(np.sum(scorer.floor[units])) if floor else 0.0)
+        return float(np.sqrt(max(excess, 0.0) / count)) if count else 0.0
+    return error
+
+
+def feedback_noise(cases: Sequence[Case]) -> float:
+    """Noise of the feedback positions at rest (the first 0.1 s), the largest over the recordings."""
+    from feedlog.align.blocks import rest_noise  # noqa: PLC0415
+
+    out = 0.0
+    for c in cases:
+        if c.feedback is not None:
+            out = max(out, rest_noise(c.feedback.t_ns, c.feedback.fb))
+    return out
+
+
+def diagnose(sources: Sequence[str | Path | Recording], profile: MachineProfile | str | Path | None = None, *,
+             program: Any = None, config: DiagnoseConfig | None = None, lenient: bool = False,
+             progress: Callable[[str], None] | None = None) -> Diagnosis:
+    """Diagnose `profile` (default: the one the recordings carry) on the recordings."""
+    cfg = config or DiagnoseConfig()
+    laps: dict[str, float] = {}
+    t0 = time.perf_counter()
+    say = progress or (lambda _msg: None)
+    prof, cases = load_cases(sources, profile, program=program, lenient=lenient)
+    laps["prepare"] = time.perf_counter() - t0
+    say(f"{len(cases)} recording(s) aligned")
+    ev = gather(cases, prof)
+    hyps = candidates(prof, cases, families=cfg.families)
+    selections: dict[str, Selection] = {}
+    scorers: dict[str, Scorer] = {}
+    for level in LEVELS:
+        t1 = time.perf_counter()
+        level_hyps = [h for h in hyps if h.level == level]
+        try:
+            scorer = Scorer(prof, cases, level, min_segment_s=cfg.min_segment_s)
+        except FeedlogError as exc:
+            raise DiagnoseError(f"cannot simulate the recordings' programs on profile {prof.name!r}: {exc}") from None
+        if not scorer.units:
+            continue
+        scorers[level] = scorer
+        error = timing_error(scorer) if level == "timing" else feedback_error(scorer)
+        noise = feedback_noise(cases) if level == "feedback" else 0.0
+        selections[level] = select(scorer, level_hyps, error=error, evidence=ev,
+                                   cfg=cfg.select_config(level, noise), progress=say)
+        laps[level] = time.perf_counter() - t1
+    model: dict[str, Any] = {}
+    for sel in selections.values():
+        model.update(sel.model)
+    extended = keys.with_values(prof, model, name=f"{prof.name}-diagnosed") if model else prof.replace(
+        name=f"{prof.name}-diagnosed")
+    findings = [_finding(step.chosen, sel, scorers[level], ev, timing_error(scorers[level]) if level == "timing"
+                         else feedback_error(scorers[level]))
+                for level, sel in selections.items() for step in sel.steps]
+    dx = Diagnosis(profile=prof, extended=extended, cases=cases, evidence=ev, selections=selections,
+                   scorers=scorers, findings=findings, noise_floor=_noise_floor(scorers, cfg, cases))
+    t2 = time.perf_counter()
+    from feedlog.diagnose.levels import measure_levels  # noqa: PLC0415
+    from feedlog.diagnose.unexplained import find_unexplained  # noqa: PLC0415
+
+    dx.levels, dx.held_out, dx.where = measure_levels(dx)
+    laps["levels"] = time.perf_counter() - t2
+    t3 = time.perf_counter()
+    dx.unexplained = find_unexplained(dx, learned=cfg.learned, min_effect_pct=cfg.min_effect_pct,
+                                      min_gain=cfg.min_gain, progress=say)
+    laps["unexplained"] = time.perf_counter() - t3
+    laps["total"] = time.perf_counter() - t0
+    dx.timings_s = {k: round(v, 3) for k, v in laps.items()}
+    return dx
+
+
+def _noise_floor(scorers: dict[str, Scorer], cfg: DiagnoseConfig, cases: Sequence[Case]) -> dict[str, Any]:
+    """What the data resolves (the loss a perfect model leaves, as the level's error) and what counts."""
+    out: dict[str, Any] = {"timing_pct": None, "feedback_mm": None, "min_effect_pct": cfg.min_effect_pct,
+                           "min_gain": cfg.min_gain}
+    if "timing" in scorers:
+        sc = scorers["timing"]
+        units = list(range(len(sc.units)))
+        out["timing_pct"] = timing_error(sc, floor=False)(sc.floor, units)
+        out["sampling_period_s"] = sorted({round(c.period_s, 6) for c in cases})
+    if "feedback" in scorers:
+        sc = scorers["feedback"]
+        out["feedback_mm"] = feedback_error(sc, floor=False)(sc.floor, list(range(len(sc.units))))
+        out["min_effect_feedback_mm"] = max(cfg.min_effect_feedback_mm, 2 * feedback_noise(cases))
+    return out
+
+
+def _finding(j: Judged, sel: Selection, scorer: Scorer, ev: Evidence, error) -> Finding:
+    hyp = j.held.hyp
+    value = sel.model.get(hyp.key, j.held.value)
+    alts = [{"parameter": a.key, "fitted_value": _plain(a.held.value), "unit": a.held.hyp.unit,
+             "gain_pct": round(100 * a.held.gain, 3)} for a in _alternatives(sel, hyp.key)]
+    return Finding(parameter=hyp.key, profile_value=hyp.baseline, fitted_value=_round_value(hyp, value),
+                   unit=hyp.unit, interval=j.held.interval, gain_pct=100 * j.held.gain,
+                   error_before=j.error_before, error_after=j.error_after, kind=hyp.kind, level=hyp.level,
+                   family=hyp.family, evidence=describe(ev, hyp.key, value), predicts=hyp.predicts,
+                   alternatives=alts, fold_values=list(j.held.extra.get("fold_fits", [])),
+                   scheme=j.held.extra.get("scheme", ""))
+
+
+def _alternatives(sel: Selection, key: str) -> list[Judged]:
+    for step in sel.steps:
+        if step.chosen.key == key:
+            return step.alternatives
+    return []
+
+
+def _round_value(hyp, value: Any) -> Any:
+    if hyp.scale == "int":
+        return int(round(value))
+    return float(value) if isinstance(value, (int, float, np.floating)) else value

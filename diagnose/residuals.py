@@ -1,0 +1,173 @@
+"""Residuals of a simulation against a prepared recording, at the levels the identification fits.
+
+**Timing.** The program is cut into *segments*: runs of consecutive blocks ending at an *anchor*
+block (one both the recording and the simulation time; a group the simulation merges into one move
+is anchored on its last block) and lasting at least `min_segment_s` measured (five sampling periods,
+at least 20 ms: at 5 Hz a segment spans a second, so its measured duration is good to a few
+percent; at 1 kHz most blocks are segments of their own). The last segment ends at motion end. The
+residual of a segment is its simulated minus its measured duration, in seconds; they add up to the
+cycle-time residual. Segments are fixed once per recording (from the measured blocks and the given
+profile's simulation), so every hypothesis is judged on the same pieces. The simulation is measured
+as the recording was: its motion span by align's rest rule (`sim_span`), and on sparse data its block
+ends where a logger sampling at the recording's instants would have seen the tool pass them
+(`mirrored_ends`); there the first and last segment, whose ends align placed with a model of the
+diagnosed profile, carry no weight in the loss.
+
+**Feedback.** The recording's own commanded joint positions through the profile's feedback
+mechanisms (`feedlog.sim.feedback`) against its feedback positions: the feedback model is judged
+independently of the timing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from feedlog.diagnose.cases import Case
+from feedlog.diagnose.progress import block_end_progress, crossing_times, sample_progress
+from feedlog.errors import FeedlogError
+from feedlog.profile import MachineProfile
+
+MIN_SEGMENT_PERIODS = 5
+MIN_SEGMENT_S = 0.02
+
+
+@dataclass(frozen=True)
+class Segments:
+    """The timing segments of one recording: anchor block at each segment's end (-1: motion end)."""
+
+    anchors: np.ndarray      # (m,) block ids; the last is -1 (motion end)
+    measured_s: np.ndarray   # (m,) measured durations
+    end_s: np.ndarray        # (m,) measured time at each segment's end, from motion start
+    weight: np.ndarray       # (m,) 1 where a segment counts in the loss, 0 where it does not
+
+    def __len__(self) -> int:
+        return len(self.anchors)
+
+
+def sim_span(case: Case, sim) -> tuple[float, float]:
+    """Motion start and end of a simulation as the recording's motion span was found: on dense data
+    align detects motion where the positions leave `still_mm` of their rest (the noise at rest), and
+    corrects by the time to cover it accelerating from rest; the same rule on the simulated positions
+    cancels what it does not model (the final move of a program decelerating at half acceleration).
+    Sparse data had its span placed by the model itself: the simulation's own start and end."""
+    traj = sim.trajectory
+    if case.sparse or case.still_mm <= 1e-6:
+        return traj.motion_start_s, traj.motion_end_s
+    from feedlog.align.blocks import motion_span  # noqa: PLC0415
+
+    t, pos = traj.t_s, traj.pos
+    try:
+        span = motion_span(np.rint(t * 1e9).astype(np.int64), pos, still_mm=case.still_mm,
+                           acc_mm_s2=case.span_acc_mm_s2)
+    except FeedlogError:
+        return traj.motion_start_s, traj.motion_end_s
+    return span.t_start_ns / 1e9, span.t_end_ns / 1e9
+
+
+def sim_block_ends(case: Case, sim) -> tuple[np.ndarray, np.ndarray, float]:
+    """(block ids ascending, their end times from motion start, cycle time) of a SimResult, its motion
+    span taken as the recording's was (`sim_span`)."""
+    start, end = sim_span(case, sim)
+    blocks = sim.blocks
+    ids = blocks["block"].to_numpy(np.int64)
+    ends = blocks["t_end_ns"].to_numpy(np.int64) / 1e9 - start
+    order = np.argsort(ids, kind="stable")
+    return ids[order], np.clip(np.maximum.accumulate(ends[order]), 0.0, end - start), end - start
+
+
+def make_segments(case: Case, sim, *, min_segment_s: float | None = None) -> Segments:
+    """Segments of `case` from its measured block ends and the anchors `sim` (the given profile) runs."""
+    floor = min_segment_s if min_segment_s is not None else max(MIN_SEGMENT_PERIODS * case.period_s, MIN_SEGMENT_S)
+    ids = np.unique(sim.blocks["block"].to_numpy(np.int64))
+    measured = case.block_end_s
+    common = np.intersect1d(ids, measured.index.to_numpy(np.int64))
+    ends = measured.reindex(common).to_numpy(np.float64)
+    ok = np.isfinite(ends) & (ends > 0) & (ends < case.cycle_s)
+    common, ends = common[ok], np.maximum.accumulate(ends[ok]) if ok.any() else ends[ok]
+    anchors, times, last = [], [], 0.0
+    for block, t in zip(common, ends):
+        if t - last >= floor and case.cycle_s - t >= floor:  # the last segment must keep its length too
+            anchors.append(int(block))
+            times.append(float(t))
+            last = float(t)
+    anchors.append(-1)
+    times.append(case.cycle_s)
+    end = np.asarray(times)
+    weight = np.ones(len(end))
+    if case.sparse and len(end) > 2:
+        # at 5 Hz motion start and end are placed inside their sampling interval by a model of the profile
+        # under diagnosis; the segments holding them would judge that model, not the machine
+        weight[0] = weight[-1] = 0.0
+    return Segments(anchors=np.asarray(anchors, dtype=np.int64), measured_s=np.diff(end, prepend=0.0), end_s=end,
+                    weight=weight)
+
+
+def simulated_segments(case: Case, segments: Segments, sim) -> np.ndarray:
+    """Simulated duration of each segment. An anchor the simulation did not run (another profile may
+    merge differently) takes the end of the last block before it that ran. On sparse data the anchors'
+    times are taken as the recording's were (`mirrored_ends`)."""
+    ids, ends, cycle = sim_block_ends(case, sim)
+    anchors = segments.anchors[:-1]
+    at = np.searchsorted(ids, anchors, side="right") - 1
+    t = np.where(at >= 0, ends[np.clip(at, 0, None)], 0.0) if len(ids) else np.zeros(len(anchors))
+    if case.sparse and case.sample_offsets_s is not None and len(anchors):
+        t = mirrored_ends(case, sim, anchors, t)
+    t = np.minimum(np.append(t, cycle), cycle)
+    return np.diff(np.maximum.accumulate(t), prepend=0.0)
+
+
+def mirrored_ends(case: Case, sim, anchors: np.ndarray, approx: np.ndarray) -> np.ndarray:
+    """When a sparse logger would have seen the simulated tool reach each anchor block's end.
+
+    The simulation is sampled at the recording's own instants (from motion start), each sample's
+    progress along the program found as the recording's was (`progress.sample_progress`) and the
+    anchors' times interpolated between samples alike: what the samples do not show (a corner's
+    slow-down between two of them) is missed by both. `approx` are the simulation's exact end times."""
+    traj = sim.trajectory
+    start, _ = sim_span(case, sim)
+    grid = case.sample_offsets_s
+    lin = list(range(min(3, traj.pos.shape[1])))
+    q = np.column_stack([np.interp(grid + start, traj.t_s, traj.pos[:, i]) for i in lin])
+    cl = case.cl
+    target = block_end_progress(cl.block, cl.s, anchors)
+    ok = np.isfinite(target) & np.isfinite(approx)
+    if ok.sum() < 1:
+        return approx
+    # when the simulation passed each CL point, roughly: its block ends, linearly in arc length
+    s_anchor = np.concatenate([[0.0], target[ok]])
+    t_anchor = np.concatenate([[0.0], approx[ok]])
+    order = np.argsort(s_anchor, kind="stable")
+    cl_t = np.maximum.accumulate(np.interp(cl.s, s_anchor[order], t_anchor[order]))
+    s = sample_progress(grid, q, cl.xyz, cl.s, cl_t)
+    out = approx.copy()
+    out[ok] = crossing_times(grid, s, target[ok])
+    return out
+
+
+def timing_residual(case: Case, segments: Segments, sim) -> np.ndarray:
+    """Simulated minus measured duration of every segment (s)."""
+    return simulated_segments(case, segments, sim) - segments.measured_s
+
+
+def predicted_feedback(case: Case, profile: MachineProfile) -> np.ndarray | None:
+    """The feedback positions `profile` predicts from the recording's own commanded joint positions."""
+    from feedlog.sim.feedback import feedback_chain, feedback_positions  # noqa: PLC0415
+    from feedlog.sim.mechanism import resolve_mechanisms  # noqa: PLC0415
+
+    fb = case.feedback
+    if fb is None:
+        return None
+    return feedback_positions(feedback_chain(resolve_mechanisms(profile)), fb.dt_s, fb.axes, fb.cmd)
+
+
+def feedback_residual(case: Case, profile: MachineProfile) -> np.ndarray | None:
+    """Predicted minus measured feedback positions, (n, k) (mm; deg for rotary joints)."""
+    pred = predicted_feedback(case, profile)
+    return None if pred is None else pred - case.feedback.fb
+
+
+def rms(values: np.ndarray) -> float:
+    values = np.asarray(values, dtype=np.float64)
+    return float(np.sqrt(np.mean(values ** 2))) if values.size else 0.0

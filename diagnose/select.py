@@ -1,0 +1,213 @@
+"""Choosing causes honestly: greedy forward selection judged on held-out data.
+
+At each step every remaining hypothesis of the level is screened on a grid (in-sample), the most
+promising ones are fitted without each held-out unit and scored on it (`fit.held_out`), and the best
+is accepted only if all of these hold:
+
+- **penalty per parameter**: it removes at least `min_gain` of the held-out loss that remains above
+  the noise floor (a cause must pay for its parameter; 20 % by default). The floor is what the data
+  itself allows: a perfect model still misses every measured block boundary by the sampling
+  resolution (a period / sqrt(12)) and every feedback position by its noise at rest;
+- **material**: the level's held-out error drops by at least `min_effect` (timing: 1 percentage
+  point of the time the recordings take; feedback: 1 um or twice the noise of the feedback at rest,
+  whichever is larger): below that the profile already explains the data within the simulation's
+  own accuracy, and a faithful recording gives no finding;
+- **repeatable**: it helps every held-out unit whose error is material (two or three units), or its
+  mean relative gain stands two standard errors above zero (four or more): a gain that does not
+  repeat across recordings (or stretches of one) is noise;
+- **not contradicted** by the evidence the data gives without any simulation
+  (`evidence.contradicts`).
+
+Hypotheses whose held-out loss is within `tie` of the best are reported as equally good
+alternatives (a program that moves Z only in rapids cannot tell a Z velocity limit from a rapid
+override); the primary is the one of the family listed first in `PRIORITY` (the machine's own limits
+before planner settings, dwells and operator dials). Accepted values are then refitted in turn
+given each other (coordinate descent), so two simultaneous causes do not bias one another.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from feedlog.diagnose.evidence import Evidence, contradicts
+from feedlog.diagnose.fit import HeldOut, Scorer, _closest_best, _grid, fit, held_out
+from feedlog.diagnose.hypothesis import Hypothesis
+
+PRIORITY = ("axis_limits", "path_limits", "planner", "dwell", "feedback", "overrides", "logger")
+SCREEN_KEEP = 5        # hypotheses fully cross-validated per step
+SCREEN_SHARE = 0.5     # ... among those within this share of the best screening gain
+SCREEN_POINTS = 9      # grid points per hypothesis when screening
+
+
+@dataclass(frozen=True)
+class SelectConfig:
+    min_gain: float = 0.2          # share of the remaining held-out loss a cause must remove
+    min_effect: float = 1.0        # level error units (timing: percentage points; feedback: mm)
+    z: float = 2.0                 # standard errors for repeatability with four or more units
+    tie: float = 0.05              # held-out losses within this share of the best are ties
+    max_causes: int = 3
+    refit_rounds: int = 2
+
+
+@dataclass
+class Judged:
+    """One hypothesis at one step: its held-out result, errors and the decision."""
+
+    held: HeldOut
+    error_before: float
+    error_after: float
+    veto: str | None = None
+    reasons: list[str] = field(default_factory=list)
+
+    @property
+    def accepted(self) -> bool:
+        return not self.reasons
+
+    @property
+    def key(self) -> str:
+        return self.held.hyp.key
+
+
+@dataclass
+class Step:
+    chosen: Judged
+    alternatives: list[Judged]
+    considered: list[Judged]
+
+
+@dataclass
+class Selection:
+    level: str
+    model: dict[str, Any]
+    steps: list[Step]
+    rejected: list[Judged]          # the best candidates of the step that stopped the search
+    base_losses: np.ndarray
+    final_losses: np.ndarray        # per unit, held-out (each step's fold values)
+    refit: dict[str, Any] = field(default_factory=dict)
+
+
+def _priority(hyp: Hypothesis) -> int:
+    return PRIORITY.index(hyp.family) if hyp.family in PRIORITY else len(PRIORITY)
+
+
+def screen(scorer: Scorer, model: dict[str, Any], hyps: Sequence[Hypothesis]) -> list[Hypothesis]:
+    """The hypotheses worth a full held-out fit: best grid loss (all units, in sample) clearly below the
+    model's, the most promising first."""
+    base = float(scorer.unit_losses(model).sum()) - float(scorer.floor.sum())
+    scored = []
+    for hyp in hyps:
+        if scorer.level == "timing":  # a coarse grid: every point is a re-simulation of every recording
+            grid = _grid(hyp, SCREEN_POINTS)
+            losses = np.array([float(scorer.unit_losses({**model, **hyp.values(v)}).sum()) for v in grid])
+            best = losses[_closest_best(hyp, grid, losses)]
+        else:  # no simulation: the full fit is cheap
+            best = fit(scorer, model, hyp, range(len(scorer.units))).loss
+        gain = (base + float(scorer.floor.sum()) - best) / base if base > 0 and np.isfinite(best) else 0.0
+        scored.append((gain, hyp))
+    scored.sort(key=lambda s: -s[0])
+    if not scored or scored[0][0] <= 0:
+        return []
+    top = scored[0][0]
+    return [h for g, h in scored if g > 0 and g >= SCREEN_SHARE * top][:SCREEN_KEEP]
+
+
+def judge(held: HeldOut, scorer: Scorer, cfg: SelectConfig, error: Callable[[np.ndarray, list[int]], float],
+          evidence: Evidence | None) -> Judged:
+    units = list(range(len(scorer.units)))
+    j = Judged(held=held, error_before=error(held.before, units), error_after=error(held.after, units))
+    if evidence is not None and held.hyp.baseline is not None:
+        j.veto = contradicts(evidence, held.hyp.key, held.hyp.baseline, held.value)
+        if j.veto:
+            j.reasons.append(f"contradicted by the data: {j.veto}")
+    if held.gain < cfg.min_gain:
+        j.reasons.append(f"removes {100 * held.gain:.1f} % of the held-out loss (needs {100 * cfg.min_gain:.0f} %)")
+    if j.error_before - j.error_after < cfg.min_effect:
+        j.reasons.append(f"held-out error {j.error_before:.4g} -> {j.error_after:.4g}: less than the "
+                         f"{cfg.min_effect:g} that counts")
+    why = _repeatability(held, units, cfg, error)
+    if why:
+        j.reasons.append(why)
+    return j
+
+
+def _repeatability(held: HeldOut, units: list[int], cfg: SelectConfig,
+                   error: Callable[[np.ndarray, list[int]], float]) -> str | None:
+    """None when the held-out gain repeats across the units whose own error is material."""
+    material = [u for u in units if error(held.before, [u]) >= cfg.min_effect]
+    if len(material) <= 1:
+        return None
+    floor = held.floor if held.floor is not None else np.zeros(len(held.before))
+    rel = np.array([(held.before[u] - held.after[u]) / max(held.before[u] - floor[u], 1e-300) for u in material])
+    if len(material) <= 3:
+        if (rel <= 0).any():
+            return f"does not help every held-out part (relative gains {', '.join(f'{100 * r:.0f} %' for r in rel)})"
+        return None
+    se = float(rel.std(ddof=1) / np.sqrt(len(rel)))
+    if rel.mean() - cfg.z * se <= 0:
+        return f"held-out gain does not repeat (mean {100 * rel.mean():.0f} % +- {100 * se:.0f} %)"
+    return None
+
+
+def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.ndarray, list[int]], float],
+           evidence: Evidence | None = None, cfg: SelectConfig | None = None,
+           progress: Callable[[str], None] | None = None) -> Selection:
+    """Greedy forward selection of causes on one level."""
+    cfg = cfg or SelectConfig()
+    model: dict[str, Any] = {}
+    steps: list[Step] = []
+    rejected: list[Judged] = []
+    base = scorer.unit_losses({})
+    current = base
+    remaining = list(hyps)
+    units = list(range(len(scorer.units)))
+    while len(steps) < cfg.max_causes and remaining and scorer.units:
+        if error(current, units) < cfg.min_effect:
+            break  # what remains is below what a cause must remove
+        pool = screen(scorer, model, remaining)
+        if progress:
+            progress(f"{scorer.level}: step {len(steps) + 1}, {len(pool)} of {len(remaining)} hypotheses cross-validated")
+        judged = [judge(held_out(scorer, model, h), scorer, cfg, error, evidence) for h in pool]
+        judged.sort(key=lambda j: (j.veto is not None, float(j.held.after.sum())))
+        if not judged:
+            break
+        best = judged[0]
+        ties = [j for j in judged[1:] if j.veto is None and
+                float(j.held.after.sum()) <= float(best.held.after.sum()) * (1 + cfg.tie) + 1e-300]
+        group = sorted([best, *ties], key=lambda j: (_priority(j.held.hyp), float(j.held.after.sum())))
+        chosen = group[0]
+        if not best.accepted:
+            rejected = judged
+            break
+        if not chosen.accepted:
+            chosen = best
+        steps.append(Step(chosen=chosen, alternatives=[j for j in group if j is not chosen and j.accepted],
+                          considered=judged))
+        model.update(chosen.held.hyp.values(chosen.held.value))
+        current = chosen.held.after
+        remaining = [h for h in remaining if h.key != chosen.key]
+    refit = _refit(scorer, [s.chosen.held.hyp for s in steps], model, cfg.refit_rounds)
+    if len(steps) > 1:  # each cause judged again with the others at their refitted values
+        for step in steps:
+            hyp = step.chosen.held.hyp
+            others = {k: v for k, v in refit.items() if k not in hyp.keys}
+            step.chosen = judge(held_out(scorer, others, hyp), scorer, cfg, error, evidence)
+        current = scorer.unit_losses(refit)
+    return Selection(level=scorer.level, model=refit, steps=steps, rejected=rejected, base_losses=base,
+                     final_losses=current, refit=refit)
+
+
+def _refit(scorer: Scorer, hyps: list[Hypothesis], model: dict[str, Any], rounds: int) -> dict[str, Any]:
+    """Each accepted value refitted on all units given the others (coordinate descent)."""
+    if len(hyps) < 2:
+        return dict(model)
+    model = dict(model)
+    units = range(len(scorer.units))
+    for _ in range(rounds):
+        for hyp in hyps:
+            others = {k: v for k, v in model.items() if k not in hyp.keys}
+            model.update(hyp.values(fit(scorer, others, hyp, units).value))
+    return model
