@@ -11,6 +11,12 @@ blendmath.c `blendComputeParameters`, `blendCheckConsume`), re-derived here in v
   d_tol = cos(theta) T / (1 - sin(theta)), and which uses at most half of each block; its speed is
   limited by the normal acceleration, v^2 <= a_n R with a_n = a_plane sqrt(1 - 0.5^2);
 - a line shorter than `gap_cycles` servo cycles at the arc speed is "consumed" by the arc;
+- a blend arc, and a line it consumes, run under the *next* line: LinuxCNC 2.9's
+  `motion.program-line` switches to the next line where the tool leaves the straight line into the
+  arc (1 ms after it, measured on the bundled recordings; older tp.c versions copied the previous
+  line's tag onto the arc, 2.9's does not). With the arc on the line before it every block ended up
+  to a whole blend late: per-line time error against LinuxCNC median 1.66 -> 0.38 ms over the 117
+  sessions. `feedlog diagnose` found it as a spurious logger latency (docs/diagnose.md);
 - junctions where a rotary axis moves get LinuxCNC's parabolic blend: the block ending in the blend
   runs at half acceleration and the next block starts while it decelerates from the blend speed
   (this is why LinuxCNC's five-axis G64 is slower than G61). LinuxCNC halves the entered block too
@@ -321,11 +327,13 @@ class BlendArcCorner(Mechanism):
         arc_len = arcs["s"][ja]
         arc_len_full = arc_len + np.where(consumed, length[ja], 0.0)
         phi = math.pi - 2 * theta
-        arcp = Pieces(block=pc.block[ja], length=arc_len, p0=start, dir=np.zeros((na, k)), e1=e1, e2=e2,
+        arcp = Pieces(block=pc.block[ja + 1], length=arc_len, p0=start, dir=np.zeros((na, k)), e1=e1, e2=e2,
                       radius=r, omega=phi / arc_len, v_max=v_plan, a_max=arcs["a"][ja], v_end=v_plan,
                       hold_s=np.zeros(na), blend=np.ones(na, bool), overlap=np.zeros(na, bool),
                       clamp_len=arc_len_full)
-        lines = Pieces(block=pc.block, length=length, p0=p0, dir=pc.dir, e1=pc.e1, e2=pc.e2, radius=pc.radius,
+        owner = pc.block.copy()
+        owner[jc] = pc.block[jc + 1]   # a consumed line runs inside the arc's queue entry, under the next line
+        lines = Pieces(block=owner, length=length, p0=p0, dir=pc.dir, e1=pc.e1, e2=pc.e2, radius=pc.radius,
                        omega=pc.omega, v_max=v_max, a_max=a_max, v_end=v_end, hold_s=pc.hold_s, blend=pc.blend,
                        overlap=overlap, clamp_len=clamp)
         # each arc goes right after its line: line i moves down by the number of arcs before it

@@ -5,8 +5,8 @@ Turns a `SimResult` into a `feedlog.ingest.recording.Recording` with the standar
 feedback: `jN_pos` commanded, `jN_pos_fb` through the feedback mechanisms), sampled at `rate_hz`
 (5 Hz .. 1 kHz) with a constant latency (the logger sees the motion `latency_s` late), Gaussian
 timestamp jitter, position quantisation (encoder or fieldbus resolution) and Gaussian measurement
-noise. Continuous channels (positions, feed) are
-interpolated, the executing line holds its last value. Noise and quantisation apply to measured
+noise. Continuous channels (positions, feed) are interpolated, the executing line holds its last
+value (shown late by the profile's `logger_latency`). Noise and quantisation apply to measured
 positions (axes, joint feedback), not to the joint commands. Deterministic for a given `seed`.
 """
 
@@ -83,7 +83,8 @@ def measure(result: SimResult, model: MeasurementModel | None = None, *, program
     feed = np.interp(t_seen, t_sim, series["feed_mm_min"].to_numpy(np.float64))
     if model.feed_noise_mm_min > 0:
         feed = np.clip(feed + rng.normal(0.0, model.feed_noise_mm_min, n), 0.0, None)
-    held = np.clip(np.searchsorted(t_sim, t_seen, side="right") - 1, 0, len(t_sim) - 1)
+    lag = next((m.line_s for m in result.mechanisms if m.name == "logger_latency"), 0.0)
+    held = np.clip(np.searchsorted(t_sim, t_seen - lag, side="right") - 1, 0, len(t_sim) - 1)
     line = series["line"].to_numpy(np.int64)[held]
 
     streams = {"axes": pd.DataFrame(axes), "feed": pd.DataFrame({"t_ns": t_ns, "feed_mm_min": feed}),

@@ -10,6 +10,8 @@ chain it acts:
 - `series`:       changes the sampled motion afterwards (jerk filter)
 - `feedback`:     turns commanded axis (joint) positions into the reported feedback positions (feedback
                   delay, following lag); the commanded motion and the cycle time stay as they are
+- `measurement`:  what a logger does to the channels it records (logger latency); read by the
+                  measurement model and by `feedlog diagnose`, never by the simulation itself
 
 Mechanisms are looked up by name in `REGISTRY` (name -> "module:Class"; adding one is one file plus
 one line here). A machine profile switches them on or off and sets their parameters with
@@ -30,7 +32,7 @@ import numpy as np
 from feedlog.errors import SimulationError
 from feedlog.profile import MachineProfile
 
-KINDS = ("limits", "corner", "interpolator", "series", "feedback")
+KINDS = ("limits", "corner", "interpolator", "series", "feedback", "measurement")
 
 # name -> "module:Class" (imported on first use). One line per mechanism.
 REGISTRY: dict[str, str] = {
@@ -47,6 +49,7 @@ REGISTRY: dict[str, str] = {
     "reversal_dwell": "feedlog.sim.reversal_dwell:ReversalDwell",
     "following_lag": "feedlog.sim.following_lag:FollowingLag",
     "feedback_delay": "feedlog.sim.feedback_delay:FeedbackDelay",
+    "logger_latency": "feedlog.sim.logger_latency:LoggerLatency",
     "jerk_filter": "feedlog.sim.jerk_filter:JerkFilter",
 }
 
