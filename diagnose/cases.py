@@ -92,6 +92,7 @@ class Case:
     block_source: str                # 'line', 'geometry', ... (where the block times came from)
     feedback: FeedbackData | None = None
     line_offset_s: float | None = None   # line stream minus geometry, from align (None: no line stream)
+    line_offsets: pd.Series | None = None  # per block: line stream's block end minus the geometry's (s)
     machine: dict[str, str] = field(default_factory=dict)
     still_mm: float = 1e-6               # align's rest threshold (noise at rest), for the motion span
     sample_offsets_s: np.ndarray | None = None  # position sample times from motion start (sparse data)
@@ -171,6 +172,21 @@ def feedback_data(rec: Recording, profile: MachineProfile) -> FeedbackData | Non
     return FeedbackData(t_ns=t, cmd=cmd, fb=fb, axes=tuple(axes[i] for i in pairs), dt_s=dt / 1e9)
 
 
+def line_offsets(alignment: Any) -> pd.Series | None:
+    """Per block seen in the line stream (not the first or last): when the line stream says it ended minus
+    when the positions say so (align's line and geometry block tables)."""
+    lb, geo = alignment.line_blocks, alignment.geometry_blocks
+    if lb is None or geo is None or len(lb) < 4:
+        return None
+    seen = lb[lb["seen"]] if "seen" in lb.columns else lb
+    both = seen[["block", "t_end_ns"]].merge(geo[["block", "t_end_ns"]], on="block", suffixes=("_line", "_geo"))
+    both = both.iloc[1:-1]
+    if len(both) < 2:
+        return None
+    return pd.Series((both["t_end_ns_line"] - both["t_end_ns_geo"]).to_numpy(np.float64) / 1e9,
+                     index=both["block"].to_numpy(np.int64))
+
+
 def machine_identity(rec: Recording) -> dict[str, str]:
     """What names the machine a recording came from (compared across the recordings of one diagnosis)."""
     out = {k: rec.metadata[k] for k in ("machine", "controller", "ini", "servo_period_ns") if rec.metadata.get(k)}
@@ -227,6 +243,7 @@ def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, pro
     return Case(name=name, source=src, recording=rec, program=prog, alignment=alignment, period_s=period, t0_ns=t0,
                 cycle_s=float(alignment.cycle_time_s), block_end_s=ends, block_source=source_kind,
                 feedback=feedback_data(rec, profile), line_offset_s=None if offset is None else offset / 1e9,
+                line_offsets=line_offsets(alignment),
                 machine=machine_identity(rec), still_mm=float(alignment.report.get("still_mm", 1e-6)),
                 sample_offsets_s=(t - t0) / 1e9 if period > SPARSE_S else None, cl=cl,
                 span_acc_mm_s2=span_acceleration(profile))

@@ -31,7 +31,7 @@ from feedlog.errors import FeedlogError
 from feedlog.ingest.recording import Recording
 from feedlog.profile import MachineProfile, load_profile
 
-LEVELS = ("timing", "feedback")
+LEVELS = ("timing", "feedback", "line")
 
 
 @dataclass(frozen=True)
@@ -39,14 +39,17 @@ class DiagnoseConfig:
     min_gain: float = 0.2              # share of the remaining held-out loss a cause must remove
     min_effect_pct: float = 1.0        # timing: held-out error must drop by this many percentage points
     min_effect_feedback_mm: float = 0.001
+    min_effect_line_s: float = 0.002
     max_causes: int = 3
     families: tuple[str, ...] | None = None
     min_segment_s: float | None = None
     learned: bool = True               # fit a learned correction where a systematic residual is unexplained
     jobs: int = 1                      # parallel hypothesis fits
 
-    def select_config(self, level: str, noise_mm: float = 0.0) -> SelectConfig:
-        effect = self.min_effect_pct if level == "timing" else max(self.min_effect_feedback_mm, 2 * noise_mm)
+    def select_config(self, level: str, noise: float = 0.0) -> SelectConfig:
+        """`noise`: the level's noise scale (feedback: position noise at rest; line: sampling period)."""
+        effect = {"timing": self.min_effect_pct, "feedback": max(self.min_effect_feedback_mm, 2 * noise),
+                  "line": max(self.min_effect_line_s, 2 * noise)}[level]
         return SelectConfig(min_gain=self.min_gain, min_effect=effect, max_causes=self.max_causes)
 
 
@@ -167,6 +170,19 @@ def feedback_error(scorer: Scorer, *, floor: bool = True) -> Callable[[np.ndarra
     return error
 
 
+def line_error(scorer: Scorer, *, floor: bool = True) -> Callable[[np.ndarray, list[int]], float]:
+    """RMS of the line stream's block-change offset residual above its resolution (s)."""
+    def error(losses: np.ndarray, units: list[int]) -> float:
+        count = sum(scorer.units[u].hi - scorer.units[u].lo for u in units)
+        excess = float(np.sum(losses[units])) - (float(np.sum(scorer.floor[units])) if floor else 0.0)
+        return float(np.sqrt(max(excess, 0.0) / count)) if count else 0.0
+    return error
+
+
+def level_error(scorer: Scorer, *, floor: bool = True) -> Callable[[np.ndarray, list[int]], float]:
+    return {"timing": timing_error, "feedback": feedback_error, "line": line_error}[scorer.level](scorer, floor=floor)
+
+
 def feedback_noise(cases: Sequence[Case]) -> float:
     """Noise of the feedback positions at rest (the first 0.1 s), the largest over the recordings."""
     from feedlog.align.blocks import rest_noise  # noqa: PLC0415
@@ -203,8 +219,8 @@ def diagnose(sources: Sequence[str | Path | Recording], profile: MachineProfile 
         if not scorer.units:
             continue
         scorers[level] = scorer
-        error = timing_error(scorer) if level == "timing" else feedback_error(scorer)
-        noise = feedback_noise(cases) if level == "feedback" else 0.0
+        error = level_error(scorer)
+        noise = {"feedback": feedback_noise(cases), "line": max(c.period_s for c in cases)}.get(level, 0.0)
         selections[level] = select(scorer, level_hyps, error=error, evidence=ev,
                                    cfg=cfg.select_config(level, noise), progress=say)
         laps[level] = time.perf_counter() - t1
@@ -213,8 +229,7 @@ def diagnose(sources: Sequence[str | Path | Recording], profile: MachineProfile 
         model.update(sel.model)
     extended = keys.with_values(prof, model, name=f"{prof.name}-diagnosed") if model else prof.replace(
         name=f"{prof.name}-diagnosed")
-    findings = [_finding(step.chosen, sel, scorers[level], ev, timing_error(scorers[level]) if level == "timing"
-                         else feedback_error(scorers[level]))
+    findings = [_finding(step.chosen, sel, scorers[level], ev, level_error(scorers[level]))
                 for level, sel in selections.items() for step in sel.steps]
     dx = Diagnosis(profile=prof, extended=extended, cases=cases, evidence=ev, selections=selections,
                    scorers=scorers, findings=findings, noise_floor=_noise_floor(scorers, cfg, cases))
@@ -246,6 +261,10 @@ def _noise_floor(scorers: dict[str, Scorer], cfg: DiagnoseConfig, cases: Sequenc
         sc = scorers["feedback"]
         out["feedback_mm"] = feedback_error(sc, floor=False)(sc.floor, list(range(len(sc.units))))
         out["min_effect_feedback_mm"] = max(cfg.min_effect_feedback_mm, 2 * feedback_noise(cases))
+    if "line" in scorers:
+        sc = scorers["line"]
+        out["line_s"] = line_error(sc, floor=False)(sc.floor, list(range(len(sc.units))))
+        out["min_effect_line_s"] = max(cfg.min_effect_line_s, 2 * max(c.period_s for c in cases))
     return out
 
 

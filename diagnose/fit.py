@@ -24,7 +24,8 @@ from scipy.optimize import minimize_scalar
 from feedlog.diagnose import keys
 from feedlog.diagnose.cases import Case
 from feedlog.diagnose.hypothesis import Hypothesis
-from feedlog.diagnose.residuals import Segments, feedback_residual, make_segments, timing_residual
+from feedlog.diagnose.residuals import (Segments, feedback_residual, line_latency, make_segments,
+                                        model_line_offsets, timing_residual)
 from feedlog.errors import FeedlogError
 from feedlog.profile import MachineProfile
 
@@ -70,6 +71,8 @@ class Scorer:
             self.baseline_sims = [simulate(c.program, profile) for c in self.cases]
             self.segments = [make_segments(c, s, min_segment_s=min_segment_s)
                              for c, s in zip(self.cases, self.baseline_sims)]
+        if level == "line":
+            self.line_model = [model_line_offsets(c, profile) for c in self.cases]
         lengths = [self._length(i) for i in range(len(self.cases))]
         self.weights = [s.weight if self.level == "timing" else np.ones(n) for s, n in
                         zip(self.segments or [None] * len(lengths), lengths)]
@@ -83,6 +86,8 @@ class Scorer:
         case = self.cases[u.case]
         if self.level == "timing":
             return float(self.weights[u.case][u.lo:u.hi].sum()) * 2.0 * case.boundary_sigma_s ** 2
+        if self.level == "line":  # two events on each side, each good to a sampling period
+            return (u.hi - u.lo) * 4.0 * case.boundary_sigma_s ** 2
         from feedlog.align.blocks import rest_noise  # noqa: PLC0415
 
         fb = case.feedback
@@ -91,6 +96,9 @@ class Scorer:
     def _length(self, i: int) -> int:
         if self.level == "timing":
             return len(self.segments[i])
+        if self.level == "line":
+            pair = self.line_model[i]
+            return 0 if pair is None else len(pair[0])
         fb = self.cases[i].feedback
         return 0 if fb is None else len(fb.t_ns)
 
@@ -98,8 +106,8 @@ class Scorer:
         """Contiguous chunks of each recording (five of a single recording, three of each of several)."""
         used = [i for i, n in enumerate(lengths) if n > 0]
         per_case = CHUNKS if len(used) == 1 else CHUNKS_EACH
-        minimum = 1 if self.level == "timing" else FEEDBACK_CHUNK_MIN
-        what = "segments" if self.level == "timing" else "samples"
+        minimum = FEEDBACK_CHUNK_MIN if self.level == "feedback" else 1
+        what = {"timing": "segments", "feedback": "samples", "line": "blocks"}[self.level]
         units = []
         for i in used:
             n = lengths[i]
@@ -148,8 +156,10 @@ class Scorer:
             self.simulations += int(changed)
             return timing_residual(case, self.segments[i], sim)
         if self.level == "feedback":
-            r = feedback_residual(case, profile)
-            return None if r is None else r
+            return feedback_residual(case, profile)
+        if self.level == "line":
+            measured, model = self.line_model[i]
+            return model + line_latency(profile) - measured
         raise FeedlogError(f"unknown residual level {self.level!r}")
 
     def unit_losses(self, values: Mapping[str, Any]) -> np.ndarray:

@@ -35,6 +35,7 @@ FAMILIES: dict[str, str] = {
     "planner": "feedlog.diagnose.hyp_planner:candidates",
     "dwell": "feedlog.diagnose.hyp_dwell:candidates",
     "feedback": "feedlog.diagnose.hyp_feedback:candidates",
+    "logger": "feedlog.diagnose.hyp_logger:candidates",
 }
 
 

@@ -16,6 +16,9 @@ diagnosed profile, carry no weight in the loss.
 **Feedback.** The recording's own commanded joint positions through the profile's feedback
 mechanisms (`feedlog.sim.feedback`) against its feedback positions: the feedback model is judged
 independently of the timing.
+
+**Line.** Per block, when the line stream says it ended minus when the positions say so, against
+the same offset of the simulation recorded and aligned alike plus the profile's logger latency.
 """
 
 from __future__ import annotations
@@ -171,3 +174,37 @@ def feedback_residual(case: Case, profile: MachineProfile) -> np.ndarray | None:
 def rms(values: np.ndarray) -> float:
     values = np.asarray(values, dtype=np.float64)
     return float(np.sqrt(np.mean(values ** 2))) if values.size else 0.0
+
+
+def line_latency(profile: MachineProfile) -> float:
+    """The line stream's latency behind the positions that `profile` declares (`[sim.logger_latency]`)."""
+    from feedlog.sim.mechanism import resolve_mechanisms  # noqa: PLC0415
+
+    return next((float(m.line_s) for m in resolve_mechanisms(profile) if m.name == "logger_latency"), 0.0)
+
+
+def model_line_offsets(case: Case, profile: MachineProfile) -> tuple[np.ndarray, np.ndarray] | None:
+    """(measured, modelled) line-stream-minus-geometry block end offsets on the blocks both have.
+
+    The model's own offset (where a controller reports the next line within a blend, against where the
+    positions show the block ending) comes from the simulation recorded as the recording was (its rate,
+    no latency) and aligned the same way; a logger latency adds to it."""
+    if case.line_offsets is None:
+        return None
+    from feedlog.align import align_recording  # noqa: PLC0415
+    from feedlog.diagnose.cases import line_offsets  # noqa: PLC0415
+    from feedlog.sim import MeasurementModel, measure, simulate  # noqa: PLC0415
+
+    try:
+        sim = simulate(case.program, profile, mechanisms={"logger_latency": False})
+        rec = measure(sim, MeasurementModel(rate_hz=min(1000.0, max(5.0, 1.0 / case.period_s)), rest_s=0.2))
+        rec.source = f"{case.name}:simulated"
+        model = line_offsets(align_recording(rec, case.program, profile=profile))
+    except FeedlogError:
+        return None
+    if model is None:
+        return None
+    both = case.line_offsets.to_frame("measured").join(model.rename("model"), how="inner")
+    if len(both) < 2:
+        return None
+    return both["measured"].to_numpy(np.float64), both["model"].to_numpy(np.float64)
