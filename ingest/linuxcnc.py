@@ -67,7 +67,7 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
                     isolate: bool = False, timeout_s: float = 600.0, overwrite: bool = False,
                     compression: str = "zstd", notes: str = "", streams: str = "full",
                     priority: str = "normal", level: int | None = None,
-                    stop_event: threading.Event | None = None) -> dict[str, Any]:
+                    stop_event: threading.Event | None = None, feed_override: float | None = None) -> dict[str, Any]:
     """Run `program` on the LinuxCNC machine `ini`, write the recording to `out`, return a summary.
 
     Setting `stop_event` (the CLI does on SIGINT/SIGTERM) stops the machine where it is and writes
@@ -76,6 +76,8 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
     `streams`: "full" (axes, joints, feed, line, status) or "compact" (axes, line and feed_mm_min only,
     zstd level 19 unless `level` says otherwise: about half the size). `priority`: "normal", "high" or
     "realtime" (root): how LinuxCNC's processes are scheduled against other work on the host.
+    `feed_override` (0 < x <= the INI's MAX_FEED_OVERRIDE) turns the feed override dial before the program
+    starts; the recording's metadata says so (`feed_override`).
 
     A G-code error raises ProgramError (file, line, LinuxCNC's message); if the machine had already
     moved, what was recorded up to then is still written to `out` (metadata `status = aborted`).
@@ -91,9 +93,11 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
         raise IngestError("program not found", file=str(program))
     if out.exists() and not overwrite:
         raise IngestError("output exists; pass --overwrite to replace it", file=str(out))
+    if feed_override is not None and not (0.0 < feed_override <= 10.0):
+        raise IngestError(f"feed override must be within (0, 10], got {feed_override}")
     profile_name, profile_toml = profile_toml_for(profile, ini_cfg)
     session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s, stop_event=stop_event,
-                          priority=priority)
+                          priority=priority, feed_override=feed_override)
     sampled = has_samples(session.sample_files)
     error = session_error(session.report, program, sampled=sampled)
     if error is not None and not sampled:
@@ -184,6 +188,8 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
     }
     if priority != "normal":
         metadata["priority"] = priority
+    if report.get("feed_override") is not None:
+        metadata["feed_override"] = f"{float(report['feed_override']):g}"
     attachments = {INI_ATTACHMENT: ini.text.encode(), PROFILE_ATTACHMENT: profile_toml}
     for hal_file in ini.hal_files():  # e.g. trt.hal with the trunnion kinematics' offsets
         attachments.setdefault(f"hal/{hal_file.name}", hal_file.read_bytes())
@@ -222,6 +228,8 @@ def add_arguments(group: argparse._ArgumentGroup) -> None:
     group.add_argument("--streams", choices=tuple(STREAM_SETS), default="full",
                        help="full: axes, joints, feed, line, status; compact: axes, line and feed_mm_min, "
                             "zstd level 19 (about half the size; for training sessions)")
+    group.add_argument("--feed-override", type=float, metavar="SCALE",
+                       help="turn the feed override dial to SCALE (1.0 = 100 %%) before the program starts")
     group.add_argument("--priority", choices=("normal", "high", "realtime"), default="normal",
                        help="schedule LinuxCNC's processes above other work (root): high = nice -10, "
                             "realtime = SCHED_FIFO 20")
@@ -247,4 +255,5 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
                            isolate=args.isolate, timeout_s=args.timeout_s,
                            overwrite=getattr(args, "overwrite", False),
                            streams=getattr(args, "streams", "full"), priority=getattr(args, "priority", "normal"),
-                           stop_event=getattr(args, "stop_event", None))
+                           stop_event=getattr(args, "stop_event", None),
+                           feed_override=getattr(args, "feed_override", None))

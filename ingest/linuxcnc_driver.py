@@ -10,7 +10,8 @@ Job (JSON): program, channels, sample_files, result, enable_signal, motion_time_
 timeout_s, attach (bool: don't home or run, record until the program ends or SIGINT/SIGTERM),
 until_program_end (attach: stop when the program ends; else only on a signal), start_when_signal
 and start_delay_s (wait for a HAL signal to come on, then this long, before AUTO_RUN; with no channels
-the driver is a plain headless operator, used in tests).
+the driver is a plain headless operator, used in tests), feed_override (set the feed dial before
+AUTO_RUN).
 Result (JSON): ok, errors [{kind, text}], motion_time_s, overruns, ... written on every exit path.
 """
 
@@ -190,6 +191,11 @@ class Driver:
         if self.job.get("start_when_signal"):  # operator mode: run once a recorder has opened its gate
             self.wait_for_signal(self.job["start_when_signal"])
         time.sleep(float(self.job.get("start_delay_s", 0.0)))
+        if self.job.get("feed_override") is not None:  # the operator's feed dial
+            scale = float(self.job["feed_override"])
+            self.cmd.feedrate(scale)
+            self.wait("feed override", lambda s: abs(s.feedrate - scale) < 1e-9, 5)
+            self.result["feed_override"] = scale
         self.result["program_file"] = self.stat.file
         self.result["motion_time_start_s"] = self.motion_time()
         self.result["run_wall_start"] = time.time()

@@ -256,7 +256,7 @@ def _launch_command(ini_path: Path, *, isolate: bool, keep: tuple[Path, ...] = (
 
 def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeout_s: float = 600.0,
                 keep_workdir: bool = False, stop_event: threading.Event | None = None,
-                priority: str = "normal") -> SessionResult:
+                priority: str = "normal", feed_override: float | None = None) -> SessionResult:
     """Run `program` on the machine `ini` from homing to program end; return the capture.
 
     Errors of the run itself (G-code errors, aborts) are in the report: see session_error(). Call
@@ -265,6 +265,7 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
     recorded up to then is returned as usual, with `report["stopped"]`. `priority` ('normal', 'high':
     nice -10, 'realtime': SCHED_FIFO 20; root only) schedules the whole LinuxCNC process tree above other
     work on the host, so that a program whose block rate LinuxCNC's task limits runs as on a quiet host.
+    `feed_override` sets the feed override dial (1.0 = 100 %) before the program starts.
     """
     priority_prefix(priority)  # a bad or unavailable priority fails before anything starts
     reason = linuxcnc_available()
@@ -293,7 +294,7 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
         job = {"program": str(program_copy), "channels": layout.channels,
                "sample_files": [str(p) for p in sample_files], "result": str(workdir / "result.json"),
                "enable_signal": ENABLE_SIGNAL, "motion_time_pin": f"{MOTION_TIME_COMPONENT}.out",
-               "timeout_s": timeout_s, "stop_file": str(workdir / "stop")}
+               "timeout_s": timeout_s, "stop_file": str(workdir / "stop"), "feed_override": feed_override}
         job_path.write_text(json.dumps(job))
         ini_path = workdir / "machine.ini"
         ini_path.write_text(ini.rewritten(display=f"{driver} {job_path}", recorder=recorder))

@@ -308,6 +308,12 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
                   sweep=sweep, radius=radius, extra=extra)
 
 
+def feed_scale(blocks: Blocks) -> np.ndarray:
+    """Per block, the factor the feed override dial applied to its programmed feed (1: none)."""
+    scale = blocks.extra.get("feed_scale")
+    return np.ones(len(blocks)) if scale is None else scale
+
+
 def build_pieces(blocks: Blocks) -> Pieces:
     """One piece per block. Junction speeds start at 0 (stop); a corner law raises them."""
     n, k = blocks.p0.shape

@@ -28,7 +28,7 @@ from feedlog.profile import MachineProfile
 from feedlog.sim.context import Context, Trajectory, trajectory_from_plan
 from feedlog.sim.mechanism import Mechanism
 from feedlog.sim.motion import plan_speeds
-from feedlog.sim.path import Pieces, with_columns
+from feedlog.sim.path import Pieces, feed_scale, with_columns
 
 
 @dataclass
@@ -59,13 +59,17 @@ class LookAheadPlanner(Mechanism):
                 "servo_period_s": profile.interpolator.servo_period_s,
                 "path_acc_max_mm_s2": profile.interpolator.path_acc_max_mm_s2}
 
-    def limit_pieces(self, pieces: Pieces) -> Pieces:
-        """Centripetal and sample-rate limits on the pieces' cruise speed and acceleration."""
+    def limit_pieces(self, pieces: Pieces, scale: np.ndarray | None = None) -> Pieces:
+        """Centripetal and sample-rate limits on the pieces' cruise speed and acceleration. `scale`: per
+        piece, the feed override factor, which scales a programmed arc's centripetal speed (part of its
+        requested speed in LinuxCNC) but not a blend arc's or the sample-rate clamp (caps)."""
         curved = pieces.radius > 0
         pieces = with_columns(pieces, a_max=np.minimum(pieces.a_max, self.path_acc_max_mm_s2))
         ratio_n = math.sqrt(1.0 - self.arc_acc_ratio_tangential ** 2)
-        v_max = np.where(curved, np.minimum(pieces.v_max, np.sqrt(ratio_n * pieces.a_max * pieces.radius)),
-                         pieces.v_max)
+        v_curve = np.sqrt(ratio_n * pieces.a_max * pieces.radius)
+        if scale is not None:
+            v_curve = v_curve * np.where(pieces.blend, 1.0, scale)
+        v_max = np.where(curved, np.minimum(pieces.v_max, v_curve), pieces.v_max)
         a_max = np.where(curved, pieces.a_max * self.arc_acc_ratio_tangential, pieces.a_max)
         if self.min_piece_cycles > 0:
             v_sample = pieces.clamp_len / (self.min_piece_cycles * self.servo_period_s)
@@ -78,6 +82,6 @@ class LookAheadPlanner(Mechanism):
         return with_columns(pieces, v_max=v_max, a_max=a_max, hold_s=hold)
 
     def run(self, ctx: Context) -> Trajectory:
-        pieces = self.limit_pieces(ctx.pieces)
+        pieces = self.limit_pieces(ctx.pieces, feed_scale(ctx.blocks)[ctx.pieces.block])
         plan = plan_speeds(pieces, lookahead=int(self.lookahead_blocks))
         return trajectory_from_plan(plan, pieces, ctx.blocks, ctx.dt_s)

@@ -144,3 +144,20 @@ def test_naive_cam_merges_collinear_lines_within_q(plain, gcode):
     assert merged.cycle_time_s < kept.cycle_time_s
     end = merged.series[["x_mm", "y_mm"]].iloc[-1].to_numpy()
     assert np.allclose(end, pts[-1], atol=1e-9)
+
+
+def test_feed_override_scales_a_programmed_arcs_centripetal_speed_not_a_blend_arcs(plain, gcode):
+    # LinuxCNC at 80 %: a G2/G3 arc runs at 0.8 x its centripetal speed; blend arcs keep theirs
+    arc = gcode("G21 G90 G64 P0.01\nF3000\nG0 X0 Y0\nG1 X10\nG3 X10 Y2.5 R1.25\nG1 X0\n")
+    full = simulate(arc, plain)
+    slow = simulate(arc, plain, mechanisms={"feed_override": {"override": 0.8}})
+    v_arc = slow.series.query("line == 5")["feed_mm_min"].max() / 60
+    v_arc_full = full.series.query("line == 5")["feed_mm_min"].max() / 60
+    assert v_arc_full < 50 * 0.8          # the centripetal limit, not the feed, sets the arc's speed
+    assert v_arc == pytest.approx(0.8 * v_arc_full, rel=0.02)
+    corner = gcode("G21 G90 G64 P0.05\nF3000\nG0 X0 Y0\nG1 X20\nG1 X20 Y20\nG1 X0 Y20\n")
+    runs = [simulate(corner, plain, mechanisms={"feed_override": {"override": k}}) for k in (1.0, 0.8)]
+    v_blend = [r.series.query("line == 5")["feed_mm_min"].min() / 60 for r in runs]
+    assert all(r.notes["blend_arcs"] == 2 for r in runs)
+    assert v_blend[0] < 0.8 * 50 and v_blend[1] == pytest.approx(v_blend[0], rel=1e-6)  # a cap, not scaled
+    assert runs[1].series["feed_mm_min"].max() == pytest.approx(0.8 * 3000)
