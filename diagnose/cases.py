@@ -95,6 +95,7 @@ class Case:
     line_offsets: pd.Series | None = None  # per block: line stream's block end minus the geometry's (s)
     machine: dict[str, str] = field(default_factory=dict)
     still_mm: float = 1e-6               # align's rest threshold (noise at rest), for the motion span
+    on_path_mm: float = 1e-6             # align's threshold for leaving a line into a blend
     sample_offsets_s: np.ndarray | None = None  # position sample times from motion start (sparse data)
     cl: CLPolyline | None = None         # the program's CL points with their measured times (sparse data)
     span_acc_mm_s2: float = float("inf")  # acceleration align assumed leaving / reaching rest
@@ -245,8 +246,18 @@ def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, pro
                 feedback=feedback_data(rec, profile), line_offset_s=None if offset is None else offset / 1e9,
                 line_offsets=line_offsets(alignment),
                 machine=machine_identity(rec), still_mm=float(alignment.report.get("still_mm", 1e-6)),
+                on_path_mm=_on_path(alignment, axes),
                 sample_offsets_s=(t - t0) / 1e9 if period > SPARSE_S else None, cl=cl,
                 span_acc_mm_s2=span_acceleration(profile))
+
+
+def _on_path(alignment: Any, axes: pd.DataFrame) -> float:
+    """The distance from a line at which align saw the tool leave it (as align_recording computes it)."""
+    from feedlog.align.pipeline import position_quantum  # noqa: PLC0415
+
+    cfg = alignment.report.get("config", {})
+    pos = axes[[c for c in ("x_mm", "y_mm", "z_mm") if c in axes.columns]].to_numpy(np.float64)
+    return max(float(cfg.get("on_path_mm", 1e-6)), 2 * position_quantum(pos), float(alignment.report.get("still_mm", 1e-6)))
 
 
 def span_acceleration(profile: MachineProfile) -> float:

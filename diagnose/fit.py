@@ -33,7 +33,7 @@ GRID_POINTS = 17
 INT_GRID = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 400)
 CHUNKS = 5               # held-out chunks of a single recording
 CHUNKS_EACH = 3          # ... of each recording when there are several
-INFORMATIVE = 0.01       # a recording constrains a parameter when its loss varies this much over the grid
+INFORMATIVE = 0.2        # a recording constrains a parameter when the best grid value removes this share of its residual
 FEEDBACK_CHUNK_MIN = 200  # samples per feedback chunk at least
 BRENT_ITER = 20
 XATOL = 2e-3             # Brent's tolerance as a share of the bracket (two grid steps)
@@ -288,15 +288,19 @@ def _refine_int(loss, grid: list[Any], best: int, losses: np.ndarray) -> tuple[i
 
 
 def folds_for(scorer: Scorer, model: Mapping[str, Any], hyp: Hypothesis) -> tuple[list[list[int]], str]:
-    """How to hold data out for `hyp`: whole recordings when at least two recordings constrain it
-    (their loss changes over the grid), else single chunks of the recording(s) that do."""
+    """How to hold data out for `hyp`: whole recordings when at least two recordings each constrain it
+    (the best value on the grid removes at least `INFORMATIVE` of that recording's own residual above
+    its noise floor), else single stretches: a recording that barely depends on the parameter cannot
+    fit it for the others."""
     grid = _grid(hyp)
     losses = np.array([scorer.unit_losses({**model, **hyp.values(v)}) for v in grid])  # (grid, units)
+    base = scorer.unit_losses(model)
     informative = []
     for group in scorer.groups:
         per = losses[:, group].sum(axis=1)
-        per = per[np.isfinite(per)]
-        if len(per) and per.max() - per.min() > INFORMATIVE * max(float(per.min()), 1e-300):
+        excess = float(base[group].sum() - scorer.floor[group].sum())
+        best = float(np.min(per[np.isfinite(per)])) if np.isfinite(per).any() else np.inf
+        if excess > 0 and float(base[group].sum()) - best >= INFORMATIVE * excess:
             informative.append(group)
     if len(informative) >= 2:
         return scorer.groups, "leave one recording out"
@@ -324,7 +328,7 @@ def held_out(scorer: Scorer, model: Mapping[str, Any], hyp: Hypothesis) -> HeldO
             after[j] = losses[j]
     return HeldOut(hyp=hyp, value=all_fit.value, fold_values=values, before=before, after=after,
                    fit_after=fit_after, floor=scorer.floor, interval=_interval(hyp, all_fit.value, fold_values or [all_fit.value]),
-                   extra={"scheme": scheme, "folds": len(folds), "fold_fits": fold_values})
+                   extra={"scheme": scheme, "folds": len(folds), "fold_fits": fold_values, "folds_units": folds})
 
 
 def _interval(hyp: Hypothesis, value: Any, folds: Sequence[Any]) -> tuple[float, float] | None:

@@ -199,7 +199,10 @@ def model_line_offsets(case: Case, profile: MachineProfile) -> tuple[np.ndarray,
         sim = simulate(case.program, profile, mechanisms={"logger_latency": False})
         rec = measure(sim, MeasurementModel(rate_hz=min(1000.0, max(5.0, 1.0 / case.period_s)), rest_s=0.2))
         rec.source = f"{case.name}:simulated"
-        model = line_offsets(align_recording(rec, case.program, profile=profile))
+        # the same thresholds as the recording's alignment: where the tool counts as leaving a line
+        # depends on the noise it was judged against
+        model = line_offsets(align_recording(rec, case.program, profile=profile, still_mm=case.still_mm,
+                                             on_path_mm=case.on_path_mm))
     except FeedlogError:
         return None
     if model is None:

@@ -15,6 +15,8 @@ is accepted only if all of these hold:
 - **repeatable**: it helps every held-out unit whose error is material (two or three units), or its
   mean relative gain stands two standard errors above zero (four or more): a gain that does not
   repeat across recordings (or stretches of one) is noise;
+- **harmless**: no recording's held-out error grows by `min_effect` (a global parameter fitted to what
+  one recording does differently must not be "found" at the others' expense);
 - **not contradicted** by the evidence the data gives without any simulation
   (`evidence.contradicts`).
 
@@ -41,6 +43,8 @@ PRIORITY = ("axis_limits", "path_limits", "planner", "dwell", "feedback", "overr
 SCREEN_KEEP = 5        # hypotheses fully cross-validated per step
 SCREEN_SHARE = 0.5     # ... among those within this share of the best screening gain
 SCREEN_POINTS = 9      # grid points per hypothesis when screening
+FOLD_SHARE = 0.05      # a held-out fold must hold this share of the excess loss to count for repeatability
+SWAP_GAIN = 0.2        # a replacement must lower the held-out loss by this share
 
 
 @dataclass(frozen=True)
@@ -131,24 +135,49 @@ def judge(held: HeldOut, scorer: Scorer, cfg: SelectConfig, error: Callable[[np.
     why = _repeatability(held, units, cfg, error)
     if why:
         j.reasons.append(why)
+    harm = _harm(held, scorer, cfg, error)
+    if harm:
+        j.reasons.append(harm)
     return j
+
+
+def _harm(held: HeldOut, scorer: Scorer, cfg: SelectConfig,
+          error: Callable[[np.ndarray, list[int]], float]) -> str | None:
+    """A cause must not make a recording materially worse on held-out data: a global parameter fitted
+    to what one recording does differently would otherwise be 'found' at the others' expense."""
+    worse = []
+    for group in scorer.groups:
+        before, after = error(held.before, group), error(held.after, group)
+        if after - before >= cfg.min_effect:
+            worse.append(f"{scorer.cases[scorer.units[group[0]].case].name} {before:.3g} -> {after:.3g}")
+    return f"makes a recording worse on held-out data ({'; '.join(worse)})" if worse else None
 
 
 def _repeatability(held: HeldOut, units: list[int], cfg: SelectConfig,
                    error: Callable[[np.ndarray, list[int]], float]) -> str | None:
-    """None when the held-out gain repeats across the units whose own error is material."""
-    material = [u for u in units if error(held.before, [u]) >= cfg.min_effect]
-    if len(material) <= 1:
-        return None
+    """None when the held-out gain repeats across the held-out folds that carry the residual: every
+    such fold gains (two or three of them), or their mean relative gain stands `z` standard errors above
+    zero (four or more). A fold carries the residual when its own error is material and it holds at
+    least `FOLD_SHARE` of the excess loss (a stretch with almost nothing to explain says nothing)."""
+    folds = held.extra.get("folds_units") or [[u] for u in units]
     floor = held.floor if held.floor is not None else np.zeros(len(held.before))
-    rel = np.array([(held.before[u] - held.after[u]) / max(held.before[u] - floor[u], 1e-300) for u in material])
-    if len(material) <= 3:
-        if (rel <= 0).any():
-            return f"does not help every held-out part (relative gains {', '.join(f'{100 * r:.0f} %' for r in rel)})"
+    total = float(held.before.sum() - floor.sum())
+    rel = []
+    for fold in folds:
+        excess = float(held.before[fold].sum() - floor[fold].sum())
+        if total <= 0 or excess < FOLD_SHARE * total or error(held.before, fold) < cfg.min_effect:
+            continue
+        rel.append(float(held.before[fold].sum() - held.after[fold].sum()) / excess)
+    if len(rel) <= 1:
         return None
-    se = float(rel.std(ddof=1) / np.sqrt(len(rel)))
-    if rel.mean() - cfg.z * se <= 0:
-        return f"held-out gain does not repeat (mean {100 * rel.mean():.0f} % +- {100 * se:.0f} %)"
+    rel_a = np.array(rel)
+    if len(rel_a) <= 3:
+        if (rel_a <= 0).any():
+            return f"does not help every held-out part (relative gains {', '.join(f'{100 * r:.0f} %' for r in rel_a)})"
+        return None
+    se = float(rel_a.std(ddof=1) / np.sqrt(len(rel_a)))
+    if rel_a.mean() - cfg.z * se <= 0:
+        return f"held-out gain does not repeat (mean {100 * rel_a.mean():.0f} % +- {100 * se:.0f} %)"
     return None
 
 
@@ -195,9 +224,41 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
             hyp = step.chosen.held.hyp
             others = {k: v for k, v in refit.items() if k not in hyp.keys}
             step.chosen = judge(held_out(scorer, others, hyp), scorer, cfg, error, evidence)
+        refit = _swap(scorer, steps, refit, hyps, cfg, error, evidence, progress)
         current = scorer.unit_losses(refit)
     return Selection(level=scorer.level, model=refit, steps=steps, rejected=rejected, base_losses=base,
                      final_losses=current, refit=refit)
+
+
+def _swap(scorer: Scorer, steps: list[Step], model: dict[str, Any], hyps: Sequence[Hypothesis], cfg: SelectConfig,
+          error: Callable[[np.ndarray, list[int]], float], evidence: Evidence | None,
+          progress: Callable[[str], None] | None) -> dict[str, Any]:
+    """Forward selection with swaps: each accepted cause is taken out in turn and every other candidate
+    tried in its place, given the rest; one that does better on held-out data (by `SWAP_GAIN` of the
+    loss) replaces it. A greedy first step can take one parameter that stands in for two true ones
+    (a path acceleration cap for an X acceleration limit next to a Y velocity limit)."""
+    chosen = {s.chosen.key for s in steps}
+    for i, step in enumerate(steps):
+        hyp = step.chosen.held.hyp
+        others = {k: v for k, v in model.items() if k not in hyp.keys}
+        pool = [h for h in screen(scorer, others, [h for h in hyps if h.key not in chosen]) if h.key != hyp.key]
+        if progress:
+            progress(f"{scorer.level}: trying {len(pool)} replacement(s) for {hyp.key}")
+        best = step.chosen
+        for h in pool:
+            j = judge(held_out(scorer, others, h), scorer, cfg, error, evidence)
+            if j.accepted and float(j.held.after.sum()) < float(best.held.after.sum()) * (1 - SWAP_GAIN):
+                best = j
+        if best is not step.chosen:
+            chosen = (chosen - {hyp.key}) | {best.key}
+            steps[i] = Step(chosen=best, alternatives=[], considered=[step.chosen, *step.considered])
+            model = {**others, **best.held.hyp.values(best.held.value)}
+    model = _refit(scorer, [s.chosen.held.hyp for s in steps], model, 2)
+    for step in steps:
+        hyp = step.chosen.held.hyp
+        others = {k: v for k, v in model.items() if k not in hyp.keys}
+        step.chosen = judge(held_out(scorer, others, hyp), scorer, cfg, error, evidence)
+    return model
 
 
 def _refit(scorer: Scorer, hyps: list[Hypothesis], model: dict[str, Any], rounds: int) -> dict[str, Any]:
