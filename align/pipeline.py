@@ -184,7 +184,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
         report["warnings"].append(f"{cfg.positions}: {timing.gaps} gap(s), largest {timing.largest_gap_ns / 1e6:.1f} ms; "
                                   "matches and feeds across a gap use the straight chord over it")
 
-    probe_s = max(0.1, 5 * timing.period_ns / 1e9)  # enough samples at rest at both ends
+    probe_s = max(0.1, 20 * timing.period_ns / 1e9)  # enough samples at rest at both ends (cut where motion starts)
     still = cfg.still_mm if cfg.still_mm is not None else min(0.05, max(1e-6, REST_NOISE_K * rest_noise(
         t, pos, probe_s=probe_s)))
     report["still_mm"] = still

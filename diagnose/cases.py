@@ -98,11 +98,21 @@ class Case:
     on_path_mm: float = 1e-6             # align's threshold for leaving a line into a blend
     sample_offsets_s: np.ndarray | None = None  # position sample times from motion start (sparse data)
     cl: CLPolyline | None = None         # the program's CL points with their measured times (sparse data)
+    _arrays: Any = field(default=None, repr=False)
     span_acc_mm_s2: float = float("inf")  # acceleration align assumed leaving / reaching rest
 
     @property
     def sparse(self) -> bool:
         return self.period_s > SPARSE_S
+
+    @property
+    def sim_input(self) -> Any:
+        """The program as the simulation reads it, prepared once for the many re-simulations of a fit."""
+        if self._arrays is None:
+            from feedlog.sim.path import ProgramArrays  # noqa: PLC0415
+
+            self._arrays = ProgramArrays(self.program)
+        return self._arrays
 
     @property
     def boundary_sigma_s(self) -> float:

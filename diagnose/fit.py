@@ -68,7 +68,7 @@ class Scorer:
         self.simulations = 0
         self.segments: list[Segments | None] = []
         if level == "timing":
-            self.baseline_sims = [simulate(c.program, profile) for c in self.cases]
+            self.baseline_sims = [simulate(c.sim_input, profile) for c in self.cases]
             self.segments = [make_segments(c, s, min_segment_s=min_segment_s)
                              for c, s in zip(self.cases, self.baseline_sims)]
         if level == "line":
@@ -150,7 +150,7 @@ class Scorer:
             from feedlog.sim import simulate  # noqa: PLC0415
 
             try:
-                sim = simulate(case.program, profile) if changed else self.baseline_sims[i]
+                sim = simulate(case.sim_input, profile) if changed else self.baseline_sims[i]
             except FeedlogError:
                 return None
             self.simulations += int(changed)

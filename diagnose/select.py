@@ -98,25 +98,26 @@ def _priority(hyp: Hypothesis) -> int:
     return PRIORITY.index(hyp.family) if hyp.family in PRIORITY else len(PRIORITY)
 
 
-def screen(scorer: Scorer, model: dict[str, Any], hyps: Sequence[Hypothesis]) -> list[Hypothesis]:
-    """The hypotheses worth a full held-out fit: best grid loss (all units, in sample) clearly below the
-    model's, the most promising first."""
-    base = float(scorer.unit_losses(model).sum()) - float(scorer.floor.sum())
+def screen(scorer: Scorer, model: dict[str, Any], hyps: Sequence[Hypothesis]) -> list[tuple[Hypothesis, float]]:
+    """The hypotheses worth a full held-out fit, with their best in-sample loss (all units): a clear
+    gain over `model`, within `SCREEN_SHARE` of the best gain, the most promising first."""
+    floor = float(scorer.floor.sum())
+    base = float(scorer.unit_losses(model).sum()) - floor
     scored = []
     for hyp in hyps:
         if scorer.level == "timing":  # a coarse grid: every point is a re-simulation of every recording
             grid = _grid(hyp, SCREEN_POINTS)
             losses = np.array([float(scorer.unit_losses({**model, **hyp.values(v)}).sum()) for v in grid])
-            best = losses[_closest_best(hyp, grid, losses)]
+            best = float(losses[_closest_best(hyp, grid, losses)])
         else:  # no simulation: the full fit is cheap
             best = fit(scorer, model, hyp, range(len(scorer.units))).loss
-        gain = (base + float(scorer.floor.sum()) - best) / base if base > 0 and np.isfinite(best) else 0.0
-        scored.append((gain, hyp))
+        gain = (base + floor - best) / base if base > 0 and np.isfinite(best) else 0.0
+        scored.append((gain, best, hyp))
     scored.sort(key=lambda s: -s[0])
     if not scored or scored[0][0] <= 0:
         return []
     top = scored[0][0]
-    return [h for g, h in scored if g > 0 and g >= SCREEN_SHARE * top][:SCREEN_KEEP]
+    return [(h, best) for g, best, h in scored if g > 0 and g >= SCREEN_SHARE * top][:SCREEN_KEEP]
 
 
 def judge(held: HeldOut, scorer: Scorer, cfg: SelectConfig, error: Callable[[np.ndarray, list[int]], float],
@@ -196,7 +197,7 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
     while len(steps) < cfg.max_causes and remaining and scorer.units:
         if error(current, units) < cfg.min_effect:
             break  # what remains is below what a cause must remove
-        pool = screen(scorer, model, remaining)
+        pool = [h for h, _ in screen(scorer, model, remaining)]
         if progress:
             progress(f"{scorer.level}: step {len(steps) + 1}, {len(pool)} of {len(remaining)} hypotheses cross-validated")
         judged = [judge(held_out(scorer, model, h), scorer, cfg, error, evidence) for h in pool]
@@ -241,7 +242,10 @@ def _swap(scorer: Scorer, steps: list[Step], model: dict[str, Any], hyps: Sequen
     for i, step in enumerate(steps):
         hyp = step.chosen.held.hyp
         others = {k: v for k, v in model.items() if k not in hyp.keys}
-        pool = [h for h in screen(scorer, others, [h for h in hyps if h.key not in chosen]) if h.key != hyp.key]
+        in_sample = float(scorer.unit_losses(model).sum())
+        # a replacement can only beat the cause on held-out data if it beats it in sample first
+        pool = [h for h, _ in screen(scorer, others, [h for h in hyps if h.key not in chosen]) if h.key != hyp.key]
+        pool = [h for h in pool if fit(scorer, others, h, range(len(scorer.units))).loss < in_sample * (1 - SWAP_GAIN)]
         if progress:
             progress(f"{scorer.level}: trying {len(pool)} replacement(s) for {hyp.key}")
         best = step.chosen

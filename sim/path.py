@@ -167,13 +167,6 @@ def _where(table: pd.DataFrame, i: int) -> str:
     return f"{file}:{line}" if file else f"line {line}"
 
 
-def _column(table: pd.DataFrame, name: str, default: float, sel: np.ndarray) -> np.ndarray:
-    """Rows `sel` of a numeric column as float64 (a new array; NaN for missing values)."""
-    if name not in table.columns:
-        return np.full(len(sel), default, dtype=np.float64)
-    return table[name].to_numpy(dtype=np.float64, na_value=np.nan).take(sel)
-
-
 def projected_limits(delta: np.ndarray, length: np.ndarray, vel: np.ndarray, acc: np.ndarray):
     """Path speed and acceleration at which the first axis reaches its limit, per straight move
     (RS274 canon: each axis' time d_i / v_i, the slowest one sets the move's limit)."""
@@ -190,23 +183,50 @@ def projected_limits(delta: np.ndarray, length: np.ndarray, vel: np.ndarray, acc
     return v_axis, a_axis
 
 
+class ProgramArrays:
+    """The motion and dwell rows of a block table as arrays, read once: what `prepare_blocks` needs of
+    the program whatever the profile. Re-simulating one program on many profiles (a fit) passes this
+    to `simulate` instead of the program, so the table's columns are not read again every time."""
+
+    def __init__(self, program) -> None:
+        table = block_table(program)
+        self.table = table
+        code = _codes(table["kind"], _KIND_CODES)
+        self.sel = np.flatnonzero(code >= 0)  # motion and dwell rows
+        self.code = code[self.sel]
+        self.ccw = _codes(table["kind"], {schema.ARC_CCW: 1})[self.sel] == 1
+        self.mode = _codes(table["path_mode"], {schema.CONTINUOUS: 1, schema.EXACT_PATH: 2})[self.sel]
+        self.block = table["block"].to_numpy(np.int64)[self.sel]
+        self.line = table["line"].to_numpy(np.int64)[self.sel]
+        self._cols: dict[str, np.ndarray | None] = {}
+
+    def col(self, name: str, default: float) -> np.ndarray:
+        """Rows of a numeric column as float64 (a new array each call; `default` where it is missing)."""
+        if name not in self._cols:
+            self._cols[name] = (self.table[name].to_numpy(dtype=np.float64, na_value=np.nan).take(self.sel)
+                                if name in self.table.columns else None)
+        values = self._cols[name]
+        return np.full(len(self.sel), default, dtype=np.float64) if values is None else values.copy()
+
+    def has(self, name: str) -> bool:
+        return name in self.table.columns
+
+    def where(self, i: int) -> str:
+        return _where(self.table, int(self.sel[i]))
+
+
 def prepare_blocks(program, profile: MachineProfile) -> Blocks:
-    """Motion and dwell rows of the block table as `Blocks`, with axis-projected limits."""
-    table = block_table(program)
-    code = _codes(table["kind"], _KIND_CODES)
-    sel = np.flatnonzero(code >= 0)   # motion and dwell rows (no DataFrame copy: columns are taken)
-    code = code[sel]
-
-    def col(name: str, default: float) -> np.ndarray:
-        return _column(table, name, default, sel)
-
-    def where(i: int) -> str:
-        return _where(table, int(sel[i]))
+    """Motion and dwell rows of the block table as `Blocks`, with axis-projected limits. `program` is a
+    Program, a block table or its `ProgramArrays`."""
+    arrays = program if isinstance(program, ProgramArrays) else ProgramArrays(program)
+    code = arrays.code
+    col = arrays.col
+    where = arrays.where
 
     axes = profile.axis_names
     units = schema.AXIS_UNITS
     for a in schema.AXES:  # an axis the machine does not have must not move
-        if a in axes or f"{a}_{units[a]}" not in table.columns:
+        if a in axes or not arrays.has(f"{a}_{units[a]}"):
             continue
         d = np.abs(col(f"{a}_{units[a]}", np.nan) - col(f"{a}0_{units[a]}", np.nan))
         bad_axis = (d > 1e-9) & (code != KIND_DWELL)
@@ -239,7 +259,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     radius = np.zeros(n)
     normal_axis = np.full(n, 2, dtype=np.int8)
     is_arc = code == KIND_ARC
-    ccw = _codes(table["kind"], {schema.ARC_CCW: 1})[sel] == 1
+    ccw = arrays.ccw
     length = np.where(lin_len > EPS_LEN, lin_len, rot_len)
     ia = np.flatnonzero(is_arc)
     if len(ia):  # all arcs at once: plane axes, signed sweep (full circles, turns), helix length
@@ -287,7 +307,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     a_max = np.where(np.isfinite(a_axis), a_axis, acc.min())
 
     extra: dict[str, np.ndarray] = {}
-    mode = _codes(table["path_mode"], {schema.CONTINUOUS: 1, schema.EXACT_PATH: 2})[sel]
+    mode = arrays.mode
     stop_after = (mode != 1) | (code == KIND_DWELL)
     exact_path = (mode == 2) & (code != KIND_DWELL)
     extra["continuous"] = mode == 1
@@ -296,11 +316,11 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
         exact_path[-1] = False
     hold = np.where(code == KIND_DWELL, np.nan_to_num(col("dwell_s", 0.0)), 0.0)
     length = np.where(moving, length, 0.0)
-    if all(c in table.columns for c in ("ori_i", "ori_j", "ori_k")):
+    if all(arrays.has(c) for c in ("ori_i", "ori_j", "ori_k")):
         ori = np.column_stack([col(c, np.nan) for c in ("ori_i", "ori_j", "ori_k")])
         if not np.isnan(ori).all():
             extra["ori"] = ori
-    return Blocks(axes=axes, block=table["block"].to_numpy(np.int64)[sel], line=table["line"].to_numpy(np.int64)[sel],
+    return Blocks(axes=axes, block=arrays.block.copy(), line=arrays.line.copy(),
                   kind=code, p0=p0, p1=p1, length=length, feed=feed, v_limit=v_limit, a_max=a_max,
                   stop_after=stop_after, exact_path=exact_path, tol=col("tol_mm", np.nan),
                   merge_tol=col("merge_tol_mm", np.nan), hold_s=hold,

@@ -95,7 +95,8 @@ def _profile(profile: MachineProfile | str | Path) -> MachineProfile:
 
 def simulate(program, profile: MachineProfile | str | Path, *, mechanisms: MechanismSpec = None,
              dt_s: float | None = None) -> SimResult:
-    """Simulate `program` (a toolpath Program or block table) on `profile` (object, name or path).
+    """Simulate `program` (a toolpath Program, a block table or its `feedlog.sim.path.ProgramArrays`, which a
+    caller simulating one program on many profiles builds once) on `profile` (object, name or path).
 
     `mechanisms` overrides the profile's `[sim]` tables: a list of names (exactly those run) or a
     mapping name -> {param: value} / True / False. `dt_s` is the output period (default: the

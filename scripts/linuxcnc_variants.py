@@ -1,0 +1,68 @@
+"""LinuxCNC machines that differ from the shipped reference machines in known ways.
+
+`derive_machine(base, folder, changes=..., feedback_lag=...)` writes a copy of recordings/configs/<base>.ini
+into `folder` with INI keys changed (`("AXIS_X", "MAX_ACCELERATION", 300)`; a joint's limits should
+change with its axis) and, optionally, a HAL file that puts a first-order lag (LinuxCNC's `lowpass`
+component, gain 1 - exp(-T / tau)) between a joint's simulated drive and its position feedback.
+`feedlog diagnose`'s integration tests and the bundled mystery machine (scripts/make_recordings.py)
+are made this way: record on the variant, diagnose with the shipped profile, expect the change back.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import shutil
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIGS = ROOT / "recordings" / "configs"
+RECORDER_HALFILE = "HALFILE = /tmp/lcnc/record.tcl"
+
+LAG_HAL = """# first-order lag on joint {joint}'s position feedback: lowpass between basic_sim's pid pass-through and its mux
+loadrt lowpass names={name}
+addf {name} servo-thread
+unlinkp J{joint}_mux.in1
+net J{joint}:lagged-pos {name}.out => J{joint}_mux.in1
+net J{joint}:on-pos => {name}.in
+setp {name}.gain {gain:.9f}
+"""
+
+
+def set_ini_key(text: str, section: str, key: str, value: object) -> str:
+    """`text` with `key = value` in `[section]` (replaced where it is, else added at the section's top)."""
+    pattern = re.compile(rf"(^\[{re.escape(section)}\]\n(?:(?!^\[).*\n)*?)^{re.escape(key)}\s*=.*$", re.M)
+    if pattern.search(text):
+        return pattern.sub(lambda m: f"{m.group(1)}{key} = {value}", text, count=1)
+    head = re.compile(rf"^\[{re.escape(section)}\]\n", re.M)
+    if not head.search(text):
+        raise ValueError(f"the INI has no [{section}] section")
+    return head.sub(f"[{section}]\n{key} = {value}\n", text, count=1)
+
+
+def derive_machine(base: str, folder: str | Path, *, changes: Iterable[tuple[str, str, object]] = (),
+                   feedback_lag: Mapping[int, float] | None = None, name: str | None = None) -> Path:
+    """Write the variant's INI (and its HAL files) into `folder`; return the INI's path."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    text = (CONFIGS / f"{base}.ini").read_text()
+    for section, key, value in changes:
+        text = set_ini_key(text, section, key, value)
+    for hal in CONFIGS.glob("*.hal"):  # relative HALFILEs (trt.hal) stay next to the INI
+        if f"HALFILE = {hal.name}" in text:
+            shutil.copyfile(hal, folder / hal.name)
+    period_s = float(re.search(r"^SERVO_PERIOD\s*=\s*(\d+)", text, re.M).group(1)) / 1e9
+    extra = []
+    for joint, tau in sorted((feedback_lag or {}).items()):
+        hal_name = f"lag_j{joint}.hal"
+        gain = 1.0 - math.exp(-period_s / tau)
+        (folder / hal_name).write_text(LAG_HAL.format(joint=joint, name=f"feedlog_lag_j{joint}", gain=gain))
+        extra.append(f"HALFILE = {hal_name}")
+    if extra:
+        if RECORDER_HALFILE not in text:
+            raise ValueError("the base INI has no recorder HALFILE line to put the lag before")
+        text = text.replace(RECORDER_HALFILE, "\n".join([*extra, RECORDER_HALFILE]))
+    ini = folder / f"{name or folder.name}.ini"
+    ini.write_text(text)
+    return ini

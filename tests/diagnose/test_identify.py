@@ -1,0 +1,84 @@
+"""Hide an effect in simulated recordings and require `feedlog diagnose` to find it (or to refuse to
+name one): one changed parameter, two at once, a structural effect no hypothesis covers, a control,
+and the same at 5 Hz. Recordings carry measurement noise and quantisation."""
+
+from __future__ import annotations
+
+import pytest
+
+from feedlog.diagnose.engine import DiagnoseConfig, diagnose
+from tests.diagnose.conftest import slower_after_arcs
+
+FAST = DiagnoseConfig(learned=False)
+
+SINGLE = [
+    ("xacc", {"axes.x.acc_max": 300.0}, "axes.x.acc_max", 300.0),
+    ("override", {"sim.feed_override.override": 0.8}, "sim.feed_override.override", 0.8),
+    ("pathvel", {"interpolator.path_vel_max_mm_s": 30.0}, "interpolator.path_vel_max_mm_s", 30.0),
+    ("dwell", {"sim.reversal_dwell.dwell_s": 0.02}, "sim.reversal_dwell.dwell_s", 0.02),
+]
+
+
+def _cycle_error_removed(dx) -> float:
+    cyc = dx.levels["cycle"]
+    return 1.0 - abs(cyc["error_after_pct"]) / abs(cyc["error_before_pct"])
+
+
+@pytest.mark.parametrize(("name", "values", "key", "truth"), SINGLE, ids=[s[0] for s in SINGLE])
+def test_one_hidden_change_is_named_with_its_value(hidden, name, values, key, truth):
+    dx = diagnose(hidden(name, values=values), "linuxcnc-xyz", config=FAST)
+    assert [f.parameter for f in dx.findings] == [key]
+    finding = dx.findings[0]
+    assert finding.fitted_value == pytest.approx(truth, rel=0.15)
+    assert finding.interval[0] <= finding.fitted_value <= finding.interval[1]
+    assert _cycle_error_removed(dx) >= 0.8
+    assert all(r["error_after_pct"] is not None and abs(r["error_after_pct"]) < 1.0 for r in dx.held_out["recordings"])
+    assert dx.unexplained == []
+
+
+def test_a_feedback_lag_is_found_on_the_feedback_and_leaves_the_timing_alone(hidden):
+    dx = diagnose(hidden("lag", values={"sim.following_lag.lag_s.x": 0.02}), "linuxcnc-xyz", config=FAST)
+    assert [f.parameter for f in dx.findings] == ["sim.following_lag.lag_s.x"]
+    assert dx.findings[0].fitted_value == pytest.approx(0.02, rel=0.15)
+    fb = dx.levels["feedback"]
+    assert fb["rms_after_mm"] <= 0.3 * fb["rms_before_mm"]
+    assert abs(dx.levels["cycle"]["error_before_pct"]) < 0.2  # nothing for the timing to find
+
+
+def test_two_simultaneous_changes_are_both_found(hidden):
+    dx = diagnose(hidden("two", values={"axes.y.acc_max": 400.0, "sim.feed_override.override": 0.85}),
+                  "linuxcnc-xyz", config=FAST)
+    found = {f.parameter: f.fitted_value for f in dx.findings}
+    assert set(found) == {"axes.y.acc_max", "sim.feed_override.override"}
+    assert found["axes.y.acc_max"] == pytest.approx(400.0, rel=0.15)
+    assert found["sim.feed_override.override"] == pytest.approx(0.85, rel=0.15)
+    assert _cycle_error_removed(dx) >= 0.8
+
+
+def test_a_structural_effect_is_unexplained_not_a_wrong_parameter(hidden):
+    recs = hidden("arcs", edit=slower_after_arcs)
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    assert dx.findings == []
+    assert len(dx.unexplained) == 1
+    where = dx.unexplained[0]["where"]
+    assert "after an arc" in where or recs[-1].source.split(".")[0] in where
+
+
+def test_the_unchanged_machine_gives_no_finding(hidden):
+    dx = diagnose(hidden("control"), "linuxcnc-xyz", config=FAST)
+    assert dx.findings == [] and dx.unexplained == []
+    assert dx.extended.to_dict()["axes"] == dx.profile.to_dict()["axes"]
+    assert dx.diff == []
+
+
+@pytest.mark.parametrize(("name", "values", "key", "truth"), [SINGLE[0], SINGLE[1]], ids=["xacc", "override"])
+def test_at_5_hz_a_hidden_change_is_still_named(hidden, name, values, key, truth):
+    dx = diagnose(hidden(f"{name}_5hz", values=values, rate_hz=5.0), "linuxcnc-xyz", config=FAST)
+    assert [f.parameter for f in dx.findings] == [key]
+    assert dx.findings[0].fitted_value == pytest.approx(truth, rel=0.15)
+    assert _cycle_error_removed(dx) >= 0.8
+
+
+def test_the_unchanged_machine_at_5_hz_gives_no_finding(hidden):
+    dx = diagnose(hidden("control_5hz", rate_hz=5.0), "linuxcnc-xyz", config=FAST)
+    assert dx.findings == [] and dx.unexplained == []
