@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from feedlog.errors import ProfileError
+from feedlog.errors import FeedlogError, ProfileError
 from feedlog.profile import LINEAR_AXES, MachineProfile
 
 SECTIONS = ("axes", "interpolator", "kinematics", "sim")
@@ -73,7 +73,10 @@ def value(profile: MachineProfile, key: str) -> Any:
     if parts[0] == "sim":
         if len(parts) < 3:
             raise ProfileError(f"{key!r}: a sim key is sim.<mechanism>.<param>[.<axis>]")
-        _, params = _mechanism_params(profile, parts[1])
+        try:
+            _, params = _mechanism_params(profile, parts[1])
+        except FeedlogError as exc:
+            raise ProfileError(f"{key!r}: {exc}") from None
         node: Any = params
         for p in parts[2:]:
             if isinstance(node, Mapping):
@@ -92,6 +95,8 @@ def value(profile: MachineProfile, key: str) -> Any:
                 return default
             raise ProfileError(f"{key!r} is not set in profile {profile.name!r}")
         node = node[p]
+    if isinstance(node, Mapping):
+        raise ProfileError(f"{key!r} names a table of profile {profile.name!r}, not a value")
     return node
 
 

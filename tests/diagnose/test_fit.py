@@ -1,0 +1,75 @@
+"""Fitting and holding out, on a scorer whose losses are known in closed form."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from feedlog.diagnose.fit import Unit, fit, folds_for, held_out
+from feedlog.diagnose.hypothesis import Hypothesis
+
+
+class QuadraticScorer:
+    """Unit u's loss: w_u (log v - log truth_u)^2 + floor; the hypothesis key is 'axes.x.acc_max'."""
+
+    level = "timing"
+
+    def __init__(self, truths, weights, groups):
+        self.truths, self.weights = np.asarray(truths, float), np.asarray(weights, float)
+        self.units = [Unit(g, 0, 1, f"u{i}") for i, g in enumerate(groups)]
+        self.floor = np.full(len(truths), 1e-6)
+        self.calls = 0
+
+    @property
+    def groups(self):
+        out = {}
+        for j, u in enumerate(self.units):
+            out.setdefault(u.case, []).append(j)
+        return list(out.values())
+
+    def unit_losses(self, values):
+        self.calls += 1
+        v = values.get("axes.x.acc_max", 1000.0)
+        return self.weights * (np.log(v) - np.log(self.truths)) ** 2 + self.floor
+
+
+HYP = Hypothesis(key="axes.x.acc_max", family="axis_limits", lower=1000 / 30, upper=3000, baseline=1000.0)
+
+
+def test_fit_finds_the_minimum_between_grid_points():
+    sc = QuadraticScorer([317.0] * 3, [1, 1, 1], [0, 0, 0])
+    f = fit(sc, {}, HYP, range(3))
+    assert f.value == pytest.approx(317.0, rel=2e-3)
+    assert f.evaluations < 60
+
+
+def test_an_unconstrained_parameter_stays_where_the_profile_has_it():
+    sc = QuadraticScorer([317.0] * 2, [0.0, 0.0], [0, 1])
+    assert fit(sc, {}, HYP, range(2)).value == 1000.0
+
+
+def test_held_out_scores_each_unit_with_a_value_fitted_without_it():
+    sc = QuadraticScorer([300.0, 300.0, 330.0, 330.0], [1, 1, 1, 1], [0, 0, 1, 1])
+    ho = held_out(sc, {}, HYP)
+    assert ho.extra["scheme"] == "leave one recording out"
+    # recording 0's units were scored with the value fitted on recording 1 alone, and the other way round
+    assert ho.fold_values[0] == pytest.approx(330.0, rel=5e-3) and ho.fold_values[3] == pytest.approx(300.0, rel=5e-3)
+    assert ho.interval[0] <= 300.0 * 1.01 and ho.interval[1] >= 330.0 * 0.99
+    assert 0.9 < ho.gain <= 1.0
+
+
+def test_a_recording_that_does_not_constrain_the_parameter_is_not_a_fold():
+    sc = QuadraticScorer([300.0, 300.0, 300.0, 300.0], [1, 1, 0, 0], [0, 0, 1, 1])
+    folds, scheme = folds_for(sc, {}, HYP)
+    assert scheme == "held-out stretches" and folds == [[0], [1], [2], [3]]
+    assert held_out(sc, {}, HYP).fold_values[0] == pytest.approx(300.0, rel=5e-3)
+
+
+def test_integer_parameters_are_searched_as_integers():
+    class IntScorer(QuadraticScorer):
+        def unit_losses(self, values):
+            v = values.get("interpolator.lookahead_blocks", 50)
+            return np.array([(v - 7) ** 2 + 0.5, (v - 7) ** 2 + 0.5])
+
+    hyp = Hypothesis(key="interpolator.lookahead_blocks", family="planner", lower=1, upper=400, scale="int", baseline=50)
+    assert fit(IntScorer([1, 1], [1, 1], [0, 1]), {}, hyp, range(2)).value == 7
