@@ -174,8 +174,9 @@ def measure_levels(dx) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
     held: dict[str, Any] = {}
     scorer = dx.scorers.get("timing")
     if scorer is not None:
-        rb = [timing_residual(c, s, b) for c, s, b in zip(cases, scorer.segments, before)]
-        ra = [timing_residual(c, s, a) for c, s, a in zip(cases, scorer.segments, after)]
+        # weightless segments (sparse data's first and last: their ends are a model's) are left out
+        rb = [timing_residual(c, s, b) * s.weight for c, s, b in zip(cases, scorer.segments, before)]
+        ra = [timing_residual(c, s, a) * s.weight for c, s, a in zip(cases, scorer.segments, after)]
         n = sum(len(r) for r in rb)
         total = sum(float(s.measured_s.sum()) for s in scorer.segments)
         flat_b, flat_a = np.concatenate(rb), np.concatenate(ra)

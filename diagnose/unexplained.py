@@ -85,7 +85,9 @@ def find_unexplained(dx, *, learned: bool, min_effect_pct: float, min_gain: floa
     tables = [segment_table(c, s) for c, s in zip(scorer.cases, scorer.segments)]
     table = pd.concat(tables, ignore_index=True)
     offsets = np.cumsum([0] + [len(r) for r in res])
-    residual = np.concatenate(res)
+    # segments without weight (sparse data's first and last: their ends are a model's) say nothing
+    weight = np.concatenate(scorer.weights)
+    residual = np.concatenate(res) * weight
     units = [np.arange(offsets[u.case] + u.lo, offsets[u.case] + u.hi) for u in scorer.units]
     sys = systematic(table, residual, units)
     err = timing_error(scorer)
