@@ -23,7 +23,7 @@ from typing import Any
 from feedlog import storage
 from feedlog.align.pipeline import AlignConfig, align_recording
 from feedlog.align.tables import FILES, dataset_points, table_metadata, write_alignment
-from feedlog.dataset import partition_exists, write_partition
+from feedlog.dataset import existing_output, write_partition
 from feedlog.errors import FeedlogError
 from feedlog.execution import run_tasks
 
@@ -100,16 +100,6 @@ def _shared_inputs(program: str | Path | None, profile: str | Path | None, confi
     return prog, prof
 
 
-def _existing(root: str, name: str) -> str | None:
-    for file in FILES:
-        if storage.exists(storage.join(root, name, file)):
-            return storage.join(root, name, file)
-    for table in DATASET_TABLES:
-        if partition_exists(root, table, PARTITION_KEY, name):
-            return f"{storage.join(root, 'dataset', table)} partition {PARTITION_KEY}={name}"
-    return None
-
-
 def align_many(recordings: list[str | Path], outdir: str | Path, *, program: str | Path | None = None,
                profile: str | Path | None = None, config: AlignConfig | None = None, jobs: int | None = None,
                scheduler: str | None = None, overwrite: bool = False, progress: bool = True,
@@ -131,7 +121,8 @@ def align_many(recordings: list[str | Path], outdir: str | Path, *, program: str
     tasks = []
     for label, name in zip(labels, stems):
         shown = storage.join(str(outdir), name)
-        there = None if overwrite else _existing(root, name)
+        there = None if overwrite else existing_output(root, name, files=FILES, tables=DATASET_TABLES,
+                                                         key=PARTITION_KEY)
         if there is not None:
             items[label] = BatchItem(recording=label, outdir=shown, ok=False,
                                      error=f"{there} exists; use --overwrite to replace it")

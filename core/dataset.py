@@ -56,6 +56,19 @@ def partition_exists(outdir: str, table: str, key: str, value: str) -> bool:
     return exists(join(partition_dir(outdir, table, key, value), PART))
 
 
+def existing_output(outdir: str, name: str, *, files: tuple[str, ...], tables: tuple[str, ...],
+                    key: str) -> str | None:
+    """The first of OUTDIR/<name>/<files> or <name>'s dataset partitions that exists (a job refuses to
+    replace it unless asked), or None."""
+    for file in files:
+        if exists(join(outdir, name, file)):
+            return join(outdir, name, file)
+    for table in tables:
+        if partition_exists(outdir, table, key, name):
+            return f"{join(outdir, DATASET, table)} partition {key}={name}"
+    return None
+
+
 def read_dataset(outdir: str | Path, table: str, **kw: Any) -> pd.DataFrame:
     """The whole table (all partitions, the key as a column) with pandas."""
     return pd.read_parquet(join(str(outdir), DATASET, table), **kw)
