@@ -32,8 +32,8 @@ Contract for `fn` (the lead of `feedlog diagnose` and anyone else plugging in):
 Failures, per item:
 - a `FeedlogError` raised by `fn` makes that item's result `ok=False` with the error's message; the
   other items go on. Bad input stays bad, so it is not retried.
-- a lost worker (process killed, host gone): the task runs again, up to `retries` times with local
-  processes; on Dask the scheduler re-runs it itself, up to its `distributed.scheduler.allowed-failures`
+- a lost worker (process killed, host gone): the task runs again; with local processes alone in a
+  pool (so that its neighbours are not blamed), reported after `retries` + 1 deaths alone; on Dask the scheduler re-runs it itself, up to its `distributed.scheduler.allowed-failures`
   (default 3), and then reports `KilledWorker`. Either way the item ends `ok=False` saying so.
 - any other exception is a bug: unfinished tasks are cancelled and it is raised here (on Dask with the
   worker's traceback).
@@ -44,6 +44,7 @@ from __future__ import annotations
 import importlib.metadata
 import os
 import sys
+import tempfile
 import time
 import uuid
 from collections.abc import Callable, Iterator, Sequence
@@ -135,8 +136,16 @@ class _Serial:
         pass
 
 
+def _call_marked(fn: Callable[[Any], Any], item: Any, mark: str) -> tuple[bool, Any, float]:
+    Path(mark).touch()  # this task started: if its process dies now, the task is a suspect
+    return _call(fn, item)
+
+
 class _Processes:
-    """Local worker processes. A pool whose process died is replaced and its unfinished tasks run again."""
+    """Local worker processes. When one dies the pool breaks: tasks that had started are suspects and run
+    again, each in a pool of its own (so a task that kills its worker is told from its neighbours); one
+    whose process dies `retries` + 1 times alone is reported. Tasks that had not started run again in a
+    fresh pool."""
 
     def __init__(self, *, jobs: int | None, retries: int, **_: Any) -> None:
         self.jobs = jobs or os.cpu_count() or 1
@@ -144,34 +153,53 @@ class _Processes:
 
     def map(self, fn, items, labels, bar, desc) -> list[TaskResult]:
         results: dict[int, TaskResult] = {}
-        lost = dict.fromkeys(range(len(items)), 0)   # index -> pools it was unfinished in when they broke
+        suspects: set[int] = set()              # had started in a pool that broke
+        deaths = dict.fromkeys(range(len(items)), 0)   # its process died while it ran alone
         pending = list(range(len(items)))
-        while pending:
-            broken: list[int] = []
-            with ProcessPoolExecutor(max_workers=min(self.jobs, len(pending))) as pool:
-                futures = {pool.submit(_call, fn, items[i]): i for i in pending}
-                try:
-                    for fut in as_completed(futures):
-                        i = futures[fut]
-                        try:
-                            results[i] = _result(labels[i], fut.result())
-                            bar.update()
-                        except BrokenProcessPool:
-                            broken.append(i)
-                except BaseException:
-                    for fut in futures:
-                        fut.cancel()
-                    raise
-            pending = []
-            for i in sorted(broken):
-                lost[i] += 1
-                if lost[i] > self.retries:
-                    results[i] = TaskResult(labels[i], False, error=f"worker process died {lost[i]} times while "
-                                                                    "this task was queued or running (killed? out of memory?)")
-                    bar.update()
-                else:
-                    pending.append(i)
+        with tempfile.TemporaryDirectory(prefix="feedlog-tasks-") as marks:
+            while pending:
+                broken = self._pool(fn, items, [i for i in pending if i not in suspects], self.jobs, marks,
+                                    labels, results, bar)
+                for i in (i for i in pending if i in suspects):
+                    for j, started in self._pool(fn, items, [i], 1, marks, labels, results, bar):
+                        deaths[j] += started
+                        broken.append((j, False))
+                pending = []
+                for i, started in broken:
+                    if started:
+                        suspects.add(i)
+                    if deaths[i] > self.retries:
+                        results[i] = TaskResult(labels[i], False, error=f"worker process died {deaths[i]} times while "
+                                                                        "running it alone (killed? out of memory?)")
+                        bar.update()
+                    else:
+                        pending.append(i)
         return [results[i] for i in range(len(items))]
+
+    @staticmethod
+    def _pool(fn, items, indices, jobs, marks, labels, results, bar) -> list[tuple[int, bool]]:
+        """Run `indices` in one pool; (index, had started) of those lost to a broken pool."""
+        if not indices:
+            return []
+        broken = []
+        mark = {i: os.path.join(marks, str(i)) for i in indices}
+        for path in mark.values():
+            Path(path).unlink(missing_ok=True)
+        with ProcessPoolExecutor(max_workers=min(jobs, len(indices))) as pool:
+            futures = {pool.submit(_call_marked, fn, items[i], mark[i]): i for i in indices}
+            try:
+                for fut in as_completed(futures):
+                    i = futures[fut]
+                    try:
+                        results[i] = _result(labels[i], fut.result())
+                        bar.update()
+                    except BrokenProcessPool:
+                        broken.append((i, os.path.exists(mark[i])))
+            except BaseException:
+                for fut in futures:
+                    fut.cancel()
+                raise
+        return broken
 
     def close(self) -> None:
         pass
