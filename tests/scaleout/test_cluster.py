@@ -4,6 +4,7 @@ does not change the result."""
 
 from __future__ import annotations
 
+import json
 import shutil
 import threading
 import time
@@ -134,3 +135,15 @@ def test_worker_killed_mid_job(tmp_path):
     assert remote.returncode == 0, remote.stderr
     assert same_outputs(client / "local", client / "remote") == []
     assert not [p for p in (client / "remote").rglob(".*")], "partial outputs left behind"
+
+
+def test_demo_on_cluster_same_table(cluster, tmp_path):
+    client = client_dir(tmp_path, RECORDINGS[:3])
+    args = ["demo", "--recordings", "recs", "--no-train", "--json", "--detail-plots", "0"]
+    local = feedlog(*args, "--out", "local", "-j", "1", cwd=client)
+    remote = feedlog(*args, "--out", "remote", "--scheduler", cluster, cwd=client)
+    assert local.returncode == remote.returncode == 0, remote.stderr
+    assert "Dask: 2 worker(s)" in remote.stderr
+    rows = json.loads(remote.stdout)
+    assert rows == json.loads(local.stdout) and len(rows) == 3
+    assert all(r["measured_s"] and r["sim_s"] for r in rows)
