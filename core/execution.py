@@ -244,7 +244,10 @@ class _Dask:
 
     def _check_versions(self) -> None:
         """Every worker must run our version of feedlog (tasks are pickled by reference to its functions)."""
-        ours = importlib.metadata.version("feedlog")
+        try:
+            ours = importlib.metadata.version("feedlog")
+        except importlib.metadata.PackageNotFoundError:
+            return  # run from a source tree, not installed: nothing to compare with
         theirs = self.client.run(importlib.metadata.version, "feedlog", on_error="return")
         bad = {w: v for w, v in theirs.items() if v != ours}
         if bad:
