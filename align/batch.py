@@ -1,23 +1,35 @@
-"""Aligning many recordings: one worker process per core, a progress bar, one output folder each.
+"""Aligning many recordings: one task per recording on `feedlog.execution`'s backend, one output folder each.
 
-Each recording is read, aligned and written by a worker (`concurrent.futures.ProcessPoolExecutor`),
-so only small summaries travel back. A recording that fails with one of our errors is reported with
-its message and does not stop the others; a bug (any other exception) propagates.
+Each task reads one recording (absolute path or fsspec URL), aligns it and publishes, each whole
+(written under a temporary name, then renamed, `feedlog.storage`):
+- OUTDIR/<recording stem>/ with points.parquet, blocks.parquet and report.json, as `write_alignment`;
+- its partitions of the dataset OUTDIR/dataset/blocks/ and OUTDIR/dataset/points/
+  (`recording=<stem>/part-0.parquet`, `feedlog.dataset`), which pandas, dask and duckdb read as one table.
+Only a small summary travels back. The part program and profile given for all recordings are read
+once here and sent to the workers as data, so workers need only reach the recordings.
+
+Existing outputs are checked here before any task runs: without `overwrite` that recording fails with
+"exists" and is not aligned. A recording that fails with one of our errors is reported with its
+message and does not stop the others; a bug (any other exception) propagates.
 """
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ProcessPoolExecutor, as_completed
+import uuid
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from tqdm import tqdm
-
+from feedlog import storage
 from feedlog.align.pipeline import AlignConfig, align_recording
-from feedlog.align.tables import write_alignment
+from feedlog.align.tables import FILES, dataset_points, table_metadata, write_alignment
+from feedlog.dataset import existing_output, write_partition
 from feedlog.errors import FeedlogError
+from feedlog.execution import run_tasks
+
+DATASET_TABLES = ("blocks", "points")
+PARTITION_KEY = "recording"
+BLOCK_COLUMNS = ["block", "line", "t_start_ns", "t_end_ns", "duration_s"]
 
 
 @dataclass
@@ -29,6 +41,21 @@ class BatchItem:
     blocks: list[dict[str, Any]] | None = None
     error: str | None = None
     samples: int = 0
+    task_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class AlignTask:
+    """What one worker needs: where to read and write (absolute or URLs) and the shared inputs as data."""
+
+    recording: str              # absolute path or URL, read by the worker
+    label: str                  # as given: the recording's name in report.json and the tables' metadata
+    outdir: str                 # OUTDIR, absolute path or URL
+    program: Any = None         # a parsed toolpath Program, or None: the recording's attached program
+    profile: Any = None         # a MachineProfile, or None: the attached profile
+    config: AlignConfig = AlignConfig()
+    with_blocks: bool = False
+    token: str = ""             # this job's mark on temporary names
 
 
 def output_dir(outdir: str | Path, recording: str | Path) -> Path:
@@ -36,51 +63,82 @@ def output_dir(outdir: str | Path, recording: str | Path) -> Path:
     return Path(outdir) / Path(recording).stem
 
 
-def align_one(recording: str, program: str | None, profile: str | None, outdir: str, config: AlignConfig,
-              overwrite: bool, with_blocks: bool) -> BatchItem:
+def align_one(task: AlignTask) -> BatchItem:
+    """Runs on a worker: read, align, publish the folder and the dataset partitions."""
     from feedlog.ingest import read_recording  # noqa: PLC0415 - keep worker start-up light
 
-    target = output_dir(outdir, recording)
-    try:
-        rec = read_recording(recording)
-        alignment = align_recording(rec, program, profile=profile, config=config)
-        write_alignment(target, alignment, overwrite=overwrite)
-    except FeedlogError as exc:
-        return BatchItem(recording=recording, outdir=str(target), ok=False, error=str(exc))
-    blocks = None
-    if with_blocks:
-        cols = ["block", "line", "t_start_ns", "t_end_ns", "duration_s"]
-        blocks = alignment.blocks[cols].to_dict(orient="records")
-    return BatchItem(recording=recording, outdir=str(target), ok=True, cycle_time_s=alignment.cycle_time_s,
-                     blocks=blocks, samples=int(alignment.report["match"]["measured_samples"]))
+    name = storage.stem(task.label)
+    with storage.local_input(task.recording) as local:
+        rec = read_recording(local)
+    rec.source = task.label
+    alignment = align_recording(rec, task.program, profile=task.profile, config=task.config)
+    where = task.recording if storage.is_url(task.recording) else str(Path(task.recording).resolve())
+    with storage.publish_dir(storage.join(task.outdir, name), token=task.token) as staging:
+        write_alignment(staging, alignment, overwrite=True, recording_path=where)
+    for table, frame in (("blocks", alignment.blocks), ("points", dataset_points(alignment.points))):
+        write_partition(task.outdir, table, PARTITION_KEY, name, frame, token=task.token,
+                        metadata=table_metadata(alignment, table, recording_path=where))
+    blocks = alignment.blocks[BLOCK_COLUMNS].to_dict(orient="records") if task.with_blocks else None
+    return BatchItem(recording=task.label, outdir="", ok=True, cycle_time_s=alignment.cycle_time_s, blocks=blocks,
+                     samples=int(alignment.report["match"]["measured_samples"]))
+
+
+def _shared_inputs(program: str | Path | None, profile: str | Path | None, config: AlignConfig):
+    """The program and profile given for every recording, read here (errors stop the job before it starts)."""
+    from feedlog.profile import MachineProfile, load_profile  # noqa: PLC0415
+    from feedlog.toolpath import parse_program  # noqa: PLC0415
+
+    prog = prof = None
+    if program is not None:
+        text = str(program)
+        prog = (parse_program(storage.read_text(text), lenient=config.lenient, name=text) if storage.is_url(text)
+                else parse_program(Path(program), lenient=config.lenient))
+    if profile is not None:
+        text = str(profile)
+        prof = MachineProfile.from_toml(storage.read_text(text), source=text) if storage.is_url(text) \
+            else load_profile(profile)
+    return prog, prof
 
 
 def align_many(recordings: list[str | Path], outdir: str | Path, *, program: str | Path | None = None,
                profile: str | Path | None = None, config: AlignConfig | None = None, jobs: int | None = None,
-               overwrite: bool = False, progress: bool = True, with_blocks: bool = False) -> list[BatchItem]:
-    """Align every recording into OUTDIR/<stem>/; results in the input order."""
+               scheduler: str | None = None, overwrite: bool = False, progress: bool = True,
+               with_blocks: bool = False, log=None) -> list[BatchItem]:
+    """Align every recording into OUTDIR/<stem>/ and OUTDIR/dataset/; results in the input order.
+
+    `jobs`/`scheduler` choose where the tasks run (`feedlog.execution`: serial, local processes, Dask).
+    """
     cfg = config or AlignConfig()
-    names = [str(r) for r in recordings]
-    stems = [Path(r).stem for r in names]
+    labels = [str(r) for r in recordings]
+    stems = [storage.stem(r) for r in labels]
     dup = sorted({s for s in stems if stems.count(s) > 1})
     if dup:
         raise FeedlogError(f"recordings share the file name {dup[0]!r}: their outputs would collide in {outdir}")
-    args = (None if program is None else str(program), None if profile is None else str(profile), str(outdir),
-            cfg, overwrite, with_blocks)
-    jobs = max(1, min(jobs or os.cpu_count() or 1, len(names)))
-    results: dict[str, BatchItem] = {}
-    bar = tqdm(total=len(names), desc="align", unit="rec", disable=None if progress else True)  # None: off when not a terminal
+    root = storage.absolute(outdir)
+    prog, prof = _shared_inputs(program, profile, cfg)
+    token = uuid.uuid4().hex[:8]
+    items: dict[str, BatchItem] = {}
+    tasks = []
+    for label, name in zip(labels, stems):
+        shown = storage.join(str(outdir), name)
+        there = None if overwrite else existing_output(root, name, files=FILES, tables=DATASET_TABLES,
+                                                         key=PARTITION_KEY)
+        if there is not None:
+            items[label] = BatchItem(recording=label, outdir=shown, ok=False,
+                                     error=f"{there} exists; use --overwrite to replace it")
+            continue
+        tasks.append(AlignTask(recording=storage.absolute(label), label=label, outdir=root, program=prog,
+                               profile=prof, config=cfg, with_blocks=with_blocks, token=token))
     try:
-        if jobs == 1:
-            for name in names:
-                results[name] = align_one(name, *args)
-                bar.update()
-        else:
-            with ProcessPoolExecutor(max_workers=jobs) as pool:
-                futures = {pool.submit(align_one, name, *args): name for name in names}
-                for fut in as_completed(futures):
-                    results[futures[fut]] = fut.result()
-                    bar.update()
+        results = run_tasks(align_one, tasks, jobs=jobs, scheduler=scheduler, desc="align",
+                            label=lambda t: t.label, progress=progress, log=log)
     finally:
-        bar.close()
-    return [results[n] for n in names]
+        storage.remove_partials(root, token)
+    for task, result in zip(tasks, results):
+        shown = storage.join(str(outdir), storage.stem(task.label))
+        if result.ok:
+            items[task.label] = result.value
+            result.value.outdir, result.value.task_s = shown, result.task_s
+        else:
+            items[task.label] = BatchItem(recording=task.label, outdir=shown, ok=False, error=result.error)
+    return [items[label] for label in labels]

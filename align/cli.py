@@ -1,7 +1,9 @@
-"""`feedlog align RECORDING... [--program P] -o OUTDIR [--json]`: align recordings with their part program.
+"""`feedlog align RECORDING... [--program P] -o OUTDIR [--json] [-j N | --scheduler ADDRESS]`: align recordings.
 
 Writes OUTDIR/<recording stem>/points.parquet, blocks.parquet and report.json for every recording
-(docs/align.md). `--json` prints, for one recording, {"recording", "outdir", "cycle_time_s",
+(docs/align.md), and the same tables as one partitioned dataset, OUTDIR/dataset/{blocks,points}/
+(docs/scaleout.md). Recordings and OUTDIR may be paths or fsspec URLs; `--scheduler` runs the
+recordings on a Dask cluster. `--json` prints, for one recording, {"recording", "outdir", "cycle_time_s",
 "blocks": [{block, line, t_start_ns, t_end_ns, duration_s}, ...]}; for several, a list of those.
 """
 
@@ -15,6 +17,7 @@ from feedlog.align.feed import FeedSmoothing
 from feedlog.align.pipeline import BOUNDARIES, FEED_SOURCES, AlignConfig
 from feedlog.align.tables import to_json
 from feedlog.errors import FeedlogError
+from feedlog.execution import add_arguments as add_execution_arguments
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -41,7 +44,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "on the machine rather than in the program (G10/G54/G92 in it are applied)")
     parser.add_argument("--lenient", action="store_true",
                         help="skip unsupported program codes (reported in report.json) instead of failing")
-    parser.add_argument("--jobs", "-j", type=int, default=None, help="worker processes (default: all cores)")
+    add_execution_arguments(parser)
     parser.add_argument("--overwrite", action="store_true", help="replace existing output files")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
 
@@ -51,10 +54,9 @@ def run(args: argparse.Namespace) -> int:
                          feed_source=args.feed_source, sync_lines=args.sync_lines,
                          smoothing=FeedSmoothing(window_s=args.feed_window_s),
                          work_offset_mm=tuple(args.work_offset), lenient=args.lenient)
-    if args.jobs is not None and args.jobs < 1:
-        raise FeedlogError(f"--jobs must be >= 1, got {args.jobs}")
     items = align_many(args.recordings, args.outdir, program=args.program, profile=args.profile, config=config,
-                       jobs=args.jobs, overwrite=args.overwrite, progress=not args.quiet, with_blocks=args.json)
+                       jobs=args.jobs, scheduler=args.scheduler, overwrite=args.overwrite, progress=not args.quiet,
+                       with_blocks=args.json)
     failed = [i for i in items if not i.ok]
     if len(items) == 1 and failed:
         raise FeedlogError(failed[0].error or "alignment failed")

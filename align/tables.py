@@ -53,23 +53,51 @@ def _write(path: Path, table: pd.DataFrame, meta: dict[str, Any]) -> None:
     pq.write_table(arrow.replace_schema_metadata(schema_meta), path, compression="zstd")
 
 
-def write_alignment(outdir: str | Path, alignment: Alignment, *, overwrite: bool = False) -> list[Path]:
-    """Write the three files into `outdir` (created); refuses to replace existing files unless `overwrite`."""
+def write_alignment(outdir: str | Path, alignment: Alignment, *, overwrite: bool = False,
+                    recording_path: str | None = None) -> list[Path]:
+    """Write the three files into `outdir` (created); refuses to replace existing files unless `overwrite`.
+
+    `recording_path` (absolute path or URL) is stored when the recording named in the report is not
+    a file here (a worker that read it elsewhere, or a download of a URL)."""
     out = Path(outdir)
     paths = [out / name for name in FILES]
     existing = [p for p in paths if p.exists()]
     if existing and not overwrite:
         raise FeedlogError(f"{existing[0]} exists; use --overwrite to replace it")
     out.mkdir(parents=True, exist_ok=True)
-    rec = alignment.report.get("recording")
-    base = {"format_version": FORMAT_VERSION, "cycle_time_s": alignment.cycle_time_s,
-            "recording": rec, "program": alignment.report.get("program")}
-    if rec and Path(rec).is_file():  # as given, and absolute: readers elsewhere still find its manifest
-        base["recording_path"] = str(Path(rec).resolve())
+    base = _base_meta(alignment, recording_path)
     _write(paths[0], alignment.points, {**base, "table": "points"})
     _write(paths[1], alignment.blocks, {**base, "table": "blocks"})
     paths[2].write_text(to_json(alignment.report, indent=2) + "\n")
     return paths
+
+
+def _base_meta(alignment: Alignment, recording_path: str | None) -> dict[str, Any]:
+    rec = alignment.report.get("recording")
+    base = {"format_version": FORMAT_VERSION, "cycle_time_s": alignment.cycle_time_s,
+            "recording": rec, "program": alignment.report.get("program")}
+    if recording_path is not None:
+        base["recording_path"] = recording_path
+    elif rec and Path(rec).is_file():  # as given, and absolute: readers elsewhere still find its manifest
+        base["recording_path"] = str(Path(rec).resolve())
+    return base
+
+
+def table_metadata(alignment: Alignment, table: str, *, recording_path: str | None = None) -> dict[bytes, bytes]:
+    """The `feedlog.align` schema metadata of one table, for files written elsewhere (the dataset)."""
+    return {META_KEY: to_json({**_base_meta(alignment, recording_path), "table": table}).encode()}
+
+
+def dataset_points(points: pd.DataFrame) -> pd.DataFrame:
+    """The points table with every axis's measured feed column (NaN where the machine has no such axis), so
+    that three- and five-axis recordings are partitions of one dataset with one schema."""
+    from feedlog.toolpath.schema import AXES, AXIS_UNITS  # noqa: PLC0415
+
+    measured = [f"v{a}_meas_{AXIS_UNITS[a]}_min" for a in AXES]
+    out = points.assign(**{c: np.nan for c in measured if c not in points.columns})
+    cols = [c for c in out.columns if c not in measured]
+    cut = cols.index("feed_meas_mm_min") + 1 if "feed_meas_mm_min" in cols else len(cols)
+    return out[cols[:cut] + measured + cols[cut:]]
 
 
 def read_table(path: str | Path) -> tuple[pd.DataFrame, dict[str, Any]]:

@@ -1,4 +1,10 @@
-"""`feedlog sim PROGRAM --profile PROFILE [--out series.parquet] [--json]`: simulate a part program."""
+"""`feedlog sim PROGRAM... --profile PROFILE [--out series.parquet | -o OUTDIR] [--json]`: simulate part programs.
+
+One program prints its summary (and writes `--out`/`--blocks-out`). Several programs (or `-o OUTDIR`)
+run as one task each on `feedlog.execution`'s backend (`-j N`, `--scheduler ADDRESS`) and write
+OUTDIR/<program stem>/{series,blocks}.parquet, summary.json and the dataset OUTDIR/dataset/
+(`feedlog.sim.batch`). Programs and OUTDIR may be paths or fsspec URLs.
+"""
 
 from __future__ import annotations
 
@@ -9,14 +15,18 @@ from pathlib import Path
 from typing import Any
 
 from feedlog.errors import FeedlogError, SimulationError
+from feedlog.execution import add_arguments as add_execution_arguments
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("program", help="part program (G-code file)")
+    parser.add_argument("programs", nargs="+", metavar="PROGRAM", help="part program(s) (G-code files)")
     parser.add_argument("--profile", required=True, help="machine profile: shipped name or .toml path")
     parser.add_argument("--out", type=Path, help="write the interpolated series as Parquet")
     parser.add_argument("--blocks-out", type=Path, help="write the per-block table as Parquet")
+    parser.add_argument("-o", "--outdir", help="output folder, one subfolder per program (needed for several)")
     parser.add_argument("--force", action="store_true", help="overwrite existing output files")
+    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    add_execution_arguments(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     parser.add_argument("--set", action="append", default=[], metavar="MECH.PARAM=VALUE",
                         help="set a mechanism parameter (value parsed as JSON), e.g. feed_override.override=0.5")
@@ -54,24 +64,56 @@ def _program(path: str):
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.outdir is not None or len(args.programs) > 1:
+        return _run_many(args)
+    return _run_one(args, args.programs[0])
+
+
+def _run_many(args: argparse.Namespace) -> int:
+    from feedlog.sim.batch import simulate_many  # noqa: PLC0415
+
+    if args.outdir is None:
+        raise FeedlogError(f"{len(args.programs)} programs need an output folder: pass -o OUTDIR")
+    if args.out is not None or args.blocks_out is not None:
+        raise FeedlogError("--out/--blocks-out are for one program without -o; with -o each program's tables go "
+                           "to OUTDIR/<program>/")
+    items = simulate_many(args.programs, args.outdir, profile=args.profile,
+                          mechanisms=parse_settings(args.set, args.enable, args.disable) or None, dt_s=args.dt,
+                          jobs=args.jobs, scheduler=args.scheduler, overwrite=args.force, progress=not args.quiet)
+    failed = [i for i in items if not i.ok]
+    for item in failed:
+        print(f"feedlog sim: error: {item.program}: {item.error}", file=sys.stderr)
+    if args.json:
+        docs = [i.summary if i.ok else {"program": i.program, "error": i.error} for i in items]
+        json.dump(docs[0] if len(docs) == 1 else docs, sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        for i in items:
+            if i.ok:
+                print(f"{i.program}: {i.summary['blocks']} blocks on {i.summary['profile']}: cycle time "
+                      f"{i.summary['cycle_time_s']:.3f} s (CAM estimate {i.summary['cam_time_s']:.3f} s) -> {i.outdir}")
+    return 1 if failed else 0
+
+
+def _run_one(args: argparse.Namespace, source: str) -> int:
     from feedlog.sim.simulate import simulate  # noqa: PLC0415
 
     for out in (args.out, args.blocks_out):
         if out is not None and out.exists() and not args.force:
             raise FeedlogError(f"{out} exists; pass --force to overwrite")
-    program = _program(args.program)
+    program = _program(source)
     result = simulate(program, args.profile, mechanisms=parse_settings(args.set, args.enable, args.disable) or None,
                       dt_s=args.dt)
     if args.out is not None:
         result.series.to_parquet(args.out, index=False)
     if args.blocks_out is not None:
         result.blocks.to_parquet(args.blocks_out, index=False)
-    summary = {"program": str(args.program), **result.summary()}
+    summary = {"program": str(source), **result.summary()}
     if args.json:
         json.dump(summary, sys.stdout)
         sys.stdout.write("\n")
     else:
-        print(f"{args.program}: {summary['blocks']} blocks on {summary['profile']}: cycle time "
+        print(f"{source}: {summary['blocks']} blocks on {summary['profile']}: cycle time "
               f"{result.cycle_time_s:.3f} s (CAM estimate {result.cam_time_s:.3f} s)")
         print("mechanisms: " + ", ".join(summary["mechanisms"]))
     return 0

@@ -51,6 +51,17 @@ class SimResult:
             self._series = _series(self._ctx_blocks, self.trajectory)
         return self._series
 
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled (a result sent back by a worker of feedlog.execution): the series and joints are sampled
+        first and the trajectory, whose sampler is a closure, is left out (`trajectory` is None after)."""
+        state = self.__dict__.copy()
+        state["_series"] = self.series
+        state["notes"] = {k: v for k, v in self.notes.items() if not callable(v)}
+        if "joints" in self.notes:
+            state["notes"]["joints"] = self.joints
+        state["trajectory"] = None
+        return state
+
     @property
     def joints(self) -> pd.DataFrame | None:
         joints = self.notes.get("joints")

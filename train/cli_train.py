@@ -12,6 +12,8 @@ import json
 import sys
 
 from feedlog.errors import ModelError
+from feedlog.execution import add_arguments as add_execution_arguments
+from feedlog.execution import task_runner
 from feedlog.train.evaluate import DEFAULT_MODELS, format_results, train_and_evaluate
 from feedlog.train.load import load_many
 from feedlog.train.registry import PRESETS, model_names
@@ -34,6 +36,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--overwrite", action="store_true", help="replace existing checkpoints and results")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress bars")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
+    add_execution_arguments(parser, jobs_help="local worker processes for reading the aligned folders and the "
+                                              "hybrid's simulations (default: all cores); training runs here")
+
+
+def _train(args: argparse.Namespace, models: list[str], tables, runner):
+    n_train = sum(t.split == "train" for t in tables)
+    print(f"{len(tables)} aligned recording(s): {n_train} for training, {len(tables) - n_train} held out",
+          file=sys.stderr if args.json else sys.stdout)  # --json: stdout is one JSON document
+    overrides = {m: {"epochs": args.epochs} for m in models} if args.epochs else None
+    return train_and_evaluate(tables, out_dir=args.outdir, models=models, seed=args.seed, preset=args.preset,
+                              overrides=overrides, overwrite=args.overwrite, sim_augment=args.sim_augment,
+                              progress=not args.quiet, runner=runner)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -42,14 +56,9 @@ def run(args: argparse.Namespace) -> int:
     bad = [m for m in models if m not in known]
     if bad or not models:
         raise ModelError(f"unknown model(s) {', '.join(bad) or '(none given)'}; known: {', '.join(known)}")
-    tables = load_many(args.aligned, manifest=args.manifest, test=args.test)
-    n_train = sum(t.split == "train" for t in tables)
-    print(f"{len(tables)} aligned recording(s): {n_train} for training, {len(tables) - n_train} held out",
-          file=sys.stderr if args.json else sys.stdout)  # --json: stdout is one JSON document
-    overrides = {m: {"epochs": args.epochs} for m in models} if args.epochs else None
-    results = train_and_evaluate(tables, out_dir=args.outdir, models=models, seed=args.seed, preset=args.preset,
-                                 overrides=overrides, overwrite=args.overwrite, sim_augment=args.sim_augment,
-                                 progress=not args.quiet)
+    with task_runner(jobs=args.jobs, scheduler=args.scheduler, progress=not args.quiet) as runner:
+        tables = load_many(args.aligned, manifest=args.manifest, test=args.test, runner=runner)
+        results = _train(args, models, tables, runner)
     if args.json:
         doc = {"results": results.to_dict(orient="records"), "summary": results.attrs.get("summary", {})}
         print(json.dumps(doc, indent=1, default=str))

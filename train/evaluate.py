@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from feedlog.errors import FeedlogError, ModelError
+from feedlog.errors import ModelError
+from feedlog.execution import TaskRunner
 from feedlog.train.augment import simulated_tables
 from feedlog.train.checkpoint import save_checkpoint
 from feedlog.train.dataset import TARGET, ProgramTable, fingerprint
@@ -32,15 +33,16 @@ def error_pct(predicted: float, measured: float) -> float:
     return float("nan") if not measured else 100.0 * (predicted - measured) / measured
 
 
-def _with_sim(tables: Sequence[ProgramTable], log: Callable[[str], None]) -> list[ProgramTable | None]:
-    """Each table with its simulated block times, or None where the simulation cannot run (said so)."""
+def _with_sim(tables: Sequence[ProgramTable], log: Callable[[str], None],
+              runner: TaskRunner) -> list[ProgramTable | None]:
+    """Each table with its simulated block times, or None where the simulation cannot run (said so).
+
+    One task per table on `runner` (the simulations are independent)."""
     out: list[ProgramTable | None] = []
-    for t in tables:
-        try:
-            out.append(attach_sim(t))
-        except FeedlogError as exc:
-            log(f"simulation unavailable for {t.name}: {exc}")
-            out.append(None)
+    for t, result in zip(tables, runner.run(attach_sim, tables, desc="simulate", label=lambda t: t.name)):
+        if not result.ok:
+            log(f"simulation unavailable for {t.name}: {result.error}")
+        out.append(result.value if result.ok else None)
     return out
 
 
@@ -48,14 +50,16 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
                        models: Sequence[str] = DEFAULT_MODELS, seed: int = 0, preset: str = "full",
                        overrides: dict[str, dict[str, Any]] | None = None, overwrite: bool = False,
                        sim_augment: int = 0, progress: bool = True,
-                       log: Callable[[str], None] | None = None) -> pd.DataFrame:
+                       log: Callable[[str], None] | None = None, runner: TaskRunner | None = None) -> pd.DataFrame:
     """Fit `models` on the 'train' tables, save `<out_dir>/<model>.pt`, evaluate on the 'test' tables.
 
     `preset` "quick" trains the small, fast variants (the demo's); `overrides` maps a model name to
     config fields. A model that cannot be trained here (the hybrid without a simulator) is skipped
     and said so; the returned frame's `attrs["summary"]` holds per-model training reports.
     `sim_augment` > 0 adds that many simulated training programs per training machine
-    (`augment.simulated_tables`) to the data of every model but the hybrid.
+    (`augment.simulated_tables`) to the data of every model but the hybrid. `runner` (a
+    `feedlog.execution.TaskRunner`) runs the hybrid's per-recording simulations in parallel or on a
+    cluster (default: here, one by one); training itself runs here.
     """
     log = log or (lambda msg: print(msg, file=sys.stderr))
     for name in models:
@@ -84,7 +88,9 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
     sim_train: list[ProgramTable | None] = []
     sim_test: list[ProgramTable | None] = [None] * len(test)
     if "hybrid" in models:
-        sim_train, sim_test = _with_sim(train, log), _with_sim(test, log)
+        runner = runner or TaskRunner(jobs=1, progress=False)
+        sims = _with_sim(train + test, log, runner)
+        sim_train, sim_test = sims[:len(train)], sims[len(train):]
     augmented = list(train)
     if sim_augment > 0:
         profiles = {t.profile.name: t.profile for t in train if t.profile is not None}

@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import tomllib
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from feedlog.errors import FeedlogError, ModelError
+from feedlog.execution import TaskRunner
 from feedlog.profile import load_profile
 from feedlog.train.dataset import ProgramTable
 
@@ -43,7 +45,9 @@ def read_manifest(path: str | Path) -> dict[str, dict[str, Any]]:
 
 
 def _manifest_candidates(folder: Path, meta: dict[str, Any]) -> Iterable[Path]:
-    for key in ("recording", "recording_path"):  # as given to align (relative to where it ran), absolute
+    # absolute first (a worker of `feedlog train -j/--scheduler` finds the same file wherever it runs),
+    # then as given to align (relative to where it ran)
+    for key in ("recording_path", "recording"):
         if meta.get(key):
             yield Path(meta[key]).parent / MANIFEST
     for parent in [folder, *folder.resolve().parents]:
@@ -129,12 +133,34 @@ def expand_aligned(paths: Iterable[str | Path]) -> list[Path]:
     return out
 
 
+@dataclass(frozen=True)
+class LoadTask:
+    folder: str                   # absolute: a worker may run in another directory
+    manifest: str | None = None
+    split: str | None = None
+
+
+def load_task(task: LoadTask) -> ProgramTable:
+    """One aligned folder, on a worker of `feedlog.execution`."""
+    return load_aligned(task.folder, manifest=task.manifest, split=task.split)
+
+
 def load_many(paths: Iterable[str | Path], *, manifest: str | Path | None = None,
-              test: Iterable[str] = ()) -> list[ProgramTable]:
-    """Every aligned recording under `paths`; names in `test` are held out whatever the manifest says."""
+              test: Iterable[str] = (), runner: TaskRunner | None = None) -> list[ProgramTable]:
+    """Every aligned recording under `paths`; names in `test` are held out whatever the manifest says.
+
+    `runner` (a `feedlog.execution.TaskRunner`) reads the folders in parallel or on a cluster; the
+    tables are the same as read here one by one (folders are passed as absolute paths either way).
+    """
     test = set(test)
-    tables = [load_aligned(f, manifest=manifest, split="test" if f.name in test else None)
-              for f in expand_aligned(paths)]
+    tasks = [LoadTask(str(f.resolve()), None if manifest is None else str(Path(manifest).resolve()),
+                      "test" if f.name in test else None) for f in expand_aligned(paths)]
+    results = (runner or TaskRunner(jobs=1, progress=False)).run(
+        load_task, tasks, desc="load", label=lambda t: Path(t.folder).name)
+    bad = [r for r in results if not r.ok]
+    if bad:
+        raise ModelError(str(bad[0].error) + (f" (and {len(bad) - 1} more folder(s))" if len(bad) > 1 else ""))
+    tables = [r.value for r in results]
     unknown = test - {t.name for t in tables}
     if unknown:
         raise ModelError(f"--test names no loaded recording: {', '.join(sorted(unknown))}")

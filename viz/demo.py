@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 from feedlog.errors import FeedlogError
+from feedlog.execution import add_arguments as add_execution_arguments
 from feedlog.viz.overlay import save_view
 from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, run_demo
 from feedlog.viz.plots import plot_cycle_times, plot_view
@@ -37,6 +38,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--models", help="comma-separated model names to train (default: the demo set)")
     parser.add_argument("--detail-plots", type=int, default=DETAIL_PLOTS, metavar="N",
                         help=f"recordings that get all four plots, the rest get the feed plot (default {DETAIL_PLOTS})")
+    add_execution_arguments(parser, jobs_help="local worker processes for verify, align and simulate "
+                                              "(default: all cores); training and plots run here")
 
 
 def default_recordings() -> Path:
@@ -184,7 +187,8 @@ def run(args: argparse.Namespace) -> int:
     log = (lambda msg: print(msg, file=sys.stderr)) if args.json else print
     recordings = args.recordings or default_recordings()
     models = tuple(m.strip() for m in args.models.split(",") if m.strip()) if args.models else None
-    config = DemoConfig(recordings=recordings, out=args.out, train=not args.no_train, models=models, log=log)
+    config = DemoConfig(recordings=recordings, out=args.out, train=not args.no_train, models=models, log=log,
+                        jobs=args.jobs, scheduler=args.scheduler)
     prepare_out(args.out)
     result = run_demo(config)
     written = write_outputs(result, args.out, log=log, detail=args.detail_plots)

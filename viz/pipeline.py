@@ -11,13 +11,15 @@ from __future__ import annotations
 import time
 import tomllib
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from feedlog import storage
 from feedlog.errors import FeedlogError
+from feedlog.execution import TaskRunner, task_runner
 from feedlog.ingest.recording import PROGRAM_ATTACHMENT, Recording
 from feedlog.viz.prepare import ModelPrediction, ViewData, prepare_view
 from feedlog.viz.sources import Gathered, finite_or_none, gather
@@ -36,6 +38,9 @@ class DemoConfig:
     models: tuple[str, ...] | None = None   # None: the demo set of viz.training
     preset: str = "quick"
     log: Callable[[str], None] = print
+    jobs: int | None = None               # feedlog.execution: local processes (None: all cores) ...
+    scheduler: str | None = None          # ... or a Dask cluster for the per-recording stages
+    progress: bool = False
 
     def __post_init__(self) -> None:
         self.recordings, self.out = Path(self.recordings), Path(self.out)
@@ -207,8 +212,41 @@ def _guarded(run: RecordingRun, what: str, fn: Callable[[], Any]) -> Any:
     return None
 
 
+def prepare_run(run: RecordingRun) -> RecordingRun:
+    """Verify, align and simulate one recording: a task of `feedlog.execution` (may run on a worker)."""
+    if not verify(run):
+        return run
+    run.gathered = _guarded(run, "gather", lambda: gather(
+        run.recording, name=run.entry.name, catch_bugs=True, lenient=True,
+        program=None if PROGRAM_ATTACHMENT in run.recording.attachments else run.entry.program_path,
+        profile=run.entry.profile))
+    if run.gathered is not None:
+        for note in run.gathered.notes:
+            (run.errors if "failed" in note else run.notes).append(note)
+    _cam(run)
+    return run
+
+
+def _sendable(run: RecordingRun) -> RecordingRun:
+    """The run with absolute paths: a worker may run in another directory."""
+    entry = replace(run.entry, path=Path(storage.absolute(run.entry.path)),
+                    program_path=None if run.entry.program_path is None
+                    else Path(storage.absolute(run.entry.program_path)))
+    return replace(run, entry=entry)
+
+
 def run_demo(config: DemoConfig) -> DemoResult:
-    """Run the whole chain on `config.recordings`; outputs (plots, .rrd, models) go under `config.out`."""
+    """Run the whole chain on `config.recordings`; outputs (plots, .rrd, models) go under `config.out`.
+
+    The per-recording stages (verify, align, simulate) and the hybrid's simulations run on the backend
+    `config.jobs`/`config.scheduler` choose (`feedlog.execution`); training, plots and .rrd files here.
+    """
+    with task_runner(jobs=config.jobs, scheduler=config.scheduler, progress=config.progress,
+                     log=config.log) as runner:
+        return _run_demo(config, runner)
+
+
+def _run_demo(config: DemoConfig, runner: TaskRunner) -> DemoResult:
     log = config.log
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -221,25 +259,23 @@ def run_demo(config: DemoConfig) -> DemoResult:
         raise FeedlogError(f"{config.recordings}: no recordings (*.mcap or {MANIFEST}) found")
     runs = [RecordingRun(entry=e) for e in entries]
 
-    for run in runs:
-        log(f"{run.entry.name}: verify, align, simulate")
-        if not verify(run):
-            continue
-        run.gathered = _guarded(run, "gather", lambda run=run: gather(
-            run.recording, name=run.entry.name, catch_bugs=True, lenient=True,
-            program=None if PROGRAM_ATTACHMENT in run.recording.attachments else run.entry.program_path,
-            profile=run.entry.profile))
-        if run.gathered is not None:
-            for note in run.gathered.notes:
-                (run.errors if "failed" in note else run.notes).append(note)
-        _cam(run)
+    log(f"verify, align, simulate: {len(runs)} recording(s)")
+    results = runner.run(prepare_run, [_sendable(r) for r in runs], desc="prepare", label=lambda r: r.entry.name)
+    for i, result in enumerate(results):
+        if result.ok:
+            result.value.entry = runs[i].entry  # paths as the user gave them, for the report
+            runs[i] = result.value
+        else:
+            runs[i].errors.append(f"verify, align, simulate failed: {result.error}")
+        problems = len(runs[i].errors)
+        log(f"{runs[i].entry.name}: verify, align, simulate" + (f": {problems} error(s)" if problems else ""))
     timings["verify_align_simulate"] = time.perf_counter() - t0
 
     training = None
     t1 = time.perf_counter()
     if config.train:
         training = train_models(runs, out_dir=config.out / "models", models=config.models, preset=config.preset,
-                                log=log)
+                                log=log, runner=runner)
         for run in runs:
             if run.gathered is not None and run.gathered.program is not None:
                 for name, pred in predict_for(training, run).items():

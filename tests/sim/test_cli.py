@@ -44,3 +44,33 @@ def test_bad_input_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "unknown machine profile" in err and "unknown sim mechanism" in err
     assert "Traceback" not in err
+
+
+def test_several_programs_write_one_folder_each_and_a_dataset(tmp_path, capsys):
+    a, b, bad = tmp_path / "a.ngc", tmp_path / "b.ngc", tmp_path / "bad.ngc"
+    a.write_text(PROGRAM)
+    b.write_text(PROGRAM.replace("X40", "X80"))
+    bad.write_text("G21 G90\nG5.3 X1\nM2\n")
+    opts = ["--profile", "linuxcnc-xyz", "--json", "-q"]
+    assert main(["sim", str(a), str(b), *opts]) == 1
+    assert "need an output folder" in capsys.readouterr().err
+    out = tmp_path / "out"
+    assert main(["sim", str(a), str(b), str(bad), *opts, "-o", str(out), "-j", "2"]) == 1
+    captured = capsys.readouterr()
+    docs = json.loads(captured.out)
+    assert [d["program"] for d in docs] == [str(a), str(b), str(bad)]
+    assert docs[1]["cycle_time_s"] > docs[0]["cycle_time_s"] > 0 and "error" in docs[2]
+    assert f"{bad}: " in captured.err and "G5.3" in captured.err
+    # the same numbers as one program at a time, in the folders and the dataset
+    assert main(["sim", str(a), "--profile", "linuxcnc-xyz", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == docs[0]
+    assert json.loads((out / "a" / "summary.json").read_text()) == docs[0]
+    blocks = pd.read_parquet(out / "dataset" / "blocks")
+    assert sorted(blocks["program"].unique()) == ["a", "b"]
+    pd.testing.assert_frame_equal(blocks[blocks["program"] == "b"].drop(columns="program").reset_index(drop=True),
+                                  pd.read_parquet(out / "b" / "blocks.parquet"), check_dtype=False)
+    assert not (out / "bad").exists()
+    assert main(["sim", str(a), *opts, "-o", str(out), "-j", "1"]) == 1   # exists: --force to replace
+    assert "pass --force" in capsys.readouterr().err
+    assert main(["sim", str(a), "--profile", "linuxcnc-xyz", "-o", str(out), "--out", str(tmp_path / "s.parquet")]) == 1
+    assert "--out/--blocks-out are for one program" in capsys.readouterr().err

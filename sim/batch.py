@@ -1,0 +1,104 @@
+"""Simulating many part programs: one task per program on `feedlog.execution`'s backend.
+
+Each task parses one program (absolute path or fsspec URL), simulates it on the profile (read once on
+the client and sent as data) and publishes, each whole (`feedlog.storage`):
+- OUTDIR/<program stem>/ with series.parquet (the interpolated series), blocks.parquet (per block) and
+  summary.json (what `feedlog sim --json` prints);
+- its partitions of OUTDIR/dataset/blocks/ and OUTDIR/dataset/series/ (`program=<stem>/part-0.parquet`).
+The summary travels back. A program that fails with one of our errors is reported per program.
+"""
+
+from __future__ import annotations
+
+import json
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from feedlog import storage
+from feedlog.dataset import existing_output, write_partition
+from feedlog.errors import FeedlogError
+from feedlog.execution import run_tasks
+
+FILES = ("series.parquet", "blocks.parquet", "summary.json")
+DATASET_TABLES = ("blocks", "series")
+PARTITION_KEY = "program"
+
+
+@dataclass(frozen=True)
+class SimTask:
+    program: str                 # absolute path or URL, read by the worker
+    label: str                   # as given: the name in messages and summaries
+    outdir: str                  # OUTDIR, absolute path or URL
+    profile: Any                 # MachineProfile
+    mechanisms: Any = None
+    dt_s: float | None = None
+    token: str = ""
+
+
+@dataclass
+class SimItem:
+    program: str
+    outdir: str
+    ok: bool
+    summary: dict[str, Any] | None = None
+    error: str | None = None
+
+
+def simulate_one(task: SimTask) -> dict[str, Any]:
+    """Runs on a worker: parse, simulate, publish the folder and the dataset partitions; the summary."""
+    from feedlog.sim.simulate import simulate  # noqa: PLC0415
+    from feedlog.toolpath import parse_program  # noqa: PLC0415
+
+    name = storage.stem(task.label)
+    with storage.local_input(task.program) as local:
+        program = parse_program(Path(local), name=task.label)
+    result = simulate(program, task.profile, mechanisms=task.mechanisms, dt_s=task.dt_s)
+    summary = {"program": task.label, **result.summary()}
+    with storage.publish_dir(storage.join(task.outdir, name), token=task.token) as staging:
+        result.series.to_parquet(staging / FILES[0], index=False)
+        result.blocks.to_parquet(staging / FILES[1], index=False)
+        (staging / FILES[2]).write_text(json.dumps(summary, indent=1) + "\n")
+    for table, frame in (("blocks", result.blocks), ("series", result.series)):
+        write_partition(task.outdir, table, PARTITION_KEY, name, frame, token=task.token)
+    return summary
+
+
+def simulate_many(programs: list[str | Path], outdir: str | Path, *, profile: Any, mechanisms: Any = None,
+                  dt_s: float | None = None, jobs: int | None = None, scheduler: str | None = None,
+                  overwrite: bool = False, progress: bool = True, log=None) -> list[SimItem]:
+    """Simulate every program into OUTDIR/<stem>/ and OUTDIR/dataset/; results in the input order.
+
+    `profile` is a MachineProfile, a shipped name or a TOML path (read here once).
+    """
+    from feedlog.profile import MachineProfile, load_profile  # noqa: PLC0415
+
+    prof = profile if isinstance(profile, MachineProfile) else load_profile(profile)
+    labels = [str(p) for p in programs]
+    stems = [storage.stem(p) for p in labels]
+    dup = sorted({s for s in stems if stems.count(s) > 1})
+    if dup:
+        raise FeedlogError(f"programs share the file name {dup[0]!r}: their outputs would collide in {outdir}")
+    root = storage.absolute(outdir)
+    token = uuid.uuid4().hex[:8]
+    items: dict[str, SimItem] = {}
+    tasks = []
+    for label, name in zip(labels, stems):
+        shown = storage.join(str(outdir), name)
+        there = None if overwrite else existing_output(root, name, files=FILES, tables=DATASET_TABLES,
+                                                       key=PARTITION_KEY)
+        if there is not None:
+            items[label] = SimItem(label, shown, False, error=f"{there} exists; pass --force to overwrite")
+            continue
+        tasks.append(SimTask(program=storage.absolute(label), label=label, outdir=root, profile=prof,
+                             mechanisms=mechanisms, dt_s=dt_s, token=token))
+    try:
+        results = run_tasks(simulate_one, tasks, jobs=jobs, scheduler=scheduler, desc="sim",
+                            label=lambda t: t.label, progress=progress, log=log)
+    finally:
+        storage.remove_partials(root, token)
+    for task, result in zip(tasks, results):
+        shown = storage.join(str(outdir), storage.stem(task.label))
+        items[task.label] = SimItem(task.label, shown, result.ok, summary=result.value, error=result.error)
+    return [items[label] for label in labels]
