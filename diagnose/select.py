@@ -39,7 +39,7 @@ from feedlog.diagnose.evidence import Evidence, contradicts
 from feedlog.diagnose.fit import HeldOut, Scorer, _closest_best, _grid, fit, held_out
 from feedlog.diagnose.hypothesis import Hypothesis
 
-PRIORITY = ("axis_limits", "path_limits", "planner", "dwell", "feedback", "overrides", "logger")
+PRIORITY = ("overrides", "axis_limits", "path_limits", "planner", "dwell", "feedback", "logger")
 SCREEN_KEEP = 5        # hypotheses fully cross-validated per step
 SCREEN_SHARE = 0.5     # ... among those within this share of the best screening gain
 SCREEN_POINTS = 9      # grid points per hypothesis when screening
@@ -218,6 +218,9 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
                           considered=judged))
         model.update(chosen.held.hyp.values(chosen.held.value))
         current = chosen.held.after
+        if len(steps) > 1:  # the causes so far at their joint values before looking for another
+            model = _refit(scorer, [s.chosen.held.hyp for s in steps], model, 1)
+            current = np.minimum(current, scorer.unit_losses(model))
         remaining = [h for h in remaining if h.key != chosen.key]
     refit = _refit(scorer, [s.chosen.held.hyp for s in steps], model, cfg.refit_rounds)
     if len(steps) > 1:  # each cause judged again with the others at their refitted values
@@ -225,7 +228,8 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
             hyp = step.chosen.held.hyp
             others = {k: v for k, v in refit.items() if k not in hyp.keys}
             step.chosen = judge(held_out(scorer, others, hyp), scorer, cfg, error, evidence)
-        refit = _swap(scorer, steps, refit, hyps, cfg, error, evidence, progress)
+        if error(scorer.unit_losses(refit), units) >= cfg.min_effect:  # something material left: try swaps
+            refit = _swap(scorer, steps, refit, hyps, cfg, error, evidence, progress)
         current = scorer.unit_losses(refit)
     return Selection(level=scorer.level, model=refit, steps=steps, rejected=rejected, base_losses=base,
                      final_losses=current, refit=refit)
