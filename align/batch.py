@@ -29,6 +29,7 @@ class BatchItem:
     blocks: list[dict[str, Any]] | None = None
     error: str | None = None
     samples: int = 0
+    exit_code: int = 0  # of the error: 2 bad input, 1 an output that could not be written
 
 
 def output_dir(outdir: str | Path, recording: str | Path) -> Path:
@@ -46,7 +47,7 @@ def align_one(recording: str, program: str | None, profile: str | None, outdir: 
         alignment = align_recording(rec, program, profile=profile, config=config)
         write_alignment(target, alignment, overwrite=overwrite)
     except FeedlogError as exc:
-        return BatchItem(recording=recording, outdir=str(target), ok=False, error=str(exc))
+        return BatchItem(recording=recording, outdir=str(target), ok=False, error=str(exc), exit_code=exc.exit_code)
     blocks = None
     if with_blocks:
         cols = ["block", "line", "t_start_ns", "t_end_ns", "duration_s"]
