@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         result.blocks.to_parquet(args.blocks_out, index=False)
     summary = {"program": str(args.program), **result.summary()}
     if args.json:
-        json.dump(summary, sys.stdout)
+        json.dump(summary, sys.stdout, allow_nan=False)
         sys.stdout.write("\n")
     else:
         print(f"{args.program}: {summary['blocks']} blocks on {summary['profile']}: cycle time "

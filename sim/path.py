@@ -21,6 +21,7 @@ import pandas as pd
 from feedlog.errors import SimulationError
 from feedlog.profile import LINEAR_AXES, MachineProfile
 from feedlog.toolpath import schema
+from feedlog.toolpath.limits import check_axes
 
 KIND_RAPID, KIND_LINEAR, KIND_ARC, KIND_DWELL = 0, 1, 2, 3
 _KIND_CODES = {schema.RAPID: KIND_RAPID, schema.LINEAR: KIND_LINEAR, schema.ARC_CW: KIND_ARC,
@@ -205,15 +206,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
 
     axes = profile.axis_names
     units = schema.AXIS_UNITS
-    for a in schema.AXES:  # an axis the machine does not have must not move
-        if a in axes or f"{a}_{units[a]}" not in table.columns:
-            continue
-        d = np.abs(col(f"{a}_{units[a]}", np.nan) - col(f"{a}0_{units[a]}", np.nan))
-        bad_axis = (d > 1e-9) & (code != KIND_DWELL)
-        if bad_axis.any():
-            i = int(np.flatnonzero(bad_axis)[0])
-            raise SimulationError(f"{where(i)}: the program moves axis {a.upper()}, which "
-                                  f"machine profile {profile.name!r} does not have (axes: {', '.join(axes)})")
+    check_axes(table, axes, profile.name)  # an axis the machine does not have must not move
     p1 = np.column_stack([col(f"{a}_{units[a]}", np.nan) for a in axes])
     p0 = np.column_stack([col(f"{a}0_{units[a]}", np.nan) for a in axes])
     # unknown start (first move of a program): no motion on that axis

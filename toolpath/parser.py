@@ -24,6 +24,7 @@ import pyarrow as pa
 from feedlog.errors import ProgramError
 from feedlog.toolpath.arcwords import ArcWords, resolve_arcs
 from feedlog.toolpath.lexer import Tokens, lex
+from feedlog.toolpath.limits import check_positions, check_run_time
 from feedlog.toolpath.offsets import G10, G92_1
 from feedlog.toolpath.positions import AXIS_LETTERS, SYSTEM_LUT, ffill, offset_positions, positions
 from feedlog.toolpath.program import Program, Unsupported
@@ -85,6 +86,8 @@ def _strings(n: int, rows=None, values=None, *, fill: str = "") -> pd.api.extens
 
 
 def _read_source(source: str | Path, name: str | None) -> tuple[str, Path | None, str]:
+    """(text with "\n" line ends, path or None, name for messages). Old Mac files end lines with a
+    lone CR and Windows files with CR LF: both count as line ends, as editors show them."""
     if isinstance(source, Path) or ("\n" not in source and len(source) < 4096 and (
             Path(source).suffix.lower() in (".ngc", ".nc", ".gcode", ".tap", ".txt", ".cnc")
             or Path(source).is_file())):
@@ -94,8 +97,15 @@ def _read_source(source: str | Path, name: str | None) -> tuple[str, Path | None
             raw = path.read_bytes()
         except OSError as exc:
             raise ProgramError(f"cannot read part program: {exc.strerror or exc}", file=label) from None
-        return raw.decode("utf-8-sig", errors="replace"), path, label
-    return source.removeprefix("\ufeff"), None, name or "<string>"
+        if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+            raise ProgramError("the file is UTF-16 text (it starts with a UTF-16 byte-order mark); save the "
+                               "part program as ASCII or UTF-8", file=label, line=1)
+        text, path_out = raw.decode("utf-8-sig", errors="replace"), path
+    else:
+        text, path_out, label = source.removeprefix("\ufeff"), None, name or "<string>"
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return text, path_out, label
 
 
 class _Rows:
@@ -301,6 +311,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         work = None
         system = (np.ones(n, dtype=np.int8) if not (coords >= 0).any() else
                   SYSTEM_LUT[ffill(coords, coords >= 0, 540)])
+    check_positions(start, end, is_motion, R.error)
 
     # -- arcs --------------------------------------------------------------------------------------
     centre = np.full((3, n), np.nan)
@@ -337,6 +348,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
 
     # -- feed ---------------------------------------------------------------------------------------
     f_here = has[S["F"]]
+    first(f_here & (W[S["F"]] < 0), "negative feed rate", "F")
     inverse_time = modal["feed_mode"] == 930
     f_mm = W[S["F"]] * unit
     # LinuxCNC forgets the feed when the feed mode changes: G93 -> G94 needs a new F
@@ -374,6 +386,10 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     dwell = np.where(is_dwell, W[S["P"]], 0.0)
     if (dwell < 0).any():
         raise R.error(int(np.flatnonzero(dwell < 0)[0]), "negative dwell time", "P")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        feed_s = np.where(feed_move, time_len / feed * 60.0, 0.0)
+    check_run_time(feed_s + dwell, R.error, what="feed too slow or dwell too long",
+                   code=lambda r: f"P{dwell[r]:g}" if is_dwell[r] else f"F{W[S['F'], r] if f_here[r] else feed[r]:g}")
     spindle = ffill(W[S["S"]], has[S["S"]], 0.0)
     mcodes = _strings(n)
     stop = np.zeros(n, dtype=bool)
