@@ -63,8 +63,9 @@ def load_checkpoint(path: str | Path) -> Model:
         raise ModelError(f"{path}: checkpoint not found")
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # torch raises many kinds for a file that is not a checkpoint
-        raise ModelError(f"{path}: not a feedlog model checkpoint ({type(exc).__name__}: {exc})") from None
+    except Exception as exc:  # torch raises many kinds, with pages of text, for a file that is not a checkpoint
+        raise ModelError(f"{path}: not a feedlog model checkpoint (torch.load cannot read it: "
+                         f"{type(exc).__name__})") from None
     if not isinstance(data, dict) or data.get("format") != "feedlog-model":
         raise ModelError(f"{path}: not a feedlog model checkpoint")
     version = data.get("format_version")
