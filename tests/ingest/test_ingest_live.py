@@ -250,7 +250,7 @@ def test_can_source_cli_records_a_virtual_bus_for_a_duration(tmp_path, capsys):
     rec = read_recording(out)
     assert len(rec.streams["axes"]) == 500 and rec.metadata["source"] == "can virtual:cli-can"
     assert main(["record", "--source", "can", "--interface", "nosuchbus", "--channel", "x", "-o",
-                 str(tmp_path / "x.mcap")]) == 1
+                 str(tmp_path / "x.mcap")]) == 2
     assert "cannot open CAN bus" in capsys.readouterr().err
 
 
