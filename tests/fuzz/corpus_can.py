@@ -48,10 +48,11 @@ def asc_cases(rng: random.Random) -> list[Case]:
         asc("swapped-frames", mutate.swap_lines(data, rng, first=ASC_HEADER), "ok", max_dropped_ratio=0.05),
         asc("repeated-frame", mutate.repeat_line(data, rng, first=ASC_HEADER, times=4), "ok", max_dropped_ratio=0.05),
         asc("dropped-frames", mutate.drop_lines(data, rng, first=ASC_HEADER, count=5), "ok", max_dropped_ratio=0.1),
+        # ASC: a line whose time is not digits.digits is another event, not a frame (python-can skips it)
         asc("nan-time", mutate.insert_line(data, rng, b" nan 1  100             Rx   d 8 00 00 00 00 00 00 00 00",
-                                           first=6), "error"),
-        asc("huge-time", mutate.insert_line(data, rng, b" 1e300 1  100             Rx   d 8 00 00 00 00 00 00 00 00",
-                                            first=6), "error"),
+                                           first=6)),
+        asc("huge-time", mutate.insert_line(data, rng, b" 99999999999999999999.000000 1  100             Rx   d 8 "
+                                                       b"00 00 00 00 00 00 00 00", first=6), "error"),
         asc("garbage-line", mutate.insert_line(data, rng, b"this is not a frame", first=6)),
         asc("bitflip", mutate.flip_bits(data, rng, count=3)),
         asc("truncated", mutate.truncate(data, rng), "error"),
@@ -95,8 +96,10 @@ def blf_cases(rng: random.Random) -> list[Case]:
     cases += [
         blf("bitflip-header", mutate.flip_bits(data, rng, end=144)),
         blf("header-size-huge", data[:8] + (2**31 - 1).to_bytes(4, "little") + data[12:]),
-        blf("file-size-huge", data[:32] + (2**62).to_bytes(8, "little") + data[40:], "error"),
-        blf("object-size-huge", data[:144 + 8] + (2**31 - 1).to_bytes(4, "little") + data[144 + 12:]),
+        blf("file-size-huge", data[:16] + (2**62).to_bytes(8, "little") + data[24:], "error"),
+        blf("object-count-huge", data[:32] + (2**32 - 1).to_bytes(4, "little") + data[36:]),
+        blf("object-size-2gb", data[:144 + 8] + (2**31 - 1).to_bytes(4, "little") + data[144 + 12:]),
+        blf("object-size-4gb", data[:144 + 8] + (2**32 - 16).to_bytes(4, "little") + data[144 + 12:]),
         blf("empty", b"", "error"),
         blf("random-bytes", b"LOGG" + bytes(rng.randrange(256) for _ in range(3000))),
     ]
@@ -113,7 +116,7 @@ def canlog_csv_cases(rng: random.Random) -> list[Case]:
         csv("huge-id", mutate.insert_line(data, rng, b"1700000000.5,0xFFFFFFFFFFFF,1,0,0,8,AAAAAAAAAAA=", first=1),
             "error"),
         csv("id-30-bits", mutate.insert_line(data, rng, b"1700000000.5,0x3FFFFFFF,1,0,0,8,AAAAAAAAAAA=", first=1), "error"),
-        csv("bad-base64", mutate.insert_line(data, rng, b"1700000000.5,0x100,0,0,0,8,@@@@", first=1), "error"),
+        csv("bad-base64", mutate.insert_line(data, rng, b"1700000000.5,0x100,0,0,0,8,@@@@", first=1)),
         csv("nan-time", mutate.insert_line(data, rng, b"nan,0x100,0,0,0,8,AAAAAAAAAAA=", first=1), "error"),
         csv("short-frame", mutate.insert_line(data, rng, b"1700000000.5,0x100,0,0,0,2,AAA=", first=1), "ok",
             max_dropped_ratio=0.05),

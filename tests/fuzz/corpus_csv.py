@@ -21,12 +21,14 @@ NAME = "d.csv"
 
 
 def _case(name: str, data: bytes, preset: str, expect: str = "any", *, lenient: str | None = None,
-          seed: bytes | None = None, extra: tuple[str, ...] = ()) -> Case:
+          seed: bytes | None = None, extra: tuple[str, ...] = (), blame: str | None = None) -> Case:
+    """`blame`: the option an error must name instead of the file (a bad --timezone, not a bad row)."""
     argv = ["import", NAME, "--preset", preset, *extra, "-o", "out.mcap"]
     runs = [Run(argv, expect, same_as_seed=seed is not None)]
     if lenient is not None:
         runs.append(Run(argv + ["--lenient"], lenient))
-    return Case("csv", f"csv/{name}", {NAME: data}, runs, NAME, seed={NAME: seed} if seed is not None else {})
+    return Case("csv", f"csv/{name}", {NAME: data}, runs, blame or NAME,
+                seed={NAME: seed} if seed is not None else {}, located=blame is None)
 
 
 def build(rng: random.Random) -> list[Case]:
@@ -65,7 +67,8 @@ def build(rng: random.Random) -> list[Case]:
             _case(f"{stem}/swapped-rows", mutate.swap_lines(data, rng, first=header), preset, lenient="any"),
             _case(f"{stem}/bitflip", mutate.flip_bits(data, rng, count=2), preset, lenient="any"),
             _case(f"{stem}/header-only", b"\n".join(mutate.lines_of(data)[:header]) + b"\n", preset, "error"),
-            _case(f"{stem}/bad-timezone", data, preset, "error", extra=("--timezone", "Mars/Olympus_Mons")),
+            _case(f"{stem}/bad-timezone", data, preset, "error", extra=("--timezone", "Mars/Olympus_Mons"),
+                  blame="--timezone"),
         ]
     servo = (FIXTURES / "servo_trace_1khz.csv").read_bytes()
     header, *rows = mutate.lines_of(servo)
@@ -84,6 +87,6 @@ def build(rng: random.Random) -> list[Case]:
         _case("monitoring/dst-gap", (FIXTURES / "monitoring_5hz.csv").read_bytes().replace(b"2026-11-22 13", b"2026-03-29 02"),
               "monitoring-5hz", "error", lenient="any", extra=("--timezone", "Europe/Berlin")),
         _case("monitoring/bad-format", (FIXTURES / "monitoring_5hz.csv").read_bytes(), "monitoring-5hz", "error",
-              extra=("--time-format", "%Q")),
+              extra=("--time-format", "%Q"), blame="--time-format"),
     ]
     return cases
