@@ -124,7 +124,13 @@ class RecordingWriter:
         self._failed: OutputError | None = None
         self._good_offset = 0
         self._last_flush = time.monotonic()
-        self._guard(self._start, metadata or {}, attachments or {})
+        try:
+            self._guard(self._start, metadata or {}, attachments or {})
+        except OutputError:  # not even the header fits: nothing recorded, no file left
+            self._closed = True
+            self._file.close()
+            self.path.unlink(missing_ok=True)
+            raise
 
     # -- public API ----------------------------------------------------------------------------------
     def write(self, stream: str, table: pd.DataFrame | pa.Table | pa.RecordBatch | dict) -> None:
@@ -271,6 +277,7 @@ class RecordingWriter:
             self._failed = OutputError(f"write failed ({exc.strerror or exc}); the recording keeps the data "
                                        f"flushed before byte {self._good_offset}", file=str(self.path),
                                        position=f"byte {self._good_offset}")
+            self._failed.reason = exc.strerror or str(exc)
             self._seal(f"write failed: {exc.strerror or exc}")
             raise self._failed from None
 
@@ -324,15 +331,20 @@ def write_recording(path: str | os.PathLike, recording: Recording, *, overwrite:
         raise IngestError("output exists; pass --overwrite to replace it", file=str(path))
     if not path.parent.is_dir():
         raise OutputError("cannot create the recording: its folder does not exist", file=str(path))
-    with atomic_output(path) as partial:
-        with RecordingWriter(partial, metadata=recording.metadata, attachments=recording.attachments,
-                             overwrite=True, compression=compression, level=level, chunk_size=chunk_size) as writer:
-            batches = {name: fmt.table_to_batch(name, table) for name, table in recording.streams.items()}
-            for name, batch in batches.items():  # channels in the recording's stream order
-                writer.write(name, batch.slice(0, 0))
-            for name, piece in _pieces_by_time(batches, writer):
-                writer.write(name, piece)
-            writer.dropped_frames = recording.dropped_frames
+    batches = {name: fmt.table_to_batch(name, table) for name, table in recording.streams.items()}
+    try:
+        with atomic_output(path) as partial:
+            with RecordingWriter(partial, metadata=recording.metadata, attachments=recording.attachments,
+                                 overwrite=True, compression=compression, level=level, chunk_size=chunk_size) as writer:
+                for name, batch in batches.items():  # channels in the recording's stream order
+                    writer.write(name, batch.slice(0, 0))
+                for name, piece in _pieces_by_time(batches, writer):
+                    writer.write(name, piece)
+                writer.dropped_frames = recording.dropped_frames
+    except OutputError as exc:
+        if not hasattr(exc, "reason"):  # already about `path` (atomic_output's own)
+            raise
+        raise OutputError(f"cannot write the recording ({exc.reason}); nothing was written", file=str(path)) from None
 
 
 def _pieces_by_time(batches: dict[str, pa.RecordBatch], writer: RecordingWriter):

@@ -13,6 +13,7 @@ from typing import Any
 import torch
 
 from feedlog import __version__
+from feedlog.atomic import atomic_output
 from feedlog.errors import ModelError
 from feedlog.train.features import Normaliser
 from feedlog.train.registry import Model, model_class
@@ -51,9 +52,8 @@ def save_checkpoint(model: Model, path: str | Path, *, overwrite: bool = False) 
     if path.exists() and not overwrite:
         raise ModelError(f"{path} exists; refusing to overwrite it")
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    torch.save(checkpoint_dict(model), tmp)
-    tmp.replace(path)
+    with atomic_output(path) as temporary:
+        torch.save(checkpoint_dict(model), temporary)
     return path
 
 
