@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 import mcap.writer
+import numpy as np
 import pandas as pd
 import pyarrow as pa
 import zstandard
@@ -40,6 +41,7 @@ ZSTD_DEFAULT_LEVEL = 3  # what mcap's writer uses (zstandard.compress's default)
 ZSTD_LEVELS = range(1, 23)
 CHUNK_SIZE = 1 << 20  # largest chunk, uncompressed: what a cut-off file can lose beyond the last flush
 MESSAGE_SHARE = 8     # a message holds at most 1/8 of a chunk, so a chunk never outgrows chunk_size
+MESSAGE_SPAN_NS = 1_000_000_000  # write_recording: a message holds at most 1 s of samples
 
 
 class _LevelledZstd:
@@ -167,6 +169,13 @@ class RecordingWriter:
             row_bytes = max(batch.nbytes / max(batch.num_rows, 1), 1.0)
             self._rows[stream] = max(1, min(self.rows_per_message, int((self.message_bytes - 1024) / row_bytes)))
         return self._rows[stream]
+
+    def end_message(self, stream: str) -> None:
+        """Write the rows of `stream` not yet written as one message now (for callers that cut their
+        messages themselves, as `write_recording` does by time)."""
+        self._check_open()
+        if stream in self._pending:
+            self._guard(self._emit, stream, True)
 
     def add_attachment(self, name: str, data: bytes) -> None:
         self._check_open()
@@ -309,8 +318,6 @@ class RecordingWriter:
 
 
 def _first_backwards(t, previous: int | None) -> int | None:
-    import numpy as np
-
     if previous is not None and len(t) and t[0] < previous:
         return 0
     back = np.flatnonzero(np.diff(t) < 0)
@@ -340,6 +347,7 @@ def write_recording(path: str | os.PathLike, recording: Recording, *, overwrite:
                     writer.write(name, batch.slice(0, 0))
                 for name, piece in _pieces_by_time(batches, writer):
                     writer.write(name, piece)
+                    writer.end_message(name)
                 writer.dropped_frames = recording.dropped_frames
     except OutputError as exc:
         if not hasattr(exc, "reason"):  # already about `path` (atomic_output's own)
@@ -348,14 +356,19 @@ def write_recording(path: str | os.PathLike, recording: Recording, *, overwrite:
 
 
 def _pieces_by_time(batches: dict[str, pa.RecordBatch], writer: RecordingWriter):
-    """(stream, rows) in message-sized pieces, all streams merged by each piece's first time."""
+    """(stream, rows) in messages of at most MESSAGE_SPAN_NS of samples (and the writer's message size),
+    all streams merged by each message's first time: chunks then follow time in every stream."""
     def pieces(name: str, batch: pa.RecordBatch):
         if not batch.num_rows:
             return
         rows = writer.message_rows(name, batch)
         t = batch.column(0).to_numpy()
-        for start in range(0, batch.num_rows, rows):
-            yield (int(t[start]), name, batch.slice(start, rows))
+        start = 0
+        while start < len(t):
+            end = min(start + rows, int(np.searchsorted(t, t[start] + MESSAGE_SPAN_NS, side="left")))
+            end = max(end, start + 1)
+            yield (int(t[start]), name, batch.slice(start, end - start))
+            start = end
 
     merged = heapq.merge(*(pieces(name, batch) for name, batch in batches.items()), key=lambda item: item[0])
     for _, name, piece in merged:
