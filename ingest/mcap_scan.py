@@ -110,6 +110,7 @@ class RecordScan:
         self.source = str(path)
         self.recover = recover
         self.recovered: str | None = None
+        self.end = 0  # byte offset after the last record read
         if not self.path.is_file():
             raise IngestError("no such file", file=self.source)
 
@@ -149,9 +150,9 @@ class RecordScan:
                     return
                 else:
                     yield position, record
+                self.end = position = end
                 if isinstance(record, Footer):
                     return
-                position = end
 
 
 def describe(exc: BaseException, position: int, size: int) -> str:

@@ -84,10 +84,11 @@ class _Collector:
         self.channels[channel.id] = channel
         self.batches[channel.id] = []
 
-    def recording(self) -> Recording:
+    def recording(self, end: int) -> Recording:
+        """The recording read from the file's first `end` bytes."""
         if fmt.META_FORMAT not in self.metadata:
             raise IngestError("not a feedlog recording (no 'feedlog' metadata record with format_version)",
-                              file=self.source)
+                              file=self.source, position=f"bytes 0-{end}")
         streams: dict[str, pd.DataFrame] = {}
         for cid, channel in self.channels.items():
             streams[channel.topic] = fmt.batch_to_frame(self.batches[cid], self.arrow[cid])
@@ -128,4 +129,4 @@ def read_recording(path: str | os.PathLike, *, recover: bool = False) -> Recordi
         collector.add(record, position)
     if scan.recovered:
         collector.metadata.setdefault(fmt.META_SESSION, {})["recovered"] = scan.recovered
-    return collector.recording()
+    return collector.recording(scan.end)

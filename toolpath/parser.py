@@ -85,12 +85,22 @@ def _strings(n: int, rows=None, values=None, *, fill: str = "") -> pd.api.extens
     return pd.array(arr.cast(pa.string()), dtype="string")
 
 
+def _looks_like_path(source: str) -> bool:
+    """One short line naming a program file (by suffix, or an existing file), not G-code text."""
+    if "\n" in source or "\r" in source or len(source) >= 4096:
+        return False
+    if Path(source).suffix.lower() in (".ngc", ".nc", ".gcode", ".tap", ".txt", ".cnc"):
+        return True
+    try:
+        return Path(source).is_file()
+    except (OSError, ValueError):  # too long for a file name, a NUL byte: text
+        return False
+
+
 def _read_source(source: str | Path, name: str | None) -> tuple[str, Path | None, str]:
     """(text with "\n" line ends, path or None, name for messages). Old Mac files end lines with a
     lone CR and Windows files with CR LF: both count as line ends, as editors show them."""
-    if isinstance(source, Path) or ("\n" not in source and len(source) < 4096 and (
-            Path(source).suffix.lower() in (".ngc", ".nc", ".gcode", ".tap", ".txt", ".cnc")
-            or Path(source).is_file())):
+    if isinstance(source, Path) or _looks_like_path(source):
         path = Path(source)
         label = name or str(path)
         try:
