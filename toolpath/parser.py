@@ -28,6 +28,7 @@ from feedlog.toolpath.limits import check_positions, check_run_time
 from feedlog.toolpath.offsets import G10, G92_1
 from feedlog.toolpath.positions import AXIS_LETTERS, SYSTEM_LUT, ffill, offset_positions, positions
 from feedlog.toolpath.program import Program, Unsupported
+from feedlog.toolpath.source import read_source
 from feedlog.toolpath.schema import (ARC_CCW, ARC_CW, BLOCK_COLUMNS, CONTINUOUS, DWELL, END_COLUMNS,
                                      EXACT_PATH, EXACT_STOP, KINDS, LINEAR, NONE, OFFSET_COLUMNS, PATH_MODES,
                                      RAPID, START_COLUMNS)
@@ -83,39 +84,6 @@ def _strings(n: int, rows=None, values=None, *, fill: str = "") -> pd.api.extens
         codes[rows] = inverse + 1
     arr = pa.DictionaryArray.from_arrays(pa.array(codes), pa.array(dictionary, pa.string()))
     return pd.array(arr.cast(pa.string()), dtype="string")
-
-
-def _looks_like_path(source: str) -> bool:
-    """One short line naming a program file (by suffix, or an existing file), not G-code text."""
-    if "\n" in source or "\r" in source or len(source) >= 4096:
-        return False
-    if Path(source).suffix.lower() in (".ngc", ".nc", ".gcode", ".tap", ".txt", ".cnc"):
-        return True
-    try:
-        return Path(source).is_file()
-    except (OSError, ValueError):  # too long for a file name, a NUL byte: text
-        return False
-
-
-def _read_source(source: str | Path, name: str | None) -> tuple[str, Path | None, str]:
-    """(text with "\n" line ends, path or None, name for messages). Old Mac files end lines with a
-    lone CR and Windows files with CR LF: both count as line ends, as editors show them."""
-    if isinstance(source, Path) or _looks_like_path(source):
-        path = Path(source)
-        label = name or str(path)
-        try:
-            raw = path.read_bytes()
-        except OSError as exc:
-            raise ProgramError(f"cannot read part program: {exc.strerror or exc}", file=label) from None
-        if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
-            raise ProgramError("the file is UTF-16 text (it starts with a UTF-16 byte-order mark); save the "
-                               "part program as ASCII or UTF-8", file=label, line=1)
-        text, path_out = raw.decode("utf-8-sig", errors="replace"), path
-    else:
-        text, path_out, label = source.removeprefix("\ufeff"), None, name or "<string>"
-    if "\r" in text:
-        text = text.replace("\r\n", "\n").replace("\r", "\n")
-    return text, path_out, label
 
 
 class _Rows:
@@ -185,7 +153,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     Unsupported codes raise ProgramError naming file, line and code; with `lenient=True` they are
     listed in `Program.unsupported` (and a warning) and skipped. Malformed text always raises.
     """
-    text, path, file = _read_source(source, name)
+    text, path, file = read_source(source, name)
     tok = lex(text, file=file, lenient=lenient)
     R = _Rows(tok, file, lenient)
     n = R.n
