@@ -71,6 +71,8 @@ def _open(path: Path):
 def read_can_log(path: str | Path, *, strict: bool = True) -> tuple[CanFrames, dict[str, int]]:
     """All data frames of a python-can log as arrays, and counts of what was skipped."""
     path = Path(path)
+    if path.stat().st_size == 0:
+        raise IngestError("the log is empty (no CAN frames)", file=str(path), position="byte 0")
     skipped = {"error_frames": 0, "remote_frames": 0, "fd_frames_over_8_bytes": 0, "bad_frames": 0,
                "unreadable_lines": 0}
     blocks: list[CanFrames] = []

@@ -127,14 +127,19 @@ def assemble_streams(decoded: Decoded, layout: DbcLayout) -> tuple[dict[str, pd.
         if not tables:
             continue
         merged = tables[0]
+        orphans = 0  # samples whose first frame is missing: frames of the others that found no row
         for other in tables[1:]:
             merged = _join(merged, other)
+            added = [c for c in other.columns if c not in ("t_ns", "_seq")]
+            matched = int(merged[added].notna().all(axis=1).sum()) if added else len(other)
+            orphans = max(orphans, len(other) - matched)
         columns = ["t_ns"] + [s.column for m in messages for s in m.signals
                               if s.stream == stream and s.name != SEQ_SIGNAL and s.column in merged]
         merged = merged[columns]
         complete = merged.notna().all(axis=1).to_numpy()
-        if not complete.all():
-            decoded.incomplete[stream] = decoded.incomplete.get(stream, 0) + int((~complete).sum())
+        left_out = int((~complete).sum()) + orphans
+        if left_out:
+            decoded.incomplete[stream] = decoded.incomplete.get(stream, 0) + left_out
             merged = merged[complete].reset_index(drop=True)
         streams[stream] = _typed(merged)
     return streams, max(lost_counts(decoded).values(), default=0)

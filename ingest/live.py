@@ -48,6 +48,7 @@ class FrameBuffer(can.Listener):
         self._dlc: list[int] = []
 
     def on_message_received(self, msg: can.Message) -> None:
+        self.received += 1  # every frame delivered, so the logger's own drops never exceed it
         if msg.is_error_frame or msg.is_remote_frame:
             self.error_frames += 1
             return
@@ -55,7 +56,6 @@ class FrameBuffer(can.Listener):
             self.bad_frames += 1
             return
         with self._lock:
-            self.received += 1
             if len(self._ts) >= self.max_frames:
                 self.dropped += 1
                 return
