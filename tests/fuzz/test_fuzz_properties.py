@@ -1,10 +1,11 @@
-"""Property-based fuzzing (hypothesis, derandomized): random G-code, CSV cells, MCAP damage and CAN
-frames. Each reader either raises our located error or returns values that are all finite, with
-int64 times that a recording may hold."""
+"""Property-based fuzzing (hypothesis, derandomized): random G-code, CSV cells, MCAP damage, CAN frames
+and damaged LinuxCNC INI files. Each reader either raises our located error or returns values that
+are all finite, with int64 times that a recording may hold."""
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -136,3 +137,24 @@ def test_random_can_frames_decode_to_complete_finite_samples(frames):
     assert str(short) in rec.metadata.get("short_frames", "0 ")
     for table in rec.streams.values():
         no_gaps(table)
+
+
+INI = (Path(__file__).resolve().parents[2] / "recordings" / "configs" / "xyz.ini").read_bytes()
+
+
+@FUZZ
+@given(st.integers(0, len(INI) - 1), st.binary(max_size=12), st.integers(0, len(INI)))
+def test_a_damaged_linuxcnc_ini_reads_or_names_the_file(tmp_path_factory, at, junk, cut):
+    """The recorder's --ini: whatever the bytes, MachineIni.read and the values it hands to the
+    session are either usable or an IngestError naming the file (before LinuxCNC is started)."""
+    from feedlog.ingest.linuxcnc_session import MachineIni
+
+    path = tmp_path_factory.mktemp("ini") / "m.ini"
+    path.write_bytes((INI[:at] + junk + INI[at:])[:max(cut, 1)])
+    try:
+        ini = MachineIni.read(path)
+        layout = ini.layout()
+    except IngestError as exc:
+        assert exc.file == str(path)
+        return
+    assert 1 <= ini.joints <= 16 and 1_000 <= ini.servo_period_ns <= 10**9 and layout.groups
