@@ -65,7 +65,8 @@ def main() -> None:
     player = Player(synthetic_blocks(layout, rate_hz=rate_hz, seconds=args.duration, t0_ns=t0_ns), channel,
                     speedup=1.0, stop=stop)
     progress = LastLine()
-    backlog = [0]
+    backlog = [0, 0.0]  # largest bus backlog (frames) and when (s)
+    rss_peak = [0.0]    # largest resident memory while recording (MB)
 
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "soak.mcap"
@@ -73,8 +74,11 @@ def main() -> None:
         def report() -> None:
             start, next_at = time.monotonic(), args.report_every
             while not stop.wait(0.5):
-                backlog[0] = max(backlog[0], rx.queue.qsize())
                 elapsed = time.monotonic() - start
+                waiting = rx.queue.qsize()
+                if waiting > backlog[0]:
+                    backlog[:] = [waiting, elapsed]
+                rss_peak[0] = max(rss_peak[0], rss_mb())
                 if elapsed >= next_at:
                     next_at += args.report_every
                     size = out.stat().st_size / 1e6 if out.exists() else 0.0
@@ -105,11 +109,13 @@ def main() -> None:
           f"= {summary['frames_per_s']:.0f} frames/s")
     print(f"dropped_frames {summary['dropped_frames']} (of them late {summary['late_frames']}, missing from the seq "
           f"counters {summary['lost_frames']}), incomplete samples "
-          f"{summary['incomplete_samples']}, bus overruns {player.overruns}, largest bus backlog {backlog[0]} frames")
+          f"{summary['incomplete_samples']}, bus overruns {player.overruns}, largest bus backlog {backlog[0]} frames "
+          f"(at {backlog[1]:.0f} s; the bus queue holds {MAX_BUS_QUEUE})")
     print(f"axes samples in the file {samples} of {player.sent // 3} sent; file {size_mb:.1f} MB, largest chunk "
           f"{chunk_mb:.2f} MiB uncompressed")
     print(f"CPU {cpu_s:.0f} s for player + logger = {cpu_s / max(summary['frames'], 1) * 1e6:.1f} us per frame; "
-          f"peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+          f"RSS while recording at most {rss_peak[0]:.0f} MB (sampled every 0.5 s), peak with the read-back "
+          f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
 
 
 if __name__ == "__main__":
