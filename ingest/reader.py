@@ -102,8 +102,8 @@ class _Collector:
 
 def _count(raw: str, key: str, source: str, where: str) -> int:
     """A non-negative decimal count from a metadata value."""
-    if not (raw.isascii() and raw.isdigit()):
-        raise IngestError(f"bad {key} {raw!r} (a count of frames)", file=source, position=where)
+    if not (raw.isascii() and raw.isdigit() and len(raw) <= 18):  # below 10**18: an int64 with room to add
+        raise IngestError(f"bad {key} {raw[:40]!r} (a count of frames below 10**18)", file=source, position=where)
     return int(raw)
 
 

@@ -137,6 +137,10 @@ def structural(rng: random.Random, data: bytes) -> list[Case]:
               "error", "error"),
         _case("zstd/dropped-frames-text", data.replace(b"dropped_frames\x01\x00\x00\x000", b"dropped_frames\x01\x00\x00\x00x"),
               "error", "error"),
+        _case("zstd/dropped-frames-30-digits", me.replace_metadata(data, "feedlog.stats", {
+            "dropped_frames": "9" * 30, "closed": "true"}), "error", "error"),
+        _case("zstd/dropped-frames-negative", me.replace_metadata(data, "feedlog.stats", {
+            "dropped_frames": "-5", "closed": "true"}), "error", "error"),
         _case("zstd/unknown-compression", bad_compression, "error", "any"),
         _case("empty", b"", "error", "error"),
         _case("magic-only", me.MAGIC, "error", "error"),

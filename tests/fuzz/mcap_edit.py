@@ -19,7 +19,7 @@ import pyarrow as pa
 import zstandard
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
-from mcap.records import Chunk, Message
+from mcap.records import Chunk, Message, Metadata
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, IndexType, Writer
 
@@ -117,6 +117,17 @@ def edit_messages(data: bytes, change, *, chunk: int = 0) -> bytes:
 
     recs[index] = rebuild_chunk(recs[index], edit)
     return join(recs)
+
+
+def replace_metadata(data: bytes, name: str, values: dict[str, str]) -> bytes:
+    """The file with its metadata record `name` holding `values` instead (lengths written anew)."""
+    recs = records(data)
+    builder = RecordBuilder()
+    Metadata(name=name, metadata=values).write(builder)
+    body = builder.end()[9:]
+    prefix = struct.pack("<I", len(name.encode())) + name.encode()
+    return join([Record(r.offset, r.opcode, body) if r.opcode == Opcode.METADATA and r.body.startswith(prefix)
+                 else r for r in recs])
 
 
 def write_feedlog(streams: dict[str, pa.Table], *, chunk_size: int, compression: str, rows_per_message: int,
