@@ -42,6 +42,7 @@ class BatchItem:
     error: str | None = None
     samples: int = 0
     task_s: float = 0.0
+    exit_code: int = 0  # of the error: 2 bad input, 1 an output that could not be written
 
 
 @dataclass(frozen=True)
@@ -124,7 +125,7 @@ def align_many(recordings: list[str | Path], outdir: str | Path, *, program: str
         there = None if overwrite else existing_output(root, name, files=FILES, tables=DATASET_TABLES,
                                                          key=PARTITION_KEY)
         if there is not None:
-            items[label] = BatchItem(recording=label, outdir=shown, ok=False,
+            items[label] = BatchItem(recording=label, outdir=shown, ok=False, exit_code=2,
                                      error=f"{there} exists; use --overwrite to replace it")
             continue
         tasks.append(AlignTask(recording=storage.absolute(label), label=label, outdir=root, program=prog,
@@ -140,5 +141,6 @@ def align_many(recordings: list[str | Path], outdir: str | Path, *, program: str
             items[task.label] = result.value
             result.value.outdir, result.value.task_s = shown, result.task_s
         else:
-            items[task.label] = BatchItem(recording=task.label, outdir=shown, ok=False, error=result.error)
+            items[task.label] = BatchItem(recording=task.label, outdir=shown, ok=False, error=result.error,
+                                          exit_code=result.exit_code)
     return [items[label] for label in labels]

@@ -59,7 +59,9 @@ def run(args: argparse.Namespace) -> int:
                        with_blocks=args.json)
     failed = [i for i in items if not i.ok]
     if len(items) == 1 and failed:
-        raise FeedlogError(failed[0].error or "alignment failed")
+        error = FeedlogError(failed[0].error or "alignment failed")
+        error.exit_code = failed[0].exit_code
+        raise error
     for item in failed:
         print(f"feedlog align: error: {item.recording}: {item.error}", file=sys.stderr)
     if args.json:
@@ -70,4 +72,4 @@ def run(args: argparse.Namespace) -> int:
         for i in items:
             if i.ok:
                 print(f"{i.recording}: cycle time {i.cycle_time_s:.3f} s -> {i.outdir}")
-    return 1 if failed else 0
+    return min((i.exit_code for i in failed), default=0)  # 1 if any output could not be written

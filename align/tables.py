@@ -23,7 +23,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from feedlog.align.pipeline import Alignment
-from feedlog.errors import AlignmentError, FeedlogError
+from feedlog.atomic import atomic_outputs
+from feedlog.errors import AlignmentError, FeedlogError, OutputError
 
 FORMAT_VERSION = 1
 META_KEY = b"feedlog.align"
@@ -64,11 +65,21 @@ def write_alignment(outdir: str | Path, alignment: Alignment, *, overwrite: bool
     existing = [p for p in paths if p.exists()]
     if existing and not overwrite:
         raise FeedlogError(f"{existing[0]} exists; use --overwrite to replace it")
-    out.mkdir(parents=True, exist_ok=True)
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create the output folder: {exc.strerror or exc}", file=str(out)) from None
     base = _base_meta(alignment, recording_path)
-    _write(paths[0], alignment.points, {**base, "table": "points"})
-    _write(paths[1], alignment.blocks, {**base, "table": "blocks"})
-    paths[2].write_text(to_json(alignment.report, indent=2) + "\n")
+    try:
+        with atomic_outputs(*paths) as temporaries:  # all three files or none
+            _write(temporaries[0], alignment.points, {**base, "table": "points"})
+            _write(temporaries[1], alignment.blocks, {**base, "table": "blocks"})
+            temporaries[2].write_text(to_json(alignment.report, indent=2) + "\n")
+    except OutputError:
+        if created:
+            out.rmdir()
+        raise
     return paths
 
 

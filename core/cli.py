@@ -3,7 +3,9 @@
 Subcommands live with the stage they belong to. Each is a module with
 `configure(parser: argparse.ArgumentParser) -> None` and `run(args: argparse.Namespace) -> int`,
 registered below by name and imported only when used, so `feedlog program` does not pay for torch.
-Our errors (FeedlogError) become one line on stderr and exit code 1; anything else is a bug.
+Our errors (FeedlogError) become one line on stderr and an exit code: 2 for input or arguments that
+cannot be used (as argparse does for usage errors), 1 for an output that could not be written
+(`OutputError`: disk full, permissions). Anything else is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -52,6 +54,11 @@ def _command_module(name: str):
         raise
 
 
+def one_line(text: str) -> str:
+    """A message on one line: line breaks inside it (quoted input, library text) become spaces."""
+    return " ".join(part.strip() for part in text.splitlines() if part.strip())
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     top = build_parser()
@@ -67,8 +74,8 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(rest)
         return int(module.run(args) or 0)
     except FeedlogError as exc:
-        print(f"feedlog {name}: error: {exc}", file=sys.stderr)
-        return 1
+        print(f"feedlog {name}: error: {one_line(str(exc))}", file=sys.stderr)
+        return exc.exit_code
     except KeyboardInterrupt:
         print(f"feedlog {name}: interrupted", file=sys.stderr)
         return 130

@@ -1,7 +1,9 @@
 """One exception tree for everything feedlog raises on purpose.
 
-The CLI turns any `FeedlogError` into one line on stderr and exit code 1; anything else is a bug
-and keeps its traceback.
+The CLI turns any `FeedlogError` into one line on stderr: exit code 2 when the input or the arguments
+cannot be used (like argparse's usage errors: change them and run again), exit code 1 for
+`OutputError`, when the inputs were fine but an output could not be written (a full disk, a missing
+permission). Anything else is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -9,6 +11,8 @@ from __future__ import annotations
 
 class FeedlogError(Exception):
     """Root of feedlog's errors: bad input, bad configuration, impossible requests."""
+
+    exit_code = 2  # what the CLI exits with: the input or the arguments cannot be used
 
 
 class LocatedError(FeedlogError):
@@ -48,6 +52,13 @@ class ProfileError(LocatedError):
 
 class IngestError(LocatedError):
     """A recording or log that cannot be read: names the file and the record or byte position."""
+
+
+class OutputError(LocatedError):
+    """An output that could not be written (disk full, file size limit, permissions): names the file.
+    Nothing half-written is left behind, except by the live logger, which keeps what it flushed."""
+
+    exit_code = 1
 
 
 class AlignmentError(FeedlogError):

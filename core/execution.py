@@ -76,6 +76,7 @@ class TaskResult(Generic[R]):
     value: R | None = None
     error: str | None = None
     task_s: float = 0.0        # time inside `fn` on the worker (0 when the worker was lost)
+    exit_code: int = 0         # of a failed item: the error's (2 bad input, 1 an output that could not be written)
 
 
 def _call(fn: Callable[[Any], Any], item: Any) -> tuple[bool, Any, float]:
@@ -84,14 +85,16 @@ def _call(fn: Callable[[Any], Any], item: Any) -> tuple[bool, Any, float]:
     try:
         value = fn(item)
     except FeedlogError as exc:
-        return False, str(exc) or type(exc).__name__, time.perf_counter() - start
+        return False, (str(exc) or type(exc).__name__, exc.exit_code), time.perf_counter() - start
     return True, value, time.perf_counter() - start
 
 
 def _result(label: str, outcome: tuple[bool, Any, float]) -> TaskResult:
     ok, value, seconds = outcome
-    return TaskResult(label, True, value=value, task_s=seconds) if ok else TaskResult(label, False, error=value,
-                                                                                       task_s=seconds)
+    if ok:
+        return TaskResult(label, True, value=value, task_s=seconds)
+    message, code = value
+    return TaskResult(label, False, error=message, task_s=seconds, exit_code=code)
 
 
 def add_arguments(parser: Any, *, jobs_help: str = "local worker processes (default: all cores)") -> None:
@@ -169,7 +172,7 @@ class _Processes:
                     if started:
                         suspects.add(i)
                     if deaths[i] > self.retries:
-                        results[i] = TaskResult(labels[i], False, error=f"worker process died {deaths[i]} times while "
+                        results[i] = TaskResult(labels[i], False, exit_code=1, error=f"worker process died {deaths[i]} times while "
                                                                         "running it alone (killed? out of memory?)")
                         bar.update()
                     else:
@@ -276,7 +279,7 @@ class _Dask:
                         fut.result()  # a bug in `fn`: raise it here with the worker's traceback
                     why = (f"its worker was lost too often ({exc})" if exc is not None
                            else f"task {fut.status} (scheduler restarted or connection lost?)")
-                    results[i] = TaskResult(labels[i], False, error=why)
+                    results[i] = TaskResult(labels[i], False, error=why, exit_code=1)
                 bar.update()
         finally:
             self.client.cancel([f for f in futures if not f.done()])

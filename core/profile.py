@@ -21,6 +21,29 @@ import tomli_w
 
 from feedlog.errors import ProfileError
 
+def check_number(name: str, value: Any, low: float, high: float, *, integer: bool = False) -> None:
+    """A real number (not a bool, a string or NaN) from `low` to `high`; ProfileError otherwise. Bounds
+    are far outside any machine: they keep nonsense (1e-300 mm/s, inf) from reaching the simulation."""
+    kinds = (int,) if integer else (int, float)
+    if isinstance(value, bool) or not isinstance(value, kinds) or not low <= value <= high:
+        what = "a whole number" if integer else "a number"
+        span = " (inf for no limit)" if math.isinf(low) and math.isinf(high) else f" from {low:g} to {high:g}"
+        raise ProfileError(f"{name} must be {what}{span}, got {value!r}")
+
+
+def _build(cls, table: dict[str, Any], where: str, **extra: Any):
+    """`cls(**table)` with unknown and missing keys named (TOML keys are the dataclass fields)."""
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init and f.name != "source"}
+    unknown = sorted(set(table) - set(fields))
+    if unknown:
+        raise ProfileError(f"{where}: unknown key(s) {', '.join(unknown)}; known: {', '.join(fields)}")
+    missing = [name for name, f in fields.items() if name not in table and name not in extra
+               and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
+    if missing:
+        raise ProfileError(f"{where}: missing key(s) {', '.join(missing)}")
+    return cls(**table, **extra)
+
+
 LINEAR_AXES = ("x", "y", "z")
 ROTARY_AXES = ("a", "b", "c")
 KINEMATICS = ("xyz", "xyzac-trt", "xyzbc-trt")
@@ -37,9 +60,11 @@ class AxisLimits:
     max_limit: float = math.inf
 
     def check(self, name: str) -> None:
-        if not (self.vel_max > 0 and self.acc_max > 0 and self.jerk_max >= 0):
-            raise ProfileError(f"axis {name}: need vel_max > 0, acc_max > 0, jerk_max >= 0, got "
-                               f"{self.vel_max}, {self.acc_max}, {self.jerk_max}")
+        check_number(f"axis {name}: vel_max", self.vel_max, 1e-3, 1e7)
+        check_number(f"axis {name}: acc_max", self.acc_max, 1e-3, 1e9)
+        check_number(f"axis {name}: jerk_max", self.jerk_max, 0.0, 1e12)
+        for key in ("min_limit", "max_limit"):  # may be unbounded (inf)
+            check_number(f"axis {name}: {key}", getattr(self, key), -math.inf, math.inf)
         if not self.min_limit < self.max_limit:
             raise ProfileError(f"axis {name}: min_limit {self.min_limit} must be below max_limit {self.max_limit}")
 
@@ -65,6 +90,9 @@ class Kinematics:
         for name in ("rotary_offset_mm", "workpiece_offset_mm"):
             if len(getattr(self, name)) != 3:
                 raise ProfileError(f"kinematics.{name} needs three values, got {getattr(self, name)!r}")
+            for value in getattr(self, name):
+                check_number(f"kinematics.{name}", value, -1e6, 1e6)
+        check_number("kinematics.tool_length_mm", self.tool_length_mm, -1e6, 1e6)
 
     @property
     def rotary_axes(self) -> tuple[str, ...]:
@@ -87,14 +115,14 @@ class Interpolator:
     path_acc_max_mm_s2: float = math.inf
 
     def check(self) -> None:
-        if not (self.servo_period_s > 0 and self.interpolation_period_s > 0):
-            raise ProfileError(f"interpolator periods must be > 0, got servo {self.servo_period_s}, "
-                               f"interpolation {self.interpolation_period_s}")
-        if self.lookahead_blocks < 1:
-            raise ProfileError(f"interpolator.lookahead_blocks must be >= 1, got {self.lookahead_blocks}")
-        for name in ("fir_t1_s", "fir_t2_s", "block_time_s", "path_tolerance_mm", "orientation_tolerance_deg"):
-            if getattr(self, name) < 0:
-                raise ProfileError(f"interpolator.{name} must be >= 0, got {getattr(self, name)}")
+        for name in ("servo_period_s", "interpolation_period_s"):
+            check_number(f"interpolator.{name}", getattr(self, name), 1e-6, 1.0)
+        check_number("interpolator.lookahead_blocks", self.lookahead_blocks, 1, 100_000, integer=True)
+        for name, high in (("fir_t1_s", 10.0), ("fir_t2_s", 10.0), ("block_time_s", 10.0), ("path_tolerance_mm", 1e3),
+                           ("orientation_tolerance_deg", 360.0)):
+            check_number(f"interpolator.{name}", getattr(self, name), 0.0, high)
+        for name in ("path_vel_max_mm_s", "path_acc_max_mm_s2"):  # inf: no path limit
+            check_number(f"interpolator.{name}", getattr(self, name), 1e-3, math.inf)
         if self.fir_t2_s > self.fir_t1_s:
             raise ProfileError(f"interpolator.fir_t2_s ({self.fir_t2_s}) must not exceed fir_t1_s ({self.fir_t1_s})")
 
@@ -109,16 +137,20 @@ class MachineProfile:
     controller: str = ""
     description: str = ""
     sim: dict[str, dict[str, Any]] = field(default_factory=dict)
+    source: str = field(default="", compare=False, repr=False)  # the file it was read from (for messages)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str):
+            raise ProfileError(f"profile name must be a string, got {self.name!r}")
         if not self.axes:
             raise ProfileError(f"profile {self.name!r} has no axes")
         for name, limits in self.axes.items():
             if name not in LINEAR_AXES + ROTARY_AXES:
                 raise ProfileError(f"profile {self.name!r}: unknown axis {name!r}")
             limits.check(name)
-        if self.rapid_mm_min <= 0:
-            raise ProfileError(f"profile {self.name!r}: rapid_mm_min must be > 0, got {self.rapid_mm_min}")
+        check_number(f"profile {self.name!r}: rapid_mm_min", self.rapid_mm_min, 1e-3, 1e9)
+        if not isinstance(self.sim, dict) or not all(isinstance(t, dict) for t in self.sim.values()):
+            raise ProfileError(f"profile {self.name!r}: [sim] must hold one table per mechanism")
         self.kinematics.check()
         self.interpolator.check()
         missing = [a for a in LINEAR_AXES + self.kinematics.rotary_axes if a not in self.axes]
@@ -163,15 +195,23 @@ class MachineProfile:
     def from_dict(cls, data: dict[str, Any], *, source: str = "<dict>") -> MachineProfile:
         data = dict(data)
         try:
-            axes = {k: AxisLimits(**v) for k, v in data.pop("axes", {}).items()}
-            kin = data.pop("kinematics", {})
+            tables = {key: data.pop(key, {}) for key in ("axes", "kinematics", "interpolator")}
+            bad = [key for key, table in tables.items() if not isinstance(table, dict)]
+            bad += [f"axes.{k}" for k, v in tables["axes"].items() if not isinstance(v, dict)] if not bad else []
+            if bad:
+                raise ProfileError(f"[{bad[0]}] must be a table")
+            axes = {k: _build(AxisLimits, v, f"[axes.{k}]") for k, v in tables["axes"].items()}
+            kin = dict(tables["kinematics"])
             for key in ("rotary_offset_mm", "workpiece_offset_mm"):
                 if key in kin:
-                    kin[key] = tuple(float(x) for x in kin[key])
-            kinematics = Kinematics(**kin)
-            interpolator = Interpolator(**data.pop("interpolator", {}))
-            return cls(axes=axes, kinematics=kinematics, interpolator=interpolator, **data)
-        except TypeError as exc:  # unknown or missing keys
+                    if not isinstance(kin[key], (list, tuple)):
+                        raise ProfileError(f"kinematics.{key} needs three numbers, got {kin[key]!r}")
+                    kin[key] = tuple(kin[key])
+            kinematics = _build(Kinematics, kin, "[kinematics]")
+            interpolator = _build(Interpolator, tables["interpolator"], "[interpolator]")
+            return _build(cls, data, "machine profile", axes=axes, kinematics=kinematics, interpolator=interpolator,
+                          source=source)
+        except TypeError as exc:  # a value of the wrong kind where a comparison needed a number
             raise ProfileError(f"malformed machine profile: {exc}", file=source) from None
         except ProfileError as exc:
             raise ProfileError(exc.message, file=source) from None
@@ -200,7 +240,13 @@ def load_profile(name_or_path: str | Path) -> MachineProfile:
     if path.suffix == ".toml" or path.exists():
         if not path.is_file():
             raise ProfileError("machine profile file not found", file=text_name)
-        return MachineProfile.from_toml(path.read_text(), source=text_name)
+        try:
+            text = path.read_bytes().decode("utf-8-sig")
+        except UnicodeDecodeError as exc:
+            raise ProfileError(f"not UTF-8 text (byte {exc.start}); TOML files are UTF-8", file=text_name) from None
+        except OSError as exc:
+            raise ProfileError(f"cannot read the profile: {exc.strerror or exc}", file=text_name) from None
+        return MachineProfile.from_toml(text, source=text_name)
     shipped = resources.files("feedlog.profiles").joinpath(f"{text_name}.toml")
     if not shipped.is_file():
         raise ProfileError(f"unknown machine profile {text_name!r}; shipped: {', '.join(shipped_profiles())} "

@@ -12,6 +12,11 @@ from feedlog.errors import UnitError
 
 MM_PER_INCH = 25.4
 NS_PER_S = 1_000_000_000
+# Bounds on time. A program or a simulation lasts at most MAX_TIME_S (31.7 years); a recording's
+# int64 t_ns stays within +-MAX_ABS_T_NS (year 1823 to 2116 as epoch times), so the difference of any
+# two times still fits int64 and INT64_MIN (what a NaN becomes in a cast) is never a time.
+MAX_TIME_S = 1e9
+MAX_ABS_T_NS = 2**62
 
 # factor to the base unit of each dimension: length -> mm, time -> s, angle -> deg
 _LENGTH = {"mm": 1.0, "m": 1000.0, "um": 1e-3, "in": MM_PER_INCH, "inch": MM_PER_INCH}
@@ -53,8 +58,14 @@ def velocity_factor(unit: str) -> float:
 
 
 def seconds_to_ns(seconds) -> np.ndarray:
-    """Float seconds -> int64 nanoseconds, rounded to the nearest ns."""
-    return np.rint(np.asarray(seconds, dtype=np.float64) * NS_PER_S).astype(np.int64)
+    """Float seconds -> int64 nanoseconds, rounded to the nearest ns. NaN, inf and times beyond
+    +-MAX_ABS_T_NS raise UnitError instead of wrapping around in the cast."""
+    ns = np.rint(np.asarray(seconds, dtype=np.float64) * NS_PER_S)
+    if ns.size and not (np.abs(ns) <= MAX_ABS_T_NS).all():
+        bad = ns.ravel()[~(np.abs(ns.ravel()) <= MAX_ABS_T_NS)][0] / NS_PER_S
+        raise UnitError(f"time {bad:g} s cannot be counted in int64 nanoseconds (NaN, infinite or beyond "
+                        f"+-{MAX_ABS_T_NS / NS_PER_S:.3g} s)")
+    return ns.astype(np.int64)
 
 
 def ns_to_seconds(t_ns) -> np.ndarray:

@@ -11,6 +11,7 @@ Frames travel as `CanFrames`: parallel arrays `t_ns`, `can_id`, `data` (N x 8 by
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from dataclasses import dataclass, field
@@ -21,6 +22,7 @@ import cantools
 import numpy as np
 
 from feedlog.errors import IngestError
+from feedlog.units import MAX_ABS_T_NS
 
 STREAM_ATTRIBUTE = "FeedlogStream"
 SEQ_SIGNAL = "seq"
@@ -30,6 +32,17 @@ def seconds_to_us_ns(seconds) -> np.ndarray:
     """python-can's float-second timestamps -> int64 ns, rounded to whole microseconds (a float64 epoch
     time resolves only ~0.2 us, and CAN interfaces and log formats stamp in us or coarser)."""
     return np.rint(np.asarray(seconds, dtype=np.float64) * 1e6).astype(np.int64) * 1000
+
+
+def frame_problem(msg) -> str | None:
+    """Why no CAN bus could have carried the python-can message `msg` (an id beyond 11 or 29 bits, a
+    timestamp that is NaN, infinite or beyond int64 nanoseconds), or None."""
+    limit = 0x1FFF_FFFF if msg.is_extended_id else 0x7FF
+    if not 0 <= msg.arbitration_id <= limit:
+        return f"identifier 0x{msg.arbitration_id:X} does not fit {29 if msg.is_extended_id else 11} bits"
+    if not (math.isfinite(msg.timestamp) and abs(msg.timestamp) < MAX_ABS_T_NS / 1e9):
+        return f"timestamp {msg.timestamp} is not a time"
+    return None
 
 
 def default_dbc_path() -> Path:
@@ -89,6 +102,11 @@ class MessageLayout:
     signals: list[SignalLayout]
     bulk: bool  # False: decode with cantools frame by frame
     message: object  # the cantools Message
+
+    @property
+    def length(self) -> int:
+        """Data bytes a frame of this message carries; shorter frames cannot be decoded."""
+        return int(self.message.length)
 
     def decode(self, data: np.ndarray) -> dict[str, np.ndarray]:
         """Decode all frames of this id (N x 8 bytes) into physical values per signal."""

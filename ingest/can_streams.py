@@ -4,7 +4,10 @@ Each signal goes to the stream named by the DBC attribute `FeedlogStream` (on th
 message, else the message name in lower_snake_case); its column is the signal name with the unit
 appended unless already there. A stream fed by several messages (feedlog's `axes`: XY, ZA, BC frames)
 takes its times from its lowest frame id and joins the others by their sample counter
-`seq` and nearest time (`pandas.merge_asof`). The `seq` signals also count lost samples.
+`seq` and nearest time (`pandas.merge_asof`); a sample that misses one of its frames is left out and
+counted (`Decoded.incomplete`), so no stream ever holds a NaN for a frame that did not come. Frames
+shorter than their DBC message are not decoded (their missing bytes would read as zeros) and are
+counted (`Decoded.short`). The `seq` signals also count lost samples.
 """
 
 from __future__ import annotations
@@ -26,6 +29,16 @@ class Decoded:
     times: dict[int, np.ndarray] = field(default_factory=dict)
     values: dict[int, dict[str, np.ndarray]] = field(default_factory=dict)
     unknown: dict[int, int] = field(default_factory=dict)
+    short: dict[int, int] = field(default_factory=dict)       # frames shorter than their message, per id
+    incomplete: dict[str, int] = field(default_factory=dict)  # samples left out for a missing frame, per stream
+
+    @property
+    def short_frames(self) -> int:
+        return int(sum(self.short.values()))
+
+    def short_report(self) -> str:
+        return f"{self.short_frames} frames shorter than their DBC message, not decoded: " + \
+            ", ".join(f"0x{k:X} ({v})" for k, v in sorted(self.short.items()))
 
     @property
     def unknown_frames(self) -> int:
@@ -49,6 +62,10 @@ def decode_frames(frames: CanFrames, layout: DbcLayout) -> Decoded:
         if not len(index):
             continue
         known |= mask
+        short = frames.dlc[index] < message.length
+        if short.any():
+            out.short[frame_id] = int(short.sum())
+            index = index[~short]
         out.times[frame_id] = frames.t_ns[index]
         out.values[frame_id] = (message.decode_words(words[index]) if message.bulk
                                 else message.decode(frames.data[index]))
@@ -110,12 +127,31 @@ def assemble_streams(decoded: Decoded, layout: DbcLayout) -> tuple[dict[str, pd.
         if not tables:
             continue
         merged = tables[0]
+        orphans = 0  # samples whose first frame is missing: frames of the others that found no row
         for other in tables[1:]:
             merged = _join(merged, other)
+            added = [c for c in other.columns if c not in ("t_ns", "_seq")]
+            matched = int(merged[added].notna().all(axis=1).sum()) if added else len(other)
+            orphans = max(orphans, len(other) - matched)
         columns = ["t_ns"] + [s.column for m in messages for s in m.signals
                               if s.stream == stream and s.name != SEQ_SIGNAL and s.column in merged]
-        streams[stream] = merged[columns]
+        merged = merged[columns]
+        complete = merged.notna().all(axis=1).to_numpy()
+        left_out = int((~complete).sum()) + orphans
+        if left_out:
+            decoded.incomplete[stream] = decoded.incomplete.get(stream, 0) + left_out
+            merged = merged[complete].reset_index(drop=True)
+        streams[stream] = _typed(merged)
     return streams, max(lost_counts(decoded).values(), default=0)
+
+
+def _typed(table: pd.DataFrame) -> pd.DataFrame:
+    """Columns back to their own dtype where a join with missing rows had made them float or object."""
+    table = table.infer_objects()
+    for column, dtype in _DTYPES.items():
+        if column in table and table[column].dtype != dtype:
+            table[column] = table[column].astype(dtype)
+    return table
 
 
 def _join(base: pd.DataFrame, other: pd.DataFrame) -> pd.DataFrame:

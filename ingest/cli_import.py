@@ -60,7 +60,8 @@ def run(args: argparse.Namespace) -> int:
     write_recording(args.out, recording, overwrite=args.overwrite, compression=args.compression)
     recording.source = args.out
     print(format_summary(summarize(recording)))
-    for key in ("bad_rows", "bad_records", "unknown_ids", "recovered"):
+    for key in ("bad_rows", "bad_records", "bad_frames", "unknown_ids", "short_frames", "incomplete_samples",
+                "recovered"):
         if key in recording.metadata:
             print(f"warning: {key}: {recording.metadata[key]}")
     return 0

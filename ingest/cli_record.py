@@ -3,7 +3,8 @@
 Sources are modules registered below by name; each provides `add_arguments(group)` for its own
 options and `record(args) -> dict` (a summary). A source that sets `STOPS_ON_EVENT = True` gets
 `args.stop_event`: SIGINT and SIGTERM set it and the source finishes its file and returns. Other
-sources keep Python's default signal handling.
+sources keep Python's default signal handling. A summary with an `error` (a write that failed) exits
+with code 1: the recording holds everything flushed before.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import signal
 import threading
 from pathlib import Path
 
-from feedlog.errors import FeedlogError, IngestError
+from feedlog.errors import FeedlogError, IngestError, OutputError
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT
 
 # source name -> module with add_arguments(group) and record(args) -> dict
@@ -96,6 +97,6 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(", ".join(f"{k}: {v}" for k, v in summary.items() if k != "streams"))
     if summary.get("error"):
-        raise IngestError(f"recording stopped: {summary['error']}; the samples flushed before are kept "
+        raise OutputError(f"recording stopped: {summary['error']}; the samples flushed before are kept "
                           f"in {args.out}")
     return 0

@@ -2,10 +2,12 @@
 
 A `ColumnMap` (a preset or `--map`) names the time column and the value columns with their units.
 Fast path: pyarrow parses only the mapped columns, typed, on all cores. If anything is wrong (a row
-with the wrong number of fields, a value that is not a number, an empty cell, time going backwards) the
-file is read again in a diagnostic pass that knows every row's line number: strict mode (the default)
-raises `IngestError` naming the file, the first bad line and the count; lenient mode drops and counts
-the bad rows and lists their lines in `metadata["bad_rows"]`.
+with the wrong number of fields, a value that is not a finite number, an empty cell, a time beyond
+int64 nanoseconds, time going backwards) the file is read again in a diagnostic pass that knows every
+row's line number: strict mode (the default) raises `IngestError` naming the file, the first bad line
+and the count; lenient mode drops and counts the bad rows and lists their lines in
+`metadata["bad_rows"]`. Header names are taken without surrounding spaces (and without a UTF-8 BOM);
+lines may end in LF, CR LF or a lone CR.
 """
 
 from __future__ import annotations
@@ -19,10 +21,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.csv as pacsv
 
 from feedlog.errors import IngestError
 from feedlog.ingest.mapping import ColumnMap, build_streams, time_to_ns
+from feedlog.units import MAX_ABS_T_NS, time_factor
 from feedlog.ingest.recording import Recording
 
 _OFFSET = re.compile(r"(Z|[+-]\d\d:?\d\d)$")
@@ -52,10 +56,15 @@ class BadRows:
 
 def _header(path: Path, delimiter: str) -> tuple[int, list[str]]:
     """(1-based line number of the header, column names); leading '#' comment and blank lines skipped."""
-    with open(path, newline="", encoding="utf-8", errors="replace") as f:
+    with open(path, "rb") as f:
+        if f.read(2) in (b"\xff\xfe", b"\xfe\xff"):
+            raise IngestError("the file is UTF-16 text (it starts with a UTF-16 byte-order mark); save it as "
+                              "UTF-8", file=str(path), line=1)
+    with open(path, newline="", encoding="utf-8-sig", errors="replace") as f:
         for number, text in enumerate(f, start=1):
             if text.strip() and not text.lstrip().startswith("#"):
-                return number, [name.strip() for name in next(csv.reader([text], delimiter=delimiter))]
+                names = [name.strip() for name in next(csv.reader([text], delimiter=delimiter))]
+                return number, names
     raise IngestError("empty CSV file (no header row)", file=str(path), line=1)
 
 
@@ -72,12 +81,16 @@ def read_csv(path: str | os.PathLike, cmap: ColumnMap, *, strict: bool = True, d
     used = {target: source for target, source in cmap.mapping.items() if source in names}
     if len(used) < 2:
         raise IngestError(f"{cmap.name}: only the time column is in the file", file=str(path), line=header_line)
-    table = _fast_read(path, header_line, used, cmap, delimiter)
+    twice = next((source for source in used.values() if names.count(source) > 1), None)
+    if twice:
+        raise IngestError(f"column {twice!r} appears twice in the header", file=str(path), line=header_line)
+    table = _fast_read(path, header_line, names, used, cmap, delimiter)
+    columns = None if table is None else _columns(table, used, cmap)
     bad = BadRows()
-    if table is None:
-        t_ns, values, lines = _diagnostic_read(path, header_line, used, cmap, delimiter, bad)
+    if columns is None:
+        t_ns, values, lines = _diagnostic_read(path, header_line, names, used, cmap, delimiter, bad)
     else:
-        (t_ns, values), lines = _columns(table, used, cmap), None
+        (t_ns, values), lines = columns, None
     back = _backwards(t_ns)
     if len(back):
         if lines is None:
@@ -86,6 +99,9 @@ def read_csv(path: str | os.PathLike, cmap: ColumnMap, *, strict: bool = True, d
     if len(bad) and strict:
         raise IngestError(f"{bad.describe()} (lenient import skips them: --lenient)", file=str(path),
                           line=bad.lines[0])
+    if len(t_ns) - len(back) == 0:
+        raise IngestError("no data rows" + (f" left ({bad.describe()})" if len(bad) else " after the header"),
+                          file=str(path), line=header_line)
     if len(back):
         keep = np.ones(len(t_ns), dtype=bool)
         keep[back] = False
@@ -111,7 +127,7 @@ def _time_type(cmap: ColumnMap) -> pa.DataType:
     return pa.int64() if cmap.time_unit == "ns" else pa.float64()
 
 
-def _fast_read(path: Path, header_line: int, used: dict[str, str], cmap: ColumnMap,
+def _fast_read(path: Path, header_line: int, names: list[str], used: dict[str, str], cmap: ColumnMap,
                delimiter: str) -> pa.Table | None:
     """Typed multi-threaded read; None when the file needs the diagnostic pass."""
     invalid = 0
@@ -126,27 +142,50 @@ def _fast_read(path: Path, header_line: int, used: dict[str, str], cmap: ColumnM
     try:
         table = pacsv.read_csv(
             path,
-            read_options=pacsv.ReadOptions(skip_rows=header_line - 1, block_size=8 << 20),
+            read_options=pacsv.ReadOptions(skip_rows=header_line, column_names=_unique(names), block_size=8 << 20),
             parse_options=pacsv.ParseOptions(delimiter=delimiter, invalid_row_handler=on_invalid),
             convert_options=pacsv.ConvertOptions(column_types=types, include_columns=list(dict.fromkeys(used.values())),
                                                  strings_can_be_null=False, quoted_strings_can_be_null=False))
-    except pa.ArrowInvalid:
+    except pa.ArrowException:
         return None
     if invalid or any(table.column(source).null_count for source in set(used.values())):
         return None
+    floats = [table.column(source) for source in set(used.values()) if pa.types.is_floating(table.column(source).type)]
+    if any(not pc.all(pc.is_finite(column)).as_py() for column in floats if len(column)):
+        return None  # NaN or infinite values: the diagnostic pass names their lines
     return table
 
 
-def _columns(table: pa.Table, used: dict[str, str], cmap: ColumnMap) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+def _unique(names: list[str]) -> list[str]:
+    """Column names for pyarrow: repeated names (never mapped, see read_csv) made unique."""
+    seen: dict[str, int] = {}
+    out = []
+    for name in names:
+        seen[name] = seen.get(name, 0) + 1
+        out.append(name if seen[name] == 1 else f"{name}\0{seen[name]}")
+    return out
+
+
+def _columns(table: pa.Table, used: dict[str, str], cmap: ColumnMap) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
     t_raw = table.column(used["t"])
     if cmap.time_unit == "datetime":
         t_ns, ok = _parse_datetimes(t_raw.to_numpy(zero_copy_only=False), cmap)
-        if not ok.all():  # unreachable through read_csv: the diagnostic pass handles bad datetimes
-            raise IngestError("bad timestamps")
     else:
-        t_ns = time_to_ns(t_raw.to_numpy(), cmap)
+        t_ns, ok = _times(t_raw.to_numpy(), cmap)
+    if not ok.all():  # the diagnostic pass reads the file again and names the lines
+        return None
     values = {target: table.column(source).to_numpy() for target, source in used.items() if target != "t"}
     return t_ns, values
+
+
+def _times(values: np.ndarray, cmap: ColumnMap) -> tuple[np.ndarray, np.ndarray]:
+    """Numeric times -> (int64 ns, ok mask): NaN, infinite and out-of-range times are not ok (0 there)."""
+    if values.dtype.kind in "iu":
+        seconds = values.astype(np.float64) * time_factor(cmap.time_unit)
+    else:
+        seconds = values * time_factor(cmap.time_unit)
+    ok = np.abs(seconds) <= MAX_ABS_T_NS / 1e9  # False for NaN
+    return time_to_ns(np.where(ok, values, 0), cmap), ok
 
 
 def _parse_datetimes(text: np.ndarray, cmap: ColumnMap) -> tuple[np.ndarray, np.ndarray]:
@@ -154,17 +193,21 @@ def _parse_datetimes(text: np.ndarray, cmap: ColumnMap) -> tuple[np.ndarray, np.
     series = pd.Series(text, dtype=object)
     sample = next((s for s in series if isinstance(s, str) and s.strip()), "")
     aware = bool(_OFFSET.search(sample.strip()))
-    parsed = pd.to_datetime(series, format=cmap.time_format or "ISO8601", errors="coerce", utc=aware)
-    if not aware:
-        parsed = parsed.dt.tz_localize(cmap.timezone, ambiguous="NaT", nonexistent="NaT")
+    try:
+        parsed = pd.to_datetime(series, format=cmap.time_format or "ISO8601", errors="coerce", utc=aware)
+        if not aware:
+            parsed = parsed.dt.tz_localize(cmap.timezone, ambiguous="NaT", nonexistent="NaT")
+    except (ValueError, TypeError) as exc:
+        raise IngestError(f"cannot read times with --time-format {cmap.time_format!r}: {exc}") from None
     ok = parsed.notna().to_numpy()
     t_ns = np.zeros(len(series), dtype=np.int64)
     t_ns[ok] = parsed[ok].dt.tz_convert("UTC").dt.tz_localize(None).to_numpy().astype("datetime64[ns]").astype(np.int64)
+    ok = ok & (np.abs(t_ns) <= MAX_ABS_T_NS)
     return t_ns, ok
 
 
-def _diagnostic_read(path: Path, header_line: int, used: dict[str, str], cmap: ColumnMap, delimiter: str,
-                     bad: BadRows) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
+def _diagnostic_read(path: Path, header_line: int, names: list[str], used: dict[str, str], cmap: ColumnMap,
+                     delimiter: str, bad: BadRows) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
     """Single-threaded read as text with line numbers; bad rows go to `bad` and are dropped."""
     wrong_width: list[tuple[int, str]] = []
 
@@ -176,7 +219,7 @@ def _diagnostic_read(path: Path, header_line: int, used: dict[str, str], cmap: C
     try:  # as bytes: a cell that is not even UTF-8 is a bad value, not a crash
         table = pacsv.read_csv(
             path,
-            read_options=pacsv.ReadOptions(skip_rows=header_line - 1, use_threads=False),
+            read_options=pacsv.ReadOptions(skip_rows=header_line, column_names=_unique(names), use_threads=False),
             parse_options=pacsv.ParseOptions(delimiter=delimiter, invalid_row_handler=on_invalid),
             convert_options=pacsv.ConvertOptions(column_types={s: pa.binary() for s in sources},
                                                  include_columns=sources))
@@ -195,15 +238,17 @@ def _diagnostic_read(path: Path, header_line: int, used: dict[str, str], cmap: C
         text = raw.str.decode("utf-8", errors="replace").to_numpy(dtype=object)
         if target == "t" and cmap.time_unit == "datetime":
             values, ok = _parse_datetimes(text, cmap)
+            kind = "timestamp"
         else:
             values = pd.to_numeric(pd.Series(text, dtype=object).str.strip(), errors="coerce").to_numpy(np.float64)
-            ok = np.isfinite(values) | (pd.Series(text).str.strip().str.lower().isin(["nan", "inf", "-inf"]).to_numpy())
+            ok = np.isfinite(values)
+            kind = "finite number"
             if target == "t":
-                values = time_to_ns(np.where(ok, values, 0.0), cmap)
+                values, ok = _times(values, cmap)
+                kind = "time (a finite number within +-146 years)"
         if not ok.all():
             first = int(np.flatnonzero(~ok)[0])
-            bad.add(lines[~ok], f"column {source!r}: {text[first]!r} is not a "
-                                f"{'timestamp' if target == 't' and cmap.time_unit == 'datetime' else 'number'}")
+            bad.add(lines[~ok], f"column {source!r}: {text[first]!r} is not a {kind}")
         keep &= ok
         converted[target] = values
     t_ns = converted.pop("t")[keep]
@@ -211,13 +256,17 @@ def _diagnostic_read(path: Path, header_line: int, used: dict[str, str], cmap: C
 
 
 def _data_lines(path: Path, header_line: int) -> np.ndarray:
-    """1-based line numbers of the non-empty lines after the header (one per data row)."""
+    """1-based line numbers of the non-empty lines after the header (one per data row). A line ends
+    at LF, at CR LF or at a lone CR, as pyarrow's parser reads them."""
     raw = np.frombuffer(path.read_bytes(), dtype=np.uint8)
-    ends = np.flatnonzero(raw == ord("\n"))
+    lf = raw == ord("\n")
+    cr = raw == ord("\r")
+    lone_cr = cr & ~np.r_[lf[1:], False]
+    ends = np.flatnonzero(lf | lone_cr)
     starts = np.concatenate(([0], ends + 1))
     ends = np.concatenate((ends, [len(raw)]))
     length = ends - starts
-    has_cr = (length > 0) & (raw[np.maximum(ends - 1, 0)] == ord("\r")) if len(raw) else np.zeros(0, bool)
+    has_cr = (length > 0) & cr[np.maximum(ends - 1, 0)] if len(raw) else np.zeros(0, bool)
     numbers = np.arange(1, len(starts) + 1)
     return numbers[(numbers > header_line) & ((length - has_cr) > 0)]
 

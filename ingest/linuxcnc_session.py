@@ -49,9 +49,12 @@ class MachineIni:
     def read(cls, path: str | os.PathLike) -> "MachineIni":
         p = Path(path)
         try:
-            text = p.read_text()
+            text = p.read_bytes().decode("utf-8-sig")
         except OSError as exc:
             raise IngestError(f"cannot read LinuxCNC INI: {exc.strerror}", file=str(p)) from None
+        except UnicodeDecodeError as exc:
+            raise IngestError(f"LinuxCNC INI is not UTF-8 text (byte {exc.start})", file=str(p),
+                              position=f"byte {exc.start}") from None
         values: dict[tuple[str, str], list[str]] = {}
         section = ""
         for raw in text.splitlines():
@@ -67,7 +70,21 @@ class MachineIni:
         for key in (("TRAJ", "COORDINATES"), ("KINS", "JOINTS"), ("EMCMOT", "SERVO_PERIOD")):
             if ini.get(*key) is None:
                 raise IngestError(f"LinuxCNC INI lacks [{key[0]}] {key[1]}", file=str(p))
+        ini.joints, ini.servo_period_ns  # noqa: B018 - each raises IngestError now if unusable, not mid-session
+        if not any(c.isalpha() for c in ini.coordinates):
+            raise IngestError(f"[TRAJ] COORDINATES {ini.coordinates!r} names no axis", file=str(p))
         return ini
+
+    def _number(self, section: str, key: str, kind, low: float, high: float):
+        raw = str(self.get(section, key))
+        try:
+            value = kind(float(raw)) if kind is not int else int(raw)
+        except (ValueError, OverflowError):
+            value = None
+        if value is None or not low <= value <= high:
+            raise IngestError(f"[{section}] {key} = {raw!r} is not a {'whole ' if kind is int else ''}number "
+                              f"from {low:g} to {high:g}", file=str(self.path))
+        return value
 
     def get(self, section: str, key: str) -> str | None:
         found = self.values.get((section.upper(), key.upper()))
@@ -79,11 +96,11 @@ class MachineIni:
 
     @property
     def joints(self) -> int:
-        return int(str(self.get("KINS", "JOINTS")))
+        return self._number("KINS", "JOINTS", int, 1, 16)  # LinuxCNC's EMCMOT_MAX_JOINTS
 
     @property
     def servo_period_ns(self) -> int:
-        return int(float(str(self.get("EMCMOT", "SERVO_PERIOD"))))
+        return self._number("EMCMOT", "SERVO_PERIOD", int, 1_000, 1_000_000_000)
 
     @property
     def linear_units(self) -> str:
@@ -102,7 +119,10 @@ class MachineIni:
         return found
 
     def layout(self) -> SamplerLayout:
-        return standard_layout(self.coordinates, self.joints)
+        try:
+            return standard_layout(self.coordinates, self.joints)
+        except ValueError as exc:  # more axes and joints than the samplers hold
+            raise IngestError(f"cannot record this machine: {exc}", file=str(self.path)) from None
 
     def rewritten(self, *, display: str, recorder: Path | None) -> str:
         """INI text with our DISPLAY and recorder HALFILE; relative file paths made absolute.

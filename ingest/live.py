@@ -8,7 +8,10 @@ It stops on request (SIGINT/SIGTERM set `stop`), when `finished()` says the sour
 `duration_s`, or when the disk refuses a write; in every case what was written stays readable.
 
 `dropped_frames` counts frames the logger lost (buffer overflow, frames arriving too late for their
-stream, error frames) plus frames missing in the DBC's `seq` counters (lost before they reached the logger).
+stream, error and remote frames, frames no bus can carry: an id beyond 29 bits, a time that is not a
+number) plus frames missing in the DBC's `seq` counters (lost before they reached the logger, or too
+short to decode). A sample that misses one of its frames is left out of its stream and counted in
+`incomplete_samples`, so a stream never holds a value that did not arrive.
 """
 
 from __future__ import annotations
@@ -22,9 +25,9 @@ from typing import Callable, TextIO
 import can
 import numpy as np
 
-from feedlog.errors import IngestError
+from feedlog.errors import OutputError
 from feedlog.ingest.can_dbc import seconds_to_us_ns
-from feedlog.ingest.can_dbc import SEQ_SIGNAL, CanFrames, DbcLayout
+from feedlog.ingest.can_dbc import SEQ_SIGNAL, CanFrames, DbcLayout, frame_problem
 from feedlog.ingest.can_streams import assemble_streams, decode_frames, lost_samples
 from feedlog.ingest.writer import RecordingWriter
 
@@ -36,32 +39,38 @@ class FrameBuffer(can.Listener):
         self.max_frames = max_frames
         self.dropped = 0
         self.error_frames = 0
+        self.bad_frames = 0
         self.received = 0
         self._lock = threading.Lock()
         self._ts: list[float] = []
         self._ids: list[int] = []
         self._data: list[bytes] = []
+        self._dlc: list[int] = []
 
     def on_message_received(self, msg: can.Message) -> None:
+        self.received += 1  # every frame delivered, so the logger's own drops never exceed it
         if msg.is_error_frame or msg.is_remote_frame:
             self.error_frames += 1
             return
+        if frame_problem(msg):
+            self.bad_frames += 1
+            return
         with self._lock:
-            self.received += 1
             if len(self._ts) >= self.max_frames:
                 self.dropped += 1
                 return
             self._ts.append(msg.timestamp)
             self._ids.append(msg.arbitration_id)
             self._data.append(bytes(msg.data[:8]).ljust(8, b"\0"))
+            self._dlc.append(min(len(msg.data), 8))
 
     def take(self) -> CanFrames:
         with self._lock:
-            ts, ids, data = self._ts, self._ids, self._data
-            self._ts, self._ids, self._data = [], [], []
+            ts, ids, data, dlc = self._ts, self._ids, self._data, self._dlc
+            self._ts, self._ids, self._data, self._dlc = [], [], [], []
         t_ns = seconds_to_us_ns(ts)
         return CanFrames(t_ns, np.asarray(ids, dtype=np.uint32),
-                         np.frombuffer(b"".join(data), dtype=np.uint8).reshape(-1, 8))
+                         np.frombuffer(b"".join(data), dtype=np.uint8).reshape(-1, 8), np.asarray(dlc, dtype=np.uint8))
 
     def __len__(self) -> int:
         return len(self._ts)
@@ -78,6 +87,9 @@ class CaptureStats:
     late_frames: int = 0
     lost_frames: int = 0
     unknown_frames: int = 0
+    short_frames: int = 0
+    bad_frames: int = 0
+    incomplete_samples: int = 0
     wall_s: float = 0.0
     stopped_by: str = ""
     error: str = ""
@@ -131,6 +143,7 @@ class _Decoder:
             self.pending = CanFrames.concat([])
         decoded = decode_frames(frames, self.layout)
         stats.unknown_frames += decoded.unknown_frames
+        stats.short_frames += decoded.short_frames
         for frame_id, values in decoded.values.items():  # frames missing in each message's seq counter
             if SEQ_SIGNAL in values and len(values[SEQ_SIGNAL]):
                 seq = values[SEQ_SIGNAL][np.argsort(decoded.times[frame_id], kind="stable")]
@@ -138,13 +151,18 @@ class _Decoder:
                 stats.lost_frames += lost_samples(seq if previous is None else np.concatenate(([previous], seq)))
                 self.last_seq[frame_id] = int(seq[-1])
         streams, _ = assemble_streams(decoded, self.layout)
+        stats.incomplete_samples += sum(decoded.incomplete.values())
         out = {}
         for name, table in streams.items():
             if self.drop_columns & set(table.columns):
                 table = table.drop(columns=sorted(self.drop_columns & set(table.columns)))
             known = self.columns.setdefault(name, list(table.columns))
-            if list(table.columns) != known:  # a member message missing in this batch: keep the stream's columns
-                table = table.reindex(columns=known)
+            if list(table.columns) != known:  # a member message missing in this batch: its samples are incomplete
+                missing = [c for c in known if c not in table.columns]
+                if missing:
+                    stats.incomplete_samples += len(table)
+                    continue
+                table = table[known]
             last = self.last_t.get(name)
             if last is not None:
                 late = table["t_ns"].to_numpy() < last
@@ -193,7 +211,7 @@ def capture(bus: can.BusABC, layout: DbcLayout, writer: RecordingWriter, *, stop
         notifier.stop()
         stopped = True
         _write(decoder.feed(buffer.take(), stats, final=True), writer, stats, buffer)
-    except IngestError as exc:  # the disk refused a write: the file keeps what was flushed before
+    except OutputError as exc:  # the disk refused a write: the file keeps what was flushed before
         stats.error = str(exc)
         stats.stopped_by = "write error"
     finally:
@@ -209,7 +227,10 @@ def capture(bus: can.BusABC, layout: DbcLayout, writer: RecordingWriter, *, stop
 
 
 def _update_drops(stats: CaptureStats, buffer: FrameBuffer) -> None:
-    stats.dropped_frames = buffer.dropped + buffer.error_frames + stats.late_frames + stats.lost_frames
+    stats.bad_frames = buffer.bad_frames
+    stats.dropped_frames = (buffer.dropped + buffer.error_frames + buffer.bad_frames + stats.late_frames
+                            + stats.lost_frames)
+
 
 
 def _write(streams: dict, writer: RecordingWriter, stats: CaptureStats, buffer: FrameBuffer) -> None:
@@ -243,7 +264,7 @@ def record_bus(bus: can.BusABC, out, *, dbc: str | None = None, metadata: dict[s
     finally:
         try:
             writer.close()
-        except IngestError as exc:  # the final flush hit a full disk: the earlier chunks are intact
+        except OutputError as exc:  # the final flush hit a full disk: the earlier chunks are intact
             stats_error = str(exc)
         else:
             stats_error = ""

@@ -76,6 +76,11 @@ class ColumnMap:
             length_factor(self.length_unit), angle_factor(self.angle_unit), velocity_factor(self.feed_unit)
         except UnitError as exc:
             raise IngestError(f"mapping {self.name}: {exc}") from None
+        try:  # the zone pandas localises naive wall-clock times in
+            pd.Timestamp("2000-01-01").tz_localize(self.timezone)
+        except Exception:  # noqa: BLE001 - pytz, zoneinfo and dateutil raise their own kinds
+            raise IngestError(f"unknown time zone {self.timezone!r} (--timezone): give an IANA name such as "
+                              "Europe/Berlin, or UTC") from None
         for target in self.mapping:
             if target != "t":
                 resolve_target(target)

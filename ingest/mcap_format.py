@@ -93,7 +93,11 @@ def batch_bytes(batch: pa.RecordBatch) -> bytes:
 
 
 def read_batch(data: bytes | memoryview, schema: pa.Schema) -> pa.RecordBatch:
-    return pa.ipc.read_record_batch(pa.py_buffer(data), schema)
+    """Decode one message; its lengths and buffers are validated, so a corrupt batch raises here
+    (ArrowInvalid) instead of reading beyond its buffers later."""
+    batch = pa.ipc.read_record_batch(pa.py_buffer(data), schema)
+    batch.validate(full=True)
+    return batch
 
 
 def batch_to_frame(batches: list[pa.RecordBatch], schema: pa.Schema) -> pd.DataFrame:

@@ -10,28 +10,25 @@ the first with the topic and message number.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
-from mcap.reader import make_reader
 from mcap.records import Channel, Message
 
 from feedlog.errors import IngestError
 from feedlog.ingest import mcap_format as fmt
 from feedlog.ingest.mapping import ColumnMap, build_streams, parse_map, resolve_target, time_to_ns
-from feedlog.ingest.reader import _DAMAGE, RecordScan, read_recording
+from feedlog.ingest.mcap_scan import RecordScan, read_header
+from feedlog.ingest.reader import read_recording
 from feedlog.ingest.readers import ImportOptions
 from feedlog.ingest.recording import Recording
+from feedlog.units import MAX_ABS_T_NS, time_factor
 
 
 def is_feedlog_recording(path: Path) -> bool:
     """True when the MCAP header names the feedlog profile (the reader still checks format_version)."""
-    try:
-        with open(path, "rb") as f:
-            return make_reader(f).get_header().profile == fmt.PROFILE
-    except _DAMAGE as exc:
-        why = "empty file" if path.stat().st_size == 0 else f"{type(exc).__name__}: {exc}"
-        raise IngestError(f"not an MCAP file ({why})", file=str(path), position="byte 0") from None
+    return read_header(path).profile == fmt.PROFILE
 
 
 def read_mcap_source(path: Path, options) -> Recording:
@@ -99,7 +96,11 @@ def read_json_mcap(path: Path, mapping: dict[str, str], *, strict: bool = True,
             obj = json.loads(record.data)
             row = {target: float(_get(obj, fpath)) for target, (t2, fpath) in fields.items() if t2 == topic}
             stamp = float(_get(obj, time_field[1])) if time_field and time_field[0] == topic else record.log_time
-        except (ValueError, KeyError, IndexError, TypeError) as exc:
+            if not all(math.isfinite(v) for v in row.values()):
+                raise ValueError("a mapped value is not a finite number")
+            if not abs(stamp) * (time_factor(cmap.time_unit) * 1e9 if isinstance(stamp, float) else 1) <= MAX_ABS_T_NS:
+                raise ValueError(f"time {stamp} is not a time (NaN, infinite or beyond +-2**62 ns)")
+        except (ValueError, KeyError, IndexError, TypeError, RecursionError) as exc:
             bad += 1
             where = f"{topic} message {count[topic]} (log_time {record.log_time})"
             if strict:

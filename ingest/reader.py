@@ -1,30 +1,26 @@
 """Reading feedlog recordings (MCAP, format v1) into a `Recording`.
 
-The file is read front to back with the `mcap` stream reader, one top-level record at a time, so a
-file that ends early (a logger killed with SIGKILL, a full disk) is detected at a byte position.
-Strict by default: a truncated or corrupt file raises `IngestError` naming the file and the byte
-offset of the first bad record. With `recover=True` everything in complete records before that point
-is returned and `metadata["recovered"]` says where the file was cut.
+The file is read front to back (`mcap_scan.RecordScan`), one top-level record at a time, so a file
+that ends early (a logger killed with SIGKILL, a full disk) is detected at a byte position. Strict
+by default: a truncated or corrupt file raises `IngestError` naming the file and the byte offset of
+the first bad record; so does a batch that Arrow cannot validate or that holds empty (null) values.
+With `recover=True` everything in complete records before that point is returned and
+`metadata["recovered"]` says where the file was cut.
 """
 
 from __future__ import annotations
 
 import os
-import struct
 from pathlib import Path
 
 import pandas as pd
 import pyarrow as pa
-from mcap.exceptions import McapError
-from mcap.records import Attachment, Channel, Chunk, Footer, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.records import Attachment, Channel, Message, Metadata, Schema
 
 from feedlog.errors import IngestError
 from feedlog.ingest import mcap_format as fmt
+from feedlog.ingest.mcap_scan import RecordScan
 from feedlog.ingest.recording import Recording
-
-# what the mcap library, zstd/lz4 and struct raise on damaged bytes
-_DAMAGE = (McapError, struct.error, ValueError, EOFError, UnicodeDecodeError, MemoryError, RuntimeError, KeyError)
 
 
 class _Collector:
@@ -38,6 +34,7 @@ class _Collector:
         self.batches: dict[int, list[pa.RecordBatch]] = {}
         self.metadata: dict[str, dict[str, str]] = {}
         self.attachments: dict[str, bytes] = {}
+        self.dropped = 0
 
     def add(self, record, position: int) -> None:
         if isinstance(record, Schema):
@@ -49,16 +46,24 @@ class _Collector:
             if schema is None:
                 raise IngestError(f"message on unknown channel {record.channel_id}", file=self.source,
                                   position=f"byte {position}")
+            topic = self.channels[record.channel_id].topic
             try:
                 batch = fmt.read_batch(record.data, schema)
-            except (pa.ArrowException, ValueError) as exc:
-                raise IngestError(f"stream {self.channels[record.channel_id].topic!r}: undecodable batch: {exc}",
-                                  file=self.source, position=f"byte {position}") from None
+            except (pa.ArrowException, ValueError, OSError, EOFError) as exc:
+                raise IngestError(f"stream {topic!r}: undecodable batch: {exc}", file=self.source,
+                                  position=f"chunk at byte {position}") from None
+            empty = [name for name, column in zip(batch.schema.names, batch.columns) if column.null_count]
+            if empty:
+                raise IngestError(f"stream {topic!r}: column {empty[0]!r} has empty (null) values", file=self.source,
+                                  position=f"chunk at byte {position}")
             self.batches[record.channel_id].append(batch)
         elif isinstance(record, Metadata):
             self.metadata[record.name] = dict(record.metadata)
+            where = f"metadata record {record.name!r} at byte {position}"
             if record.name == fmt.META_FORMAT:
-                check_version(record.metadata, self.source)
+                check_version(record.metadata, self.source, where)
+            if record.name == fmt.META_STATS:
+                self.dropped = _count(record.metadata.get("dropped_frames", "0"), "dropped_frames", self.source, where)
         elif isinstance(record, Attachment):
             self.attachments[record.name] = bytes(record.data)
 
@@ -79,10 +84,11 @@ class _Collector:
         self.channels[channel.id] = channel
         self.batches[channel.id] = []
 
-    def recording(self) -> Recording:
+    def recording(self, end: int) -> Recording:
+        """The recording read from the file's first `end` bytes."""
         if fmt.META_FORMAT not in self.metadata:
             raise IngestError("not a feedlog recording (no 'feedlog' metadata record with format_version)",
-                              file=self.source)
+                              file=self.source, position=f"bytes 0-{end}")
         streams: dict[str, pd.DataFrame] = {}
         for cid, channel in self.channels.items():
             streams[channel.topic] = fmt.batch_to_frame(self.batches[cid], self.arrow[cid])
@@ -90,75 +96,26 @@ class _Collector:
         session = dict(self.metadata.get(fmt.META_SESSION, {}))
         if stats.get("closed") == "false" and "ended" in stats:
             session["incomplete"] = stats["ended"]
-        try:
-            dropped = int(stats.get("dropped_frames", 0))
-        except ValueError:
-            raise IngestError(f"bad dropped_frames {stats.get('dropped_frames')!r}", file=self.source) from None
         return Recording(streams=streams, metadata=session,
-                         attachments=self.attachments, dropped_frames=dropped, source=self.source)
+                         attachments=self.attachments, dropped_frames=self.dropped, source=self.source)
 
 
-def check_version(meta: dict[str, str], source: str) -> None:
+def _count(raw: str, key: str, source: str, where: str) -> int:
+    """A non-negative decimal count from a metadata value."""
+    if not (raw.isascii() and raw.isdigit() and len(raw) <= 18):  # below 10**18: an int64 with room to add
+        raise IngestError(f"bad {key} {raw[:40]!r} (a count of frames below 10**18)", file=source, position=where)
+    return int(raw)
+
+
+def check_version(meta: dict[str, str], source: str, where: str | None = None) -> None:
     raw = meta.get("format_version", "")
     try:
         version = int(raw)
     except ValueError:
-        raise IngestError(f"bad format_version {raw!r}", file=source) from None
+        raise IngestError(f"bad format_version {raw!r}", file=source, position=where) from None
     if version > fmt.FORMAT_VERSION or version < 1:
         raise IngestError(f"recording format_version {version} is not supported by this feedlog "
-                          f"(it reads versions 1..{fmt.FORMAT_VERSION}); upgrade feedlog", file=source)
-
-
-class RecordScan:
-    """Every record of an MCAP file front to back, chunks opened, each with its chunk's byte offset.
-
-    Strict: damage raises `IngestError` naming the file and byte. With `recover`, iteration stops at the
-    damage and `recovered` says what and where.
-    """
-
-    def __init__(self, path: str | os.PathLike, *, recover: bool = False) -> None:
-        self.path = Path(path)
-        self.source = str(path)
-        self.recover = recover
-        self.recovered: str | None = None
-        if not self.path.is_file():
-            raise IngestError("no such file", file=self.source)
-
-    def _damaged(self, problem: str, position: int) -> None:
-        if position == 0:
-            raise IngestError(f"not an MCAP file ({problem})", file=self.source, position="byte 0")
-        if not self.recover:
-            raise IngestError(f"{problem}; read it with recover=True (feedlog info/import --recover) to keep "
-                              "the complete records before this point", file=self.source, position=f"byte {position}")
-        self.recovered = f"{problem} at byte {position}"
-
-    def __iter__(self):
-        size = self.path.stat().st_size
-        with open(self.path, "rb") as f:
-            # chunk CRCs are checked in breakup_chunk; the whole-stream CRC would only hash everything twice
-            records = StreamReader(f, emit_chunks=True, validate_crcs=False).records
-            position = 0
-            while True:
-                try:
-                    record = next(records)
-                except StopIteration:
-                    return
-                except _DAMAGE as exc:
-                    self._damaged(_describe(exc, position, size), position)
-                    return
-                if isinstance(record, Chunk):
-                    try:
-                        inner = breakup_chunk(record, validate_crc=True)
-                    except _DAMAGE as exc:
-                        self._damaged(f"corrupt chunk ({exc})", position)
-                        return
-                    for item in inner:
-                        yield position, item
-                else:
-                    yield position, record
-                if isinstance(record, Footer):
-                    return
-                position = f.tell()
+                          f"(it reads versions 1..{fmt.FORMAT_VERSION}); upgrade feedlog", file=source, position=where)
 
 
 def read_recording(path: str | os.PathLike, *, recover: bool = False) -> Recording:
@@ -172,10 +129,4 @@ def read_recording(path: str | os.PathLike, *, recover: bool = False) -> Recordi
         collector.add(record, position)
     if scan.recovered:
         collector.metadata.setdefault(fmt.META_SESSION, {})["recovered"] = scan.recovered
-    return collector.recording()
-
-
-def _describe(exc: Exception, position: int, size: int) -> str:
-    if position >= size or type(exc).__name__ == "EndOfFile" or isinstance(exc, struct.error):
-        return f"file is truncated (ends at byte {size}, inside or before the record at byte {position})"
-    return f"corrupt record ({type(exc).__name__}: {exc})"
+    return collector.recording(scan.end)

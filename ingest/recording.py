@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from feedlog.errors import IngestError
+from feedlog.units import MAX_ABS_T_NS
 
 # metadata keys every writer fills in (values are strings)
 METADATA_KEYS = ("machine", "controller", "units", "nominal_rate_hz", "start_time", "notes")
@@ -67,14 +68,38 @@ class Recording:
         return None if data is None else data.decode("utf-8", errors="replace")
 
 
+def first_bad_value(t_ns: np.ndarray, columns: dict[str, np.ndarray]) -> tuple[str, int] | None:
+    """(what, sample) of the first value a recording must not hold: a time beyond +-MAX_ABS_T_NS (NaN
+    cast to int64 becomes INT64_MIN), a NaN or infinite float, an empty (None) value; None if all fine."""
+    if len(t_ns):
+        out = (t_ns < -MAX_ABS_T_NS) | (t_ns > MAX_ABS_T_NS)
+        if out.any():
+            k = int(np.flatnonzero(out)[0])
+            return f"t_ns {int(t_ns[k])} is not a time (beyond +-2**62 ns)", k
+    for name, values in columns.items():
+        if values.dtype.kind == "f":
+            bad = ~np.isfinite(values)
+        elif values.dtype.kind == "O":
+            bad = pd.isna(values)
+        else:
+            continue
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            return f"column {name!r} holds {values[k]!r}", k
+    return None
+
+
 def check_stream(name: str, table: pd.DataFrame, *, source: str = "") -> None:
-    """A stream needs an int64 `t_ns` first column that never goes back in time."""
+    """A stream needs an int64 `t_ns` first column that never goes back in time, and finite values."""
     if len(table.columns) == 0 or table.columns[0] != "t_ns":
         raise IngestError(f"stream {name!r}: first column must be 't_ns', got {list(table.columns)[:3]}",
                           file=source or None)
     t = table["t_ns"].to_numpy()
     if t.dtype != np.int64:
         raise IngestError(f"stream {name!r}: t_ns must be int64 nanoseconds, got {t.dtype}", file=source or None)
+    bad = first_bad_value(t, {str(c): table[c].to_numpy() for c in table.columns[1:]})
+    if bad:
+        raise IngestError(f"stream {name!r}: {bad[0]}", file=source or None, position=f"sample {bad[1]}")
     if len(t) > 1:
         back = np.flatnonzero(np.diff(t) < 0)
         if len(back):

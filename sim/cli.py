@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from feedlog.atomic import atomic_outputs
 from feedlog.errors import FeedlogError, SimulationError
 from feedlog.execution import add_arguments as add_execution_arguments
 
@@ -104,13 +105,15 @@ def _run_one(args: argparse.Namespace, source: str) -> int:
     program = _program(source)
     result = simulate(program, args.profile, mechanisms=parse_settings(args.set, args.enable, args.disable) or None,
                       dt_s=args.dt)
-    if args.out is not None:
-        result.series.to_parquet(args.out, index=False)
-    if args.blocks_out is not None:
-        result.blocks.to_parquet(args.blocks_out, index=False)
+    outputs = {path: table for path, table in ((args.out, lambda: result.series), (args.blocks_out, lambda: result.blocks))
+               if path is not None}
+    if outputs:
+        with atomic_outputs(*outputs) as temporaries:  # both files or neither
+            for temporary, table in zip(temporaries, outputs.values()):
+                table().to_parquet(temporary, index=False)
     summary = {"program": str(source), **result.summary()}
     if args.json:
-        json.dump(summary, sys.stdout)
+        json.dump(summary, sys.stdout, allow_nan=False)
         sys.stdout.write("\n")
     else:
         print(f"{source}: {summary['blocks']} blocks on {summary['profile']}: cycle time "

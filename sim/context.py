@@ -13,10 +13,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from feedlog.errors import SimulationError
 from feedlog.profile import MachineProfile
 from feedlog.sim.motion import Plan, grid_counts, sample_plan
 from feedlog.sim.path import Blocks, Pieces
 
+MAX_SAMPLES = 50_000_000  # one sampled series: 13.9 h at 1 kHz, about 3 GB with six axes
 # (t_s, pos, speed, row): sample times, (N, k) axis positions, path speed, Blocks row index
 Samples = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
@@ -78,10 +80,19 @@ class Trajectory:
                           motion_end_s=self.motion_end_s, plan=self.plan)
 
 
+def grid_samples(total_s: float, dt_s: float) -> int:
+    """Samples of a regular grid from 0 through `total_s`; SimulationError beyond MAX_SAMPLES (a
+    series that would not fit in memory: a program of years, or a period of picoseconds)."""
+    n = total_s / dt_s - 1e-9
+    if not n < MAX_SAMPLES:
+        raise SimulationError(f"the simulated series would hold {n:.3g} samples ({total_s:.6g} s every {dt_s:g} s), "
+                              f"more than {MAX_SAMPLES:,}; sample it coarser (--dt)")
+    return int(np.ceil(n)) + 1
+
+
 def time_grid(total_s: float, dt_s: float) -> np.ndarray:
     """Regular grid from 0 through the end (the last sample at or after total_s)."""
-    n = int(np.ceil(total_s / dt_s - 1e-9)) + 1
-    return np.arange(n, dtype=np.float64) * dt_s
+    return np.arange(grid_samples(total_s, dt_s), dtype=np.float64) * dt_s
 
 
 def block_times(row_of_piece: np.ndarray, start: np.ndarray, end: np.ndarray, n_rows: int) -> tuple[np.ndarray, np.ndarray]:
@@ -146,6 +157,7 @@ def trajectory_from_plan(plan: Plan, pieces: Pieces, blocks: Blocks, dt_s: float
 
 def hold_end(traj: Trajectory, extra_s: float, dt_s: float) -> Trajectory:
     """The trajectory with `extra_s` of standstill appended (for mechanisms that settle after the end)."""
+    grid_samples(extra_s, dt_s)  # refuses a standstill too long to sample
     n = int(np.ceil(extra_s / dt_s))
     if n <= 0:
         return traj

@@ -23,16 +23,19 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
-from feedlog.errors import SimulationError
+from feedlog.errors import ProfileError, SimulationError
 from feedlog.profile import MachineProfile
 
 KINDS = ("limits", "corner", "interpolator", "series", "feedback", "measurement")
+MAX_PARAM_S = 3600.0  # a mechanism's time parameter (a dwell, a lag, a period): at most an hour
+MIN_OVERRIDE, MAX_OVERRIDE = 0.001, 10.0  # override dials: 0.1 % to 1000 %
 
 # name -> "module:Class" (imported on first use). One line per mechanism.
 REGISTRY: dict[str, str] = {
@@ -73,15 +76,25 @@ class Mechanism:
         return {}
 
     @classmethod
-    def from_params(cls, profile: MachineProfile, params: Mapping[str, Any]) -> Mechanism:
+    def check_params(cls, profile: MachineProfile, params: Mapping[str, Any]) -> dict[str, Any]:
+        """`params` (without `enabled`) if every name is a parameter and every value has its type."""
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(params) - names - {"enabled"})
         if unknown:
             raise SimulationError(f"mechanism {cls.name!r}: unknown parameter(s) {', '.join(unknown)}; "
                                   f"known: {', '.join(sorted(names)) or 'none'}")
-        values = {**cls.defaults(profile), **{k: v for k, v in params.items() if k != "enabled"}}
+        if "enabled" in params and not isinstance(params["enabled"], bool):
+            raise SimulationError(f"mechanism {cls.name!r}: enabled must be true or false, got {params['enabled']!r}")
+        defaults = {f.name: f.default if f.default is not dataclasses.MISSING else f.default_factory()
+                    for f in dataclasses.fields(cls) if f.init}
+        defaults.update(cls.defaults(profile))
+        return {k: _checked(cls.name, k, v, defaults.get(k)) for k, v in params.items() if k != "enabled"}
+
+    @classmethod
+    def from_params(cls, profile: MachineProfile, params: Mapping[str, Any]) -> Mechanism:
+        given = cls.check_params(profile, params)
         try:
-            return cls(**values)
+            return cls(**{**cls.defaults(profile), **given})
         except (TypeError, ValueError) as exc:
             raise SimulationError(f"mechanism {cls.name!r}: {exc}") from None
 
@@ -123,6 +136,39 @@ class Mechanism:
                 raise SimulationError(f"mechanism {self.name!r}: {key} must be >= 0, got {value}")
 
 
+def _checked(mechanism: str, name: str, value: Any, default: Any) -> Any:
+    """`value` for parameter `name` if it has the type of the parameter's default (numbers finite,
+    a list for a tuple of the same length, a table of numbers for a dict; times `*_s` from 0 to an
+    hour); SimulationError otherwise."""
+    def number(v: Any) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and (math.isfinite(v) or v == default)
+
+    if name.endswith("_s") and isinstance(default, float) and not (number(value) and 0 <= value <= MAX_PARAM_S):
+        raise SimulationError(f"mechanism {mechanism!r}: parameter {name} must be a time from 0 to "
+                              f"{MAX_PARAM_S:g} s, got {value!r}")
+
+    if isinstance(default, bool):
+        ok, want = isinstance(value, bool), "true or false"
+    elif isinstance(default, int):
+        ok, want = isinstance(value, int) and not isinstance(value, bool), "a whole number"
+    elif isinstance(default, float):
+        ok, want = number(value), "a finite number"
+    elif isinstance(default, str):
+        ok, want = isinstance(value, str), "a string"
+    elif isinstance(default, tuple):
+        ok, want = isinstance(value, (list, tuple)) and len(value) == len(default) and all(map(number, value)), \
+            f"a list of {len(default)} numbers"
+        value = tuple(value) if ok else value
+    elif isinstance(default, dict):
+        ok, want = isinstance(value, dict) and all(isinstance(k, str) and number(v) for k, v in value.items()), \
+            "a table of numbers"
+    else:
+        ok, want = True, ""
+    if not ok:
+        raise SimulationError(f"mechanism {mechanism!r}: parameter {name} must be {want}, got {value!r}")
+    return value
+
+
 def mechanism_class(name: str) -> type[Mechanism]:
     try:
         target = REGISTRY[name]
@@ -146,11 +192,13 @@ def resolve_mechanisms(profile: MachineProfile, mechanisms: MechanismSpec = None
     """
     tables: dict[str, dict[str, Any]] = {}
     for name, table in profile.sim.items():
-        if not isinstance(table, Mapping):
-            raise SimulationError(f"profile {profile.name!r}: [sim.{name}] must be a table, got {table!r}")
+        try:
+            if not isinstance(table, Mapping):
+                raise SimulationError(f"[sim.{name}] must be a table, got {table!r}")
+            mechanism_class(name).check_params(profile, table)  # unknown names and wrong types fail early
+        except SimulationError as exc:
+            raise ProfileError(f"machine profile {profile.name!r}: {exc}", file=profile.source or None) from None
         tables.setdefault(name, {}).update(table)
-    for name in tables:
-        mechanism_class(name)  # unknown names fail early, naming the known ones
 
     enabled = {name: bool(tables.get(name, {}).get("enabled", mechanism_class(name).default_enabled(profile)))
                for name in REGISTRY}

@@ -21,6 +21,7 @@ import pandas as pd
 from feedlog.errors import SimulationError
 from feedlog.profile import LINEAR_AXES, MachineProfile
 from feedlog.toolpath import schema
+from feedlog.toolpath.limits import check_axes
 
 KIND_RAPID, KIND_LINEAR, KIND_ARC, KIND_DWELL = 0, 1, 2, 3
 _KIND_CODES = {schema.RAPID: KIND_RAPID, schema.LINEAR: KIND_LINEAR, schema.ARC_CW: KIND_ARC,
@@ -199,6 +200,7 @@ class ProgramArrays:
         self.block = table["block"].to_numpy(np.int64)[self.sel]
         self.line = table["line"].to_numpy(np.int64)[self.sel]
         self._cols: dict[str, np.ndarray | None] = {}
+        self._checked: set[tuple[str, ...]] = set()
 
     def col(self, name: str, default: float) -> np.ndarray:
         """Rows of a numeric column as float64 (a new array each call; `default` where it is missing)."""
@@ -210,6 +212,12 @@ class ProgramArrays:
 
     def has(self, name: str) -> bool:
         return name in self.table.columns
+
+    def check_axes(self, axes: tuple[str, ...], profile_name: str) -> None:
+        """No block may move an axis the machine lacks (`toolpath.limits.check_axes`), once per axis set."""
+        if axes not in self._checked:
+            check_axes(self.table, axes, profile_name)
+            self._checked.add(axes)
 
     def where(self, i: int) -> str:
         return _where(self.table, int(self.sel[i]))
@@ -225,15 +233,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
 
     axes = profile.axis_names
     units = schema.AXIS_UNITS
-    for a in schema.AXES:  # an axis the machine does not have must not move
-        if a in axes or not arrays.has(f"{a}_{units[a]}"):
-            continue
-        d = np.abs(col(f"{a}_{units[a]}", np.nan) - col(f"{a}0_{units[a]}", np.nan))
-        bad_axis = (d > 1e-9) & (code != KIND_DWELL)
-        if bad_axis.any():
-            i = int(np.flatnonzero(bad_axis)[0])
-            raise SimulationError(f"{where(i)}: the program moves axis {a.upper()}, which "
-                                  f"machine profile {profile.name!r} does not have (axes: {', '.join(axes)})")
+    arrays.check_axes(axes, profile.name)  # an axis the machine does not have must not move
     p1 = np.column_stack([col(f"{a}_{units[a]}", np.nan) for a in axes])
     p0 = np.column_stack([col(f"{a}0_{units[a]}", np.nan) for a in axes])
     # unknown start (first move of a program): no motion on that axis

@@ -21,7 +21,8 @@ from feedlog.sim.feedback import feedback_chain, feedback_table
 from feedlog.sim.mechanism import Mechanism, MechanismSpec, resolve_mechanisms
 from feedlog.sim.path import Blocks, build_pieces, prepare_blocks
 from feedlog.toolpath.schema import AXIS_UNITS
-from feedlog.units import seconds_to_ns
+from feedlog.errors import SimulationError
+from feedlog.units import MAX_TIME_S, seconds_to_ns
 
 
 class SimResult:
@@ -114,6 +115,8 @@ def simulate(program, profile: MachineProfile | str | Path, *, mechanisms: Mecha
     profile's interpolation period).
     """
     profile = _profile(profile)
+    if dt_s is not None and not 0 < dt_s <= 1:
+        raise SimulationError(f"output period dt_s must be above 0 and at most 1 s, got {dt_s}")
     chain = resolve_mechanisms(profile, mechanisms)
     blocks = prepare_blocks(program, profile)
     cam_time = float(cam_block_times(blocks).sum())
@@ -131,6 +134,9 @@ def simulate(program, profile: MachineProfile | str | Path, *, mechanisms: Mecha
     trajectory = interpolator.run(ctx)
     for mech in chain:
         trajectory = mech.after(ctx, trajectory)
+    if not 0 <= trajectory.cycle_time_s <= MAX_TIME_S:
+        raise SimulationError(f"simulated cycle time {trajectory.cycle_time_s:.6g} s is not a time feedlog can count "
+                              f"(0 to {MAX_TIME_S:.0e} s)")
     return SimResult(ctx=ctx, trajectory=trajectory, mechanisms=chain, cam_time_s=cam_time)
 
 

@@ -1,4 +1,4 @@
-"""The feedlog command: registry, one-line errors with exit code 1, help."""
+"""The feedlog command: registry, one-line errors (exit code 2 for bad input, 1 for a failed write), help."""
 
 from __future__ import annotations
 
@@ -20,8 +20,8 @@ def test_profile_command_lists_shipped_profiles(capsys):
     assert capsys.readouterr().out.split() == ["chien-ac", "linuxcnc-xyz", "linuxcnc-xyzac"]
 
 
-def test_our_error_is_one_line_and_exit_code_1(capsys):
-    assert cli.main(["profile", "no-such-machine"]) == 1
+def test_our_error_is_one_line_and_exit_code_2(capsys):
+    assert cli.main(["profile", "no-such-machine"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1
     assert err.startswith("feedlog profile: error: unknown machine profile 'no-such-machine'")

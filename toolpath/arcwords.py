@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from feedlog.toolpath import arcs
+from feedlog.toolpath.limits import MAX_ARC_TURNS
 
 RADIUS_TOL_MM, RADIUS_TOL_REL = 0.002, 0.001  # start vs end radius mismatch allowed on I/J/K arcs
 
@@ -44,10 +45,10 @@ class ArcGeometry:
 def resolve_arcs(w: ArcWords, fail: Callable[[int, str, str], Exception]) -> ArcGeometry:
     """Centres, radii, sweeps and lengths; `fail(k, message, code)` builds the error for arc k."""
     p = w.turns
-    bad = ~np.isnan(p) & ((p < 1) | (p != np.rint(p)))
+    bad = ~np.isnan(p) & ((p < 1) | (p != np.rint(p)) | (p > MAX_ARC_TURNS))
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
-        raise fail(k, "arc P (turns) must be a positive integer", f"P{p[k]:g}")
+        raise fail(k, f"arc P (turns) must be a whole number from 1 to {MAX_ARC_TURNS}", f"P{p[k]:g}")
     turns = np.where(np.isnan(p), 1, p).astype(np.int16)
     idx = arcs.plane_index(w.plane)
     s = arcs.to_plane(w.start, idx)

@@ -6,6 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
+from feedlog.atomic import atomic_output
 from feedlog.errors import FeedlogError
 from feedlog.profile import load_profile
 from feedlog.toolpath.features import DEFAULT_PROFILE
@@ -31,10 +32,8 @@ def run(args: argparse.Namespace) -> int:
     program = parse_program(args.file, lenient=args.lenient)
     summary = summarize(program, profile)
     if args.parquet is not None:
-        try:
-            program.blocks.to_parquet(args.parquet, index=False)
-        except OSError as exc:
-            raise FeedlogError(f"cannot write {args.parquet}: {exc.strerror or exc}") from None
+        with atomic_output(args.parquet) as temporary:
+            program.blocks.to_parquet(temporary, index=False)
         summary["parquet"] = str(args.parquet)
     if args.json:
         print(json.dumps(summary, allow_nan=False))

@@ -22,6 +22,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from feedlog.errors import ProgramError
+from feedlog.toolpath.limits import MAX_WORD, out_of_range, sci
 
 _LF = 10
 _OPEN, _CLOSE, _SEMI, _PERCENT, _SLASH = ord("("), ord(")"), ord(";"), ord("%"), ord("/")
@@ -159,6 +160,13 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
             k = np.flatnonzero(bad_value & (wline == i))[0]
             word = bytes(b[wstart[k]:wend[k]]).decode("ascii", "replace")
             raise fail(i, "malformed word (a letter needs a decimal number)", word)
+    big = out_of_range(values, MAX_WORD)
+    if big.any():
+        big &= ~np.isin(wline, np.r_[flow, skip])
+    if big.any():
+        k = int(np.flatnonzero(big)[0])
+        word = bytes(b[wstart[k]:wend[k]]).decode("ascii", "replace")
+        raise fail(wline[k], f"number out of range (beyond +-{sci(MAX_WORD)})", word[:24] + "..." * (len(word) > 24))
     if len(flow) or skip:
         keep = ~np.isin(wline, np.r_[flow, skip])
         wline, wletter, values = wline[keep], wletter[keep], values[keep]

@@ -24,9 +24,11 @@ import pyarrow as pa
 from feedlog.errors import ProgramError
 from feedlog.toolpath.arcwords import ArcWords, resolve_arcs
 from feedlog.toolpath.lexer import Tokens, lex
+from feedlog.toolpath.limits import check_positions, check_run_time
 from feedlog.toolpath.offsets import G10, G92_1
 from feedlog.toolpath.positions import AXIS_LETTERS, SYSTEM_LUT, ffill, offset_positions, positions
 from feedlog.toolpath.program import Program, Unsupported
+from feedlog.toolpath.source import read_source
 from feedlog.toolpath.schema import (ARC_CCW, ARC_CW, BLOCK_COLUMNS, CONTINUOUS, DWELL, END_COLUMNS,
                                      EXACT_PATH, EXACT_STOP, KINDS, LINEAR, NONE, OFFSET_COLUMNS, PATH_MODES,
                                      RAPID, START_COLUMNS)
@@ -82,20 +84,6 @@ def _strings(n: int, rows=None, values=None, *, fill: str = "") -> pd.api.extens
         codes[rows] = inverse + 1
     arr = pa.DictionaryArray.from_arrays(pa.array(codes), pa.array(dictionary, pa.string()))
     return pd.array(arr.cast(pa.string()), dtype="string")
-
-
-def _read_source(source: str | Path, name: str | None) -> tuple[str, Path | None, str]:
-    if isinstance(source, Path) or ("\n" not in source and len(source) < 4096 and (
-            Path(source).suffix.lower() in (".ngc", ".nc", ".gcode", ".tap", ".txt", ".cnc")
-            or Path(source).is_file())):
-        path = Path(source)
-        label = name or str(path)
-        try:
-            raw = path.read_bytes()
-        except OSError as exc:
-            raise ProgramError(f"cannot read part program: {exc.strerror or exc}", file=label) from None
-        return raw.decode("utf-8-sig", errors="replace"), path, label
-    return source.removeprefix("\ufeff"), None, name or "<string>"
 
 
 class _Rows:
@@ -165,7 +153,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     Unsupported codes raise ProgramError naming file, line and code; with `lenient=True` they are
     listed in `Program.unsupported` (and a warning) and skipped. Malformed text always raises.
     """
-    text, path, file = _read_source(source, name)
+    text, path, file = read_source(source, name)
     tok = lex(text, file=file, lenient=lenient)
     R = _Rows(tok, file, lenient)
     n = R.n
@@ -301,6 +289,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
         work = None
         system = (np.ones(n, dtype=np.int8) if not (coords >= 0).any() else
                   SYSTEM_LUT[ffill(coords, coords >= 0, 540)])
+    check_positions(start, end, is_motion, R.error)
 
     # -- arcs --------------------------------------------------------------------------------------
     centre = np.full((3, n), np.nan)
@@ -337,6 +326,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
 
     # -- feed ---------------------------------------------------------------------------------------
     f_here = has[S["F"]]
+    first(f_here & (W[S["F"]] < 0), "negative feed rate", "F")
     inverse_time = modal["feed_mode"] == 930
     f_mm = W[S["F"]] * unit
     # LinuxCNC forgets the feed when the feed mode changes: G93 -> G94 needs a new F
@@ -374,6 +364,10 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     dwell = np.where(is_dwell, W[S["P"]], 0.0)
     if (dwell < 0).any():
         raise R.error(int(np.flatnonzero(dwell < 0)[0]), "negative dwell time", "P")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        feed_s = np.where(feed_move, time_len / feed * 60.0, 0.0)
+    check_run_time(feed_s + dwell, R.error, what="feed too slow or dwell too long",
+                   code=lambda r: f"P{dwell[r]:g}" if is_dwell[r] else f"F{W[S['F'], r] if f_here[r] else feed[r]:g}")
     spindle = ffill(W[S["S"]], has[S["S"]], 0.0)
     mcodes = _strings(n)
     stop = np.zeros(n, dtype=bool)

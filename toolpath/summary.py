@@ -7,9 +7,11 @@ from typing import Any
 
 import numpy as np
 
+from feedlog.errors import ProgramError
 from feedlog.profile import MachineProfile
 from feedlog.toolpath.features import block_features
 from feedlog.toolpath import arcs
+from feedlog.toolpath.limits import check_axes, check_run_time
 from feedlog.toolpath.offsets import WORK_OFFSET_COLUMNS, to_machine
 from feedlog.toolpath.program import K_ARC_CCW, K_ARC_CW, Program, kind_codes
 from feedlog.toolpath.schema import END_COLUMNS, MOTION_KINDS, RAPID, START_COLUMNS
@@ -80,7 +82,9 @@ def summarize(program: Program, profile: MachineProfile) -> dict[str, Any]:
     """Summary of `program` on `profile`: CAM time is sum(L/F) over feed moves, rapids at the profile's
     rapid rate, plus dwells (no acceleration, no blending: what a CAM system estimates)."""
     b = program.blocks
+    check_axes(b, profile.axis_names, profile.name)
     feats = block_features(program, profile)
+    _check_cam_time(program, feats, profile)
     kinds = b["kind"].value_counts()
     rapid = feats["kind"].to_numpy() == RAPID
     feed = feats.loc[~rapid, "feed_mm_min"].to_numpy()
@@ -113,6 +117,19 @@ def summarize(program: Program, profile: MachineProfile) -> dict[str, Any]:
         "unsupported": [{"line": u.line, "code": u.code, "reason": u.reason} for u in program.unsupported],
         "metadata": {k: v for k, v in program.metadata.items() if k not in ("percent_lines",)},
     }
+
+
+def _check_cam_time(program: Program, feats, profile: MachineProfile) -> None:
+    """CAM time (rapids at the profile's rapid rate included) within what feedlog counts in int64 ns."""
+    b = program.blocks
+    seconds = b["dwell_s"].to_numpy(dtype=np.float64, copy=True)
+    seconds[feats["block"].to_numpy()] += np.nan_to_num(feats["nominal_time_s"].to_numpy(dtype=np.float64))
+    kinds = b["kind"].astype(str).to_numpy()
+
+    def fail(r: int, message: str, code: str) -> ProgramError:
+        return ProgramError(message, file=program.name, line=int(b["line"].iloc[r]), code=code)
+
+    check_run_time(seconds, fail, what=f"CAM time on {profile.name}", code=lambda r: kinds[r])
 
 
 def format_summary(s: dict[str, Any]) -> str:

@@ -13,6 +13,7 @@ from typing import Any
 import torch
 
 from feedlog import __version__
+from feedlog.atomic import atomic_output
 from feedlog.errors import ModelError
 from feedlog.train.features import Normaliser
 from feedlog.train.registry import Model, model_class
@@ -51,9 +52,8 @@ def save_checkpoint(model: Model, path: str | Path, *, overwrite: bool = False) 
     if path.exists() and not overwrite:
         raise ModelError(f"{path} exists; refusing to overwrite it")
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    torch.save(checkpoint_dict(model), tmp)
-    tmp.replace(path)
+    with atomic_output(path) as temporary:
+        torch.save(checkpoint_dict(model), temporary)
     return path
 
 
@@ -63,8 +63,9 @@ def load_checkpoint(path: str | Path) -> Model:
         raise ModelError(f"{path}: checkpoint not found")
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # torch raises many kinds for a file that is not a checkpoint
-        raise ModelError(f"{path}: not a feedlog model checkpoint ({type(exc).__name__}: {exc})") from None
+    except Exception as exc:  # torch raises many kinds, with pages of text, for a file that is not a checkpoint
+        raise ModelError(f"{path}: not a feedlog model checkpoint (torch.load cannot read it: "
+                         f"{type(exc).__name__})") from None
     if not isinstance(data, dict) or data.get("format") != "feedlog-model":
         raise ModelError(f"{path}: not a feedlog model checkpoint")
     version = data.get("format_version")

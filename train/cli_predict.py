@@ -11,6 +11,7 @@ import argparse
 import json
 from pathlib import Path
 
+from feedlog.atomic import atomic_output
 from feedlog.errors import ModelError
 from feedlog.train.predict import predict_program
 
@@ -32,10 +33,11 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output) if args.output else Path(f"{program.stem}.{pred.model}.blocks.parquet")
     if out.exists() and not args.overwrite:
         raise ModelError(f"{out} exists; use --overwrite to replace it")
-    if out.suffix == ".csv":
-        pred.blocks.to_csv(out, index=False)
-    else:
-        pred.blocks.to_parquet(out, index=False)
+    with atomic_output(out) as temporary:
+        if out.suffix == ".csv":
+            pred.blocks.to_csv(temporary, index=False)
+        else:
+            pred.blocks.to_parquet(temporary, index=False)
     if args.json:
         print(json.dumps({**pred.to_dict(), "blocks_file": str(out)}, indent=1))
     else:

@@ -84,7 +84,7 @@ def test_cli_writes_tables_and_prints_json(rec_files, tmp_path, capsys):
     report = json.loads((folder / "report.json").read_text())
     assert report["cycle_time_s"] == pytest.approx(doc["cycle_time_s"])
     # never overwrite without being asked
-    assert main(["align", str(rec_files[0]), "-o", str(out), "-q"]) == 1
+    assert main(["align", str(rec_files[0]), "-o", str(out), "-q"]) == 2
     assert "exists" in capsys.readouterr().err
     assert main(["align", str(rec_files[0]), "-o", str(out), "-q", "--overwrite"]) == 0
 
@@ -96,7 +96,7 @@ def test_cli_batch_parallel_with_a_failure(rec_files, tmp_path, capsys):
     write_recording(bad, rec)
     out = tmp_path / "out"
     code = main(["align", str(rec_files[0]), str(rec_files[1]), str(bad), "-o", str(out), "-j", "2", "--json", "-q"])
-    assert code == 1
+    assert code == 2  # a bad input, not a failed write
     docs = json.loads(capsys.readouterr().out)
     assert [Path(d["recording"]).stem for d in docs] == ["one", "two", "bad"]
     assert docs[0]["cycle_time_s"] == pytest.approx(docs[1]["cycle_time_s"], abs=0.01)  # 1 kHz vs 250 Hz
@@ -111,7 +111,7 @@ def test_missing_program_is_an_error(tmp_path):
         align_recording(rec)
     path = tmp_path / "noprog.mcap"
     write_recording(path, rec)
-    assert main(["align", str(path), "-o", str(tmp_path / "o"), "-q"]) == 1
+    assert main(["align", str(path), "-o", str(tmp_path / "o"), "-q"]) == 2
 
 
 def test_tables_refuse_newer_format_and_foreign_files(tmp_path):

@@ -148,3 +148,44 @@ def test_import_cli_fills_rate_and_start_time_for_can_logs(tmp_path, capsys):
     assert rec.metadata["nominal_rate_hz"] == "1000"
     assert rec.metadata["start_time"].startswith("2023-11-14T22:13:20")
     assert rec.dropped_frames == 3
+
+
+def _asc_with(tmp_path, *lines: str) -> Path:
+    """axes.asc with extra frame lines after its first frame."""
+    rows = (FIX / "axes.asc").read_text().split("\n")
+    path = tmp_path / "extra.asc"
+    path.write_text("\n".join(rows[:6] + list(lines) + rows[6:]))
+    return path
+
+
+def test_a_frame_no_bus_can_carry_stops_a_strict_import_and_is_counted_when_lenient(tmp_path):
+    path = _asc_with(tmp_path, " 0.000030 1  3FFFFFFFx       Rx   d 8 00 00 00 00 00 00 00 00",
+                     " 0.000035 1  99999999999999999999x Rx   d 8 00 00 00 00 00 00 00 00")
+    with pytest.raises(IngestError, match=r"extra\.asc \(frame 2\): identifier 0x3FFFFFFF does not fit 29 bits"):
+        read_source(path)
+    rec = read_source(path, ImportOptions(strict=False))
+    assert rec.metadata["bad_frames"] == "2" and rec.dropped_frames == 3 + 2  # a lost sample's 3 frames + 2
+    assert len(rec.streams["axes"]) == 99
+
+
+def test_short_frames_are_counted_and_their_samples_left_out_not_decoded_as_zeros(tmp_path):
+    # sample 0's XY frame cut to 2 bytes: its x and y would read as zero-padded garbage
+    rows = (FIX / "axes.asc").read_text().split("\n")
+    assert rows[5].split()[2] == "100"
+    rows[5] = rows[5][: rows[5].index(" d 8 ")] + " d 2 00 00"
+    path = tmp_path / "short.asc"
+    path.write_text("\n".join(rows))
+    rec = read_source(path)
+    assert rec.metadata["short_frames"] == "1 frames shorter than their DBC message, not decoded: 0x100 (1)"
+    axes = rec.streams["axes"]
+    assert len(axes) == 98 and not axes.isna().any().any()  # sample 0 has no XY frame now: left out whole
+    assert rec.metadata["incomplete_samples"] == "axes 1"
+    assert rec.dropped_frames == 3  # sample 50 (never sent); the short XY frame of sample 0 has no later seq gap
+
+
+def test_a_blank_or_header_only_log_is_one_clear_error(tmp_path):
+    for name, text in [("blank.asc", ""), ("lines.asc", "\n\n\n"), ("empty.trc", "")]:
+        path = tmp_path / name
+        path.write_text(text)
+        with pytest.raises(IngestError, match=rf"{name} \((byte \d+|end of file)\): .*(empty|no CAN data frames|no 'End TriggerBlock')"):
+            read_source(path)

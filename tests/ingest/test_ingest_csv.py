@@ -71,7 +71,7 @@ def test_bad_rows_lenient_drops_and_reports_them():
     rec = read_csv(FIX / "bad_rows.csv", load_preset("servo-trace-1khz"), strict=False)
     assert rec.streams["axes"]["t_ns"].tolist() == [0, 1_000_000, 4_000_000, 6_000_000]
     report = rec.metadata["bad_rows"]
-    assert report.startswith("4 bad rows at lines 4, 6, 8, 9") and "'oops' is not a number" in report
+    assert report.startswith("4 bad rows at lines 4, 6, 8, 9") and "'oops' is not a finite number" in report
 
 
 def test_missing_column_and_bad_mapping_are_clear():
@@ -110,11 +110,11 @@ def test_import_cli_writes_recording_with_program_and_profile(tmp_path, capsys):
     rec = read_recording(out)
     assert rec.program_text.startswith("G1 X1") and b"[axes" in rec.attachments["profile.toml"]
     assert rec.metadata["machine"] == "linuxcnc-xyz" and len(rec.streams["axes"]) == 6
-    assert main(argv) == 1  # refuses to overwrite
+    assert main(argv) == 2  # refuses to overwrite
     assert "exists" in capsys.readouterr().err
     assert main(argv + ["--overwrite", "--compression", "zstd"]) == 0
     assert len(read_recording(out).streams["axes"]) == 6
-    assert main(["import", str(FIX / "bad_rows.csv"), "--preset", "servo-trace-1khz", "-o", str(tmp_path / "b.mcap")]) == 1
+    assert main(["import", str(FIX / "bad_rows.csv"), "--preset", "servo-trace-1khz", "-o", str(tmp_path / "b.mcap")]) == 2
     assert "bad_rows.csv:4" in capsys.readouterr().err
     assert not (tmp_path / "b.mcap").exists()
 

@@ -14,7 +14,7 @@ from mcap.reader import make_reader
 from mcap.writer import Writer
 
 from feedlog.cli import main
-from feedlog.errors import IngestError
+from feedlog.errors import IngestError, OutputError
 from feedlog.ingest import Recording, RecordingWriter, read_recording, write_recording
 
 
@@ -74,7 +74,10 @@ def test_plain_mcap_reader_sees_channels_schemas_metadata_attachments(tmp_path):
             batch = pa.ipc.read_record_batch(pa.py_buffer(message.data), arrow_schema)
             assert message.log_time == batch.column(0)[0].as_py()
             batches.setdefault(channel.topic, []).append(batch)
-    assert 1 < len(batches["axes"]) < 10
+    # batches of hundreds of samples: at most 1 s of them (import) and 1/8 of a 1 MiB chunk
+    assert 1 < len(batches["axes"]) < 40_000 / 500
+    assert max(b.nbytes for b in batches["axes"]) <= (1 << 20) // 8
+    assert max(b.column(0)[-1].as_py() - b.column(0)[0].as_py() for b in batches["axes"]) < 1_000_000_000
     axes = pa.Table.from_batches(batches["axes"]).to_pandas()
     np.testing.assert_array_equal(axes["x_mm"].to_numpy(), rec.streams["axes"]["x_mm"].to_numpy())
 
@@ -90,9 +93,10 @@ def test_overwrite_is_refused_unless_asked(tmp_path):
     assert len(read_recording(path).streams["axes"]) == 200
 
 
-def test_unwritable_output_is_an_ingest_error(tmp_path):
-    with pytest.raises(IngestError, match=r"cannot create the recording: No such file or directory"):
+def test_unwritable_output_is_an_output_error(tmp_path):
+    with pytest.raises(OutputError, match=r"cannot create the recording: its folder does not exist") as info:
         write_recording(tmp_path / "missing" / "rec.mcap", make_recording(10))
+    assert info.value.exit_code == 1
 
 
 def test_newer_format_version_is_refused(tmp_path):
@@ -207,7 +211,7 @@ def test_info_json_reports_duration_streams_and_drops(tmp_path, capsys):
 def test_info_on_damaged_file_is_one_line_error(tmp_path, capsys):
     path = tmp_path / "bad.mcap"
     path.write_bytes(b"\x89MCAP0\r\n" + b"\x01" * 40)
-    assert main(["info", str(path)]) == 1
+    assert main(["info", str(path)]) == 2
     err = capsys.readouterr().err
     assert "bad.mcap" in err and "byte" in err and "Traceback" not in err
 
@@ -246,10 +250,10 @@ def test_failed_write_keeps_flushed_data_and_ends_the_file_when_it_can(tmp_path,
     w.write("feed", {"t_ns": t, "feed_mm_min": t / 1e3})
     w.flush()
     opened[0].armed = True
-    with pytest.raises(IngestError, match=r"full\.mcap \(byte \d+\): write failed \(No space left on device\)"):
+    with pytest.raises(OutputError, match=r"full\.mcap \(byte \d+\): write failed \(No space left on device\)"):
         w.write("feed", {"t_ns": t + 10**9, "feed_mm_min": t / 1e3})
         w.flush()
-    with pytest.raises(IngestError, match="write failed"):
+    with pytest.raises(OutputError, match="write failed"):
         w.write("feed", {"t_ns": t + 2 * 10**9, "feed_mm_min": t / 1e3})
     w.close()
     if failures == 1:  # the seal fitted: a complete, shorter file that says why it ended

@@ -108,6 +108,18 @@ def test_frame_buffer_is_bounded_and_counts_overflow():
     assert len(frames) == 10 and len(buffer) == 0 and frames.t_ns[-1] == 9_000_000_000
 
 
+def test_frame_buffer_counts_frames_no_bus_can_carry_and_keeps_lengths():
+    buffer = FrameBuffer()
+    buffer.on_message_received(can.Message(timestamp=1.0, arbitration_id=0x100, data=bytes(3)))
+    buffer.on_message_received(can.Message(timestamp=1.0, arbitration_id=0x3FFF_FFFF, data=bytes(8)))
+    buffer.on_message_received(can.Message(timestamp=1.0, arbitration_id=0x800, data=bytes(8), is_extended_id=False))
+    buffer.on_message_received(can.Message(timestamp=float("nan"), arbitration_id=0x100, data=bytes(8)))
+    buffer.on_message_received(can.Message(is_error_frame=True))
+    assert buffer.received == 5 and buffer.bad_frames == 3 and buffer.error_frames == 1
+    frames = buffer.take()
+    assert len(frames) == 1 and frames.dlc.tolist() == [3]  # decode_frames leaves the short frame out
+
+
 def test_sim_source_records_the_simulated_program(tmp_path, capsys):
     from feedlog.sim import simulate
     from feedlog.toolpath import parse_program
@@ -250,7 +262,7 @@ def test_can_source_cli_records_a_virtual_bus_for_a_duration(tmp_path, capsys):
     rec = read_recording(out)
     assert len(rec.streams["axes"]) == 500 and rec.metadata["source"] == "can virtual:cli-can"
     assert main(["record", "--source", "can", "--interface", "nosuchbus", "--channel", "x", "-o",
-                 str(tmp_path / "x.mcap")]) == 1
+                 str(tmp_path / "x.mcap")]) == 2
     assert "cannot open CAN bus" in capsys.readouterr().err
 
 

@@ -111,7 +111,7 @@ def test_feedlog_record_cli_runs_a_program_and_feedlog_info_reads_it(tmp_path, c
             "--timeout-s", "60"] + (["--isolate"] if ISOLATE else [])
     assert main(argv) == 0
     assert "cycle_time_s" in capsys.readouterr().out
-    assert main(["record", *argv[1:]]) == 1  # refuses to overwrite
+    assert main(["record", *argv[1:]]) == 2  # refuses to overwrite
     assert "output exists" in capsys.readouterr().err
     assert main(["info", str(out)]) == 0
     info = capsys.readouterr().out

@@ -22,7 +22,7 @@ def test_json_summary_and_parquet(tmp_path, capsys):
     series = pd.read_parquet(out)
     assert {"t_ns", "x_mm", "y_mm", "feed_mm_min", "block", "line"} <= set(series.columns)
     # refuses to overwrite without --force
-    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "--out", str(out)]) == 1
+    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "--out", str(out)]) == 2
     assert "exists" in capsys.readouterr().err
 
 
@@ -39,8 +39,8 @@ def test_set_changes_the_result(tmp_path, capsys):
 def test_bad_input_is_one_line(tmp_path, capsys):
     src = tmp_path / "p.ngc"
     src.write_text(PROGRAM)
-    assert main(["sim", str(src), "--profile", "nope"]) == 1
-    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "--set", "warp.x=1"]) == 1
+    assert main(["sim", str(src), "--profile", "nope"]) == 2
+    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "--set", "warp.x=1"]) == 2
     err = capsys.readouterr().err
     assert "unknown machine profile" in err and "unknown sim mechanism" in err
     assert "Traceback" not in err

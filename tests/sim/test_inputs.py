@@ -6,13 +6,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from feedlog.errors import SimulationError
+from feedlog.errors import ProgramError, SimulationError
 from feedlog.sim import simulate
 
 
 def test_axis_missing_on_the_machine_names_file_and_line(plain, gcode):
-    with pytest.raises(SimulationError, match=r"test\.ngc:3: the program moves axis A"):
+    with pytest.raises(ProgramError, match=r"test\.ngc:3: the program moves axis A") as info:
         simulate(gcode("G21 G90\nF3000\nG1 X1 A30\n"), plain)
+    assert info.value.line == 3 and info.value.code == "A"
 
 
 def test_feed_move_without_feed_names_the_line(plain):

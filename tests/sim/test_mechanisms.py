@@ -28,8 +28,12 @@ def test_unknown_mechanism_and_parameter_are_rejected(plain):
         resolve_mechanisms(plain, ["warp"])
     with pytest.raises(SimulationError, match="unknown parameter"):
         resolve_mechanisms(plain, {"feed_override": {"speed": 2}})
-    with pytest.raises(SimulationError, match="must be > 0"):
+    with pytest.raises(SimulationError, match=r"override must be from 0.001 to 10 \(0.1 % to 1000 %\), got 0"):
         resolve_mechanisms(plain, {"feed_override": {"override": 0}})
+    with pytest.raises(SimulationError, match="parameter lookahead_blocks must be a whole number, got 'abc'"):
+        resolve_mechanisms(plain, {"lookahead": {"lookahead_blocks": "abc"}})
+    with pytest.raises(SimulationError, match=r"parameter stop_settle_s must be a time from 0 to 3600 s, got nan"):
+        resolve_mechanisms(plain, {"lookahead": {"stop_settle_s": float("nan")}})
     with pytest.raises(SimulationError, match="exactly one interpolator"):
         resolve_mechanisms(plain, {"lookahead": False})
     with pytest.raises(SimulationError, match="exactly one interpolator"):

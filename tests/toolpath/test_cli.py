@@ -40,7 +40,7 @@ def test_text_summary_and_parquet_output_refuses_to_overwrite(tmp_path, capsys):
     table = pd.read_parquet(out)
     assert len(table) == 30 and table["kind"].astype(str).eq("arc_cw").sum() == 3
     before = out.stat().st_mtime_ns
-    assert main(["program", str(EXAMPLES / "pocket.ngc"), "--parquet", str(out)]) == 1
+    assert main(["program", str(EXAMPLES / "pocket.ngc"), "--parquet", str(out)]) == 2
     assert "exists" in capsys.readouterr().err and out.stat().st_mtime_ns == before
     assert main(["program", str(EXAMPLES / "pocket.ngc"), "--parquet", str(out), "--overwrite"]) == 0
 
@@ -48,7 +48,7 @@ def test_text_summary_and_parquet_output_refuses_to_overwrite(tmp_path, capsys):
 def test_bad_program_is_one_line_naming_file_line_and_code(tmp_path, capsys):
     prog = tmp_path / "bad.ngc"
     prog.write_text("G1 X1 F100\nG41 D1 X2\n")
-    assert main(["program", str(prog)]) == 1
+    assert main(["program", str(prog)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and f"{prog}:2" in err and "G41" in err
     s = run_json(capsys, str(prog), "--lenient")
@@ -68,7 +68,7 @@ def test_plane_arcs_example(capsys):
 def test_lenient_json_stays_valid_json_when_feeds_are_missing(tmp_path, capsys):
     prog = tmp_path / "nofeed.ngc"
     prog.write_text("G0 X1\nG1 X2\nG1 X3 F60\n")
-    assert main(["program", str(prog)]) == 1
+    assert main(["program", str(prog)]) == 2
     assert "F" in capsys.readouterr().err
     s = run_json(capsys, str(prog), "--lenient")
     assert s["blocks_without_time"] == 1 and s["cam_time_s"] == pytest.approx(1 / 6000 * 60 + 1.0)

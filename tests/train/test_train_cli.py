@@ -77,7 +77,7 @@ def test_train_then_predict(tmp_path, capsys, examples_dir, monkeypatch):
     assert list(results["recording"]) == ["test-2"]
     assert {"measured_s", "cam_s", "cam_err_pct", "mlp_s", "mlp_err_pct", "bilstm-block_err_pct"} <= set(results)
     assert results["measured_s"].iloc[0] == pytest.approx(load_many([aligned])[0].measured_cycle_time_s)
-    assert main(argv) == 1  # outputs exist: refused without --overwrite
+    assert main(argv) == 2  # outputs exist: refused without --overwrite
     assert "refusing to overwrite" in capsys.readouterr().err
     assert main([*argv, "--overwrite", "--json", "--models", "mlp"]) == 0
     doc = json.loads(capsys.readouterr().out)  # nothing but the JSON document on stdout
@@ -105,9 +105,9 @@ def test_train_then_predict(tmp_path, capsys, examples_dir, monkeypatch):
     again = predict_program(out / "mlp.pt", program)  # either argument order
     assert pred.cycle_time_s == pytest.approx(again.cycle_time_s) and pred.cycle_time_s > 0
 
-    assert main(["train", str(aligned), "-o", str(tmp_path / "x"), "--models", "gpt"]) == 1
+    assert main(["train", str(aligned), "-o", str(tmp_path / "x"), "--models", "gpt"]) == 2
     assert "unknown model(s) gpt" in capsys.readouterr().err
-    assert main(["predict", str(program), "--model", str(tmp_path / "none.pt")]) == 1
+    assert main(["predict", str(program), "--model", str(tmp_path / "none.pt")]) == 2
     assert "checkpoint not found" in capsys.readouterr().err
 
 

@@ -53,12 +53,12 @@ def test_view_with_sim_overlays_the_simulation_when_sim_exists(tmp_path, recordi
 def test_view_refuses_to_overwrite_and_reports_bad_files(tmp_path, recording_file, capsys):
     out = tmp_path / "exists.rrd"
     out.write_bytes(b"keep me")
-    assert main(["view", str(recording_file), "--save", str(out)]) == 1
+    assert main(["view", str(recording_file), "--save", str(out)]) == 2
     assert "exists; pass --overwrite" in capsys.readouterr().err
     assert out.read_bytes() == b"keep me"
     broken = tmp_path / "broken.mcap"
     broken.write_bytes(b"not an mcap file at all")
-    assert main(["view", str(broken), "--save", str(tmp_path / "b.rrd")]) == 1
+    assert main(["view", str(broken), "--save", str(tmp_path / "b.rrd")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("feedlog view: error:") and "broken.mcap" in err and "Traceback" not in err
 
@@ -67,5 +67,5 @@ def test_view_without_a_display_says_how_else_to_look(recording_file, monkeypatc
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     monkeypatch.setattr("sys.platform", "linux")
-    assert main(["view", str(recording_file), "--no-align"]) == 1
+    assert main(["view", str(recording_file), "--no-align"]) == 2
     assert "use --save OUT.rrd" in capsys.readouterr().err

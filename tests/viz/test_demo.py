@@ -99,14 +99,14 @@ def test_demo_json_prints_only_the_table_and_reruns_into_its_own_folder(demo_run
 
 def test_demo_refuses_a_folder_it_did_not_write(recordings_dir, tmp_path, capsys):
     (tmp_path / "precious.txt").write_text("mine")
-    assert main(["demo", "--recordings", str(recordings_dir), "--out", str(tmp_path), "--no-train"]) == 1
+    assert main(["demo", "--recordings", str(recordings_dir), "--out", str(tmp_path), "--no-train"]) == 2
     assert "was not written by feedlog demo" in capsys.readouterr().err
     assert (tmp_path / "precious.txt").read_text() == "mine"
 
 
 def test_demo_without_recordings_is_an_error(tmp_path, capsys):
     (tmp_path / "empty").mkdir()
-    assert main(["demo", "--recordings", str(tmp_path / "empty"), "--out", str(tmp_path / "o")]) == 1
+    assert main(["demo", "--recordings", str(tmp_path / "empty"), "--out", str(tmp_path / "o")]) == 2
     assert "no recordings" in capsys.readouterr().err
 
 
