@@ -2,8 +2,8 @@
 
 Prints the answer in a few lines (or one JSON object with `--json`) and writes DIR/report.md,
 DIR/diagnose.json, DIR/profile.toml (the extended profile, usable with --profile everywhere) and
-DIR/diagnose.rrd. Input that cannot be diagnosed is one error line and exit code 2; nothing is
-written then.
+DIR/diagnose.rrd. Input that cannot be diagnosed is one error line and exit code 2 (an output that
+cannot be written: exit code 1); nothing is written half.
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
             write_outputs(dx, args.out, overwrite=args.overwrite, rrd=not args.no_rrd)
     except FeedlogError as exc:
         print(f"feedlog diagnose: error: {exc}", file=sys.stderr)
-        return 2
+        return exc.exit_code
     if args.json:
         json.dump(to_json(dx), sys.stdout, allow_nan=False)
         sys.stdout.write("\n")

@@ -45,12 +45,14 @@ def _send(stream: rr.RecordingStream, entity: str, t_s: np.ndarray, values: np.n
 
 
 def save_rrd(dx, path: Path) -> Path:
+    """Encode the recording in memory, then write its bytes (a write that fails is an ordinary OSError)."""
     stream = new_stream("diagnose")
     blueprint = rrb.Blueprint(rrb.Horizontal(
         rrb.Spatial3DView(origin=ROOT, name="toolpath coloured by timing residual"),
         rrb.Vertical(*[rrb.TimeSeriesView(origin=f"{ROOT}/{c.name}/speed", name=f"{c.name}: path speed (mm/min)")
                        for c in dx.cases[:4]])))
-    stream.save(str(path), default_blueprint=blueprint)
+    memory = stream.memory_recording()
+    stream.send_blueprint(blueprint)
     try:
         stream.send_recording_name("feedlog diagnose")
         seg = dx.where.get("segments")
@@ -88,5 +90,7 @@ def save_rrd(dx, path: Path) -> Path:
                       label="simulated, given profile" if label == "before" else "simulated, extended profile")
     finally:
         stream.flush()
-        stream.disconnect()
+    data = memory.drain_as_bytes()
+    stream.disconnect()
+    path.write_bytes(data)
     return path

@@ -14,6 +14,7 @@ import tempfile
 from pathlib import Path
 
 from feedlog.diagnose.cases import DiagnoseError
+from feedlog.errors import OutputError
 from feedlog.diagnose.summary import to_json
 
 PROFILE = "profile.toml"
@@ -36,8 +37,11 @@ def write_outputs(dx, out: str | Path, *, overwrite: bool = False, rrd: bool = T
     out = Path(out)
     if out.exists() and not overwrite and (not out.is_dir() or any(out.iterdir())):
         raise DiagnoseError(f"{out} exists; pass --overwrite to replace it")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    except OSError as exc:
+        raise OutputError(f"cannot create the output folder: {exc.strerror or exc}", file=str(out)) from None
     try:
         dx.profile_out = str(out / PROFILE)
         (tmp / PROFILE).write_text(profile_text(dx))
@@ -61,6 +65,9 @@ def write_outputs(dx, out: str | Path, *, overwrite: bool = False, rrd: bool = T
             shutil.rmtree(old, ignore_errors=True)
         else:
             tmp.rename(out)
+    except OSError as exc:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise OutputError(f"cannot write the diagnosis: {exc.strerror or exc}", file=str(out)) from None
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

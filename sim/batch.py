@@ -44,6 +44,7 @@ class SimItem:
     ok: bool
     summary: dict[str, Any] | None = None
     error: str | None = None
+    exit_code: int = 0  # of the error: 2 bad input, 1 an output that could not be written
 
 
 def simulate_one(task: SimTask) -> dict[str, Any]:
@@ -89,7 +90,7 @@ def simulate_many(programs: list[str | Path], outdir: str | Path, *, profile: An
         there = None if overwrite else existing_output(root, name, files=FILES, tables=DATASET_TABLES,
                                                        key=PARTITION_KEY)
         if there is not None:
-            items[label] = SimItem(label, shown, False, error=f"{there} exists; pass --force to overwrite")
+            items[label] = SimItem(label, shown, False, error=f"{there} exists; pass --force to overwrite", exit_code=2)
             continue
         tasks.append(SimTask(program=storage.absolute(label), label=label, outdir=root, profile=prof,
                              mechanisms=mechanisms, dt_s=dt_s, token=token))
@@ -100,5 +101,6 @@ def simulate_many(programs: list[str | Path], outdir: str | Path, *, profile: An
         storage.remove_partials(root, token)
     for task, result in zip(tasks, results):
         shown = storage.join(str(outdir), storage.stem(task.label))
-        items[task.label] = SimItem(task.label, shown, result.ok, summary=result.value, error=result.error)
+        items[task.label] = SimItem(task.label, shown, result.ok, summary=result.value, error=result.error,
+                                    exit_code=result.exit_code)
     return [items[label] for label in labels]

@@ -86,14 +86,14 @@ def _run_many(args: argparse.Namespace) -> int:
         print(f"feedlog sim: error: {item.program}: {item.error}", file=sys.stderr)
     if args.json:
         docs = [i.summary if i.ok else {"program": i.program, "error": i.error} for i in items]
-        json.dump(docs[0] if len(docs) == 1 else docs, sys.stdout)
+        json.dump(docs[0] if len(docs) == 1 else docs, sys.stdout, allow_nan=False)
         sys.stdout.write("\n")
     else:
         for i in items:
             if i.ok:
                 print(f"{i.program}: {i.summary['blocks']} blocks on {i.summary['profile']}: cycle time "
                       f"{i.summary['cycle_time_s']:.3f} s (CAM estimate {i.summary['cam_time_s']:.3f} s) -> {i.outdir}")
-    return 1 if failed else 0
+    return min((i.exit_code or 2 for i in failed), default=0)  # 1 if an output could not be written, else 2
 
 
 def _run_one(args: argparse.Namespace, source: str) -> int:

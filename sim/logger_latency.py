@@ -19,6 +19,7 @@ from feedlog.sim.mechanism import Mechanism
 class LoggerLatency(Mechanism):
     name = "logger_latency"
     kind = "measurement"
+    signed_times = ("line_s",)
 
     line_s: float = 0.0   # the line stream lags the positions by this (negative: it leads them)
 

@@ -64,6 +64,7 @@ class Mechanism:
     kind: ClassVar[str] = ""
     order: ClassVar[int] = 50  # position among mechanisms of the same kind (low runs first)
     uses_corner_law: ClassVar[bool] = True  # interpolators: whether corner laws run before them
+    signed_times: ClassVar[tuple[str, ...]] = ()  # `*_s` parameters that may be negative (time offsets)
 
     @classmethod
     def default_enabled(cls, profile: MachineProfile) -> bool:
@@ -88,7 +89,8 @@ class Mechanism:
         defaults = {f.name: f.default if f.default is not dataclasses.MISSING else f.default_factory()
                     for f in dataclasses.fields(cls) if f.init}
         defaults.update(cls.defaults(profile))
-        return {k: _checked(cls.name, k, v, defaults.get(k)) for k, v in params.items() if k != "enabled"}
+        return {k: _checked(cls.name, k, v, defaults.get(k), signed=k in cls.signed_times)
+                for k, v in params.items() if k != "enabled"}
 
     @classmethod
     def from_params(cls, profile: MachineProfile, params: Mapping[str, Any]) -> Mechanism:
@@ -136,15 +138,16 @@ class Mechanism:
                 raise SimulationError(f"mechanism {self.name!r}: {key} must be >= 0, got {value}")
 
 
-def _checked(mechanism: str, name: str, value: Any, default: Any) -> Any:
+def _checked(mechanism: str, name: str, value: Any, default: Any, *, signed: bool = False) -> Any:
     """`value` for parameter `name` if it has the type of the parameter's default (numbers finite,
     a list for a tuple of the same length, a table of numbers for a dict; times `*_s` from 0 to an
-    hour); SimulationError otherwise."""
+    hour, or within an hour either way for the mechanism's `signed_times`); SimulationError otherwise."""
     def number(v: Any) -> bool:
         return isinstance(v, (int, float)) and not isinstance(v, bool) and (math.isfinite(v) or v == default)
 
-    if name.endswith("_s") and isinstance(default, float) and not (number(value) and 0 <= value <= MAX_PARAM_S):
-        raise SimulationError(f"mechanism {mechanism!r}: parameter {name} must be a time from 0 to "
+    low = -MAX_PARAM_S if signed else 0.0
+    if name.endswith("_s") and isinstance(default, float) and not (number(value) and low <= value <= MAX_PARAM_S):
+        raise SimulationError(f"mechanism {mechanism!r}: parameter {name} must be a time from {low:g} to "
                               f"{MAX_PARAM_S:g} s, got {value!r}")
 
     if isinstance(default, bool):

@@ -17,6 +17,7 @@ from feedlog.ingest import read_recording, write_recording
 from feedlog.ingest.recording import PROGRAM_ATTACHMENT, Recording
 from feedlog.profile import load_profile
 from tests.diagnose.conftest import PROGRAMS
+from tests.viz.conftest import rrd_content
 
 CONTRACT = {"profile", "recordings", "error_before_pct", "error_after_pct", "feedback_rms_before_mm",
             "feedback_rms_after_mm", "held_out", "levels", "findings", "unexplained", "profile_out"}
@@ -58,6 +59,10 @@ def test_json_contract_files_and_an_extended_profile_every_command_takes(xacc_fi
     report = (out / "report.md").read_text()
     assert report.startswith("# feedlog diagnose") and "axes.x.acc_max" in report
     assert all((out / "plots" / name).stat().st_size > 1000 for name in ("evidence.png", "segment_residuals.png"))
+    content = rrd_content(out / "diagnose.rrd")  # read back with Rerun's own reader
+    rec = Path(data["recordings"][0]).stem
+    assert {f"/diagnose/{rec}/path/before", f"/diagnose/{rec}/path/after"} <= set(content)
+    assert all(content[f"/diagnose/{rec}/speed/{s}"]["rows"] > 1000 for s in ("measured", "before", "after"))
     assert not list(tmp_path.glob(".dx.*"))  # no temporary folder left
     # the extended profile is a profile: load it, simulate with it
     ext = load_profile(out / "profile.toml")
@@ -155,3 +160,22 @@ def test_a_five_axis_recording_under_a_three_axis_profile_is_refused(tmp_path, c
 def test_the_command_is_registered_with_help():
     proc = subprocess.run([sys.executable, "-m", "feedlog", "diagnose", "--help"], capture_output=True, text=True)
     assert proc.returncode == 0 and "--profile" in proc.stdout and "--json" in proc.stdout
+
+
+def _full_disk():  # in the child: a file may not grow past 100 kB (as a nearly full disk)
+    import resource
+    import signal
+
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (100_000, 100_000))
+
+
+def test_an_output_that_cannot_be_written_is_exit_1_and_leaves_nothing(xacc_files, tmp_path):
+    out = tmp_path / "dx"
+    proc = subprocess.run([sys.executable, "-m", "feedlog", "diagnose", *map(str, xacc_files), "--profile",
+                           "linuxcnc-xyz", "-o", str(out), "--no-learned", "-q"], capture_output=True, text=True,
+                          preexec_fn=_full_disk, timeout=600)
+    assert proc.returncode == 1, (proc.stdout, proc.stderr)
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("feedlog diagnose: error: ") and "cannot write" in lines[0]
+    assert list(tmp_path.iterdir()) == []

@@ -48,7 +48,7 @@ def test_align_on_cluster_same_as_local(cluster, tmp_path):
     recs = [f"recs/{n}.mcap" for n in RECORDINGS] + ["recs/broken.mcap"]
     local = feedlog("align", *recs, "-o", "local", "-j", "1", "-q", cwd=client)
     remote = feedlog("align", *recs, "-o", "remote", "-q", "--scheduler", cluster, cwd=client)
-    assert local.returncode == remote.returncode == 1, remote.stderr   # broken.mcap fails, the rest is written
+    assert local.returncode == remote.returncode == 2, remote.stderr   # broken.mcap fails, the rest is written
     assert "Dask: 2 worker(s)" in remote.stderr and "dashboard" in remote.stderr
     for res in (local, remote):
         assert "error: recs/broken.mcap: " in res.stderr
@@ -86,7 +86,7 @@ def test_sim_on_cluster_same_as_local(cluster, tmp_path):
     local = feedlog("sim", *progs, "--profile", "linuxcnc-xyzac", "-o", "local", "-j", "1", "-q", cwd=client)
     remote = feedlog("sim", *progs, "--profile", "linuxcnc-xyzac", "-o", "remote", "-q", "--scheduler", cluster,
                      cwd=client)
-    assert local.returncode == remote.returncode == 1
+    assert local.returncode == remote.returncode == 2
     assert "progs/broken.ngc" in remote.stderr and "G5.3" in remote.stderr
     assert same_outputs(client / "local", client / "remote") == []
     series = pd.read_parquet(client / "remote" / "dataset" / "series")

@@ -52,10 +52,10 @@ def test_several_programs_write_one_folder_each_and_a_dataset(tmp_path, capsys):
     b.write_text(PROGRAM.replace("X40", "X80"))
     bad.write_text("G21 G90\nG5.3 X1\nM2\n")
     opts = ["--profile", "linuxcnc-xyz", "--json", "-q"]
-    assert main(["sim", str(a), str(b), *opts]) == 1
+    assert main(["sim", str(a), str(b), *opts]) == 2
     assert "need an output folder" in capsys.readouterr().err
     out = tmp_path / "out"
-    assert main(["sim", str(a), str(b), str(bad), *opts, "-o", str(out), "-j", "2"]) == 1
+    assert main(["sim", str(a), str(b), str(bad), *opts, "-o", str(out), "-j", "2"]) == 2
     captured = capsys.readouterr()
     docs = json.loads(captured.out)
     assert [d["program"] for d in docs] == [str(a), str(b), str(bad)]
@@ -70,7 +70,7 @@ def test_several_programs_write_one_folder_each_and_a_dataset(tmp_path, capsys):
     pd.testing.assert_frame_equal(blocks[blocks["program"] == "b"].drop(columns="program").reset_index(drop=True),
                                   pd.read_parquet(out / "b" / "blocks.parquet"), check_dtype=False)
     assert not (out / "bad").exists()
-    assert main(["sim", str(a), *opts, "-o", str(out), "-j", "1"]) == 1   # exists: --force to replace
+    assert main(["sim", str(a), *opts, "-o", str(out), "-j", "1"]) == 2   # exists: --force to replace
     assert "pass --force" in capsys.readouterr().err
-    assert main(["sim", str(a), "--profile", "linuxcnc-xyz", "-o", str(out), "--out", str(tmp_path / "s.parquet")]) == 1
+    assert main(["sim", str(a), "--profile", "linuxcnc-xyz", "-o", str(out), "--out", str(tmp_path / "s.parquet")]) == 2
     assert "--out/--blocks-out are for one program" in capsys.readouterr().err
