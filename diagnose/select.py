@@ -184,9 +184,12 @@ def _repeatability(held: HeldOut, units: list[int], cfg: SelectConfig,
 
 def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.ndarray, list[int]], float],
            evidence: Evidence | None = None, cfg: SelectConfig | None = None,
-           progress: Callable[[str], None] | None = None) -> Selection:
-    """Greedy forward selection of causes on one level."""
+           progress: Callable[[str], None] | None = None,
+           held_out_many: Callable[[dict[str, Any], Sequence[Hypothesis]], list[HeldOut]] | None = None) -> Selection:
+    """Greedy forward selection of causes on one level. `held_out_many(model, hyps)` runs the held-out fits
+    of one step (default: here, one after another; `feedlog.diagnose.parallel` runs them as tasks)."""
     cfg = cfg or SelectConfig()
+    many = held_out_many or (lambda model, pool: [held_out(scorer, model, h) for h in pool])
     model: dict[str, Any] = {}
     steps: list[Step] = []
     rejected: list[Judged] = []
@@ -200,7 +203,7 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
         pool = [h for h, _ in screen(scorer, model, remaining)]
         if progress:
             progress(f"{scorer.level}: step {len(steps) + 1}, {len(pool)} of {len(remaining)} hypotheses cross-validated")
-        judged = [judge(held_out(scorer, model, h), scorer, cfg, error, evidence) for h in pool]
+        judged = [judge(held, scorer, cfg, error, evidence) for held in many(model, pool)]
         judged.sort(key=lambda j: (j.veto is not None, float(j.held.after.sum())))
         if not judged:
             break
