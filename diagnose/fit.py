@@ -158,7 +158,10 @@ class Scorer:
         if self.level == "feedback":
             return feedback_residual(case, profile)
         if self.level == "line":
-            measured, model = self.line_model[i]
+            pair = self.line_model[i]
+            if pair is None:  # no line stream here: no units of this recording on this level
+                return None
+            measured, model = pair
             return model + line_latency(profile) - measured
         raise FeedlogError(f"unknown residual level {self.level!r}")
 

@@ -111,4 +111,5 @@ def to_json(dx) -> dict[str, Any]:
         "profile_out": dx.profile_out, "profile_diff": [{"key": k, "before": a, "after": b} for k, a, b in dx.diff],
         "evidence": dx.evidence.as_dict(), "noise_floor": dx.noise_floor, "rejected": rejected,
         "where": {k: v for k, v in dx.where.items() if k in ("before", "after", "classes_before", "top_segments")},
+        "notes": {c.name: c.notes for c in dx.cases if c.notes},
         "summary": summary_lines(dx), "timings_s": dx.timings_s})

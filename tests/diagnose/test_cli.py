@@ -113,7 +113,7 @@ def _no_axes(src: Recording) -> Recording:
 
 
 BAD = [
-    ("no program", _without_program, [], "carries no part program"),
+    ("no program", _without_program, [], "no program given and none attached"),
     ("no motion", _motionless, [], "shows no motion"),
     ("no positions", _no_axes, [], "has no 'axes' stream"),
     ("wrong kinematics", lambda r: r, ["--profile", "linuxcnc-xyzac"], "no A, C positions"),

@@ -82,3 +82,13 @@ def test_at_5_hz_a_hidden_change_is_still_named(hidden, name, values, key, truth
 def test_the_unchanged_machine_at_5_hz_gives_no_finding(hidden):
     dx = diagnose(hidden("control_5hz", rate_hz=5.0), "linuxcnc-xyz", config=FAST)
     assert dx.findings == [] and dx.unexplained == []
+
+
+def test_a_recording_without_a_level_leaves_that_level_to_the_others(hidden):
+    recs = hidden("xacc", values={"axes.x.acc_max": 300.0})
+    stripped = recs[0].__class__(streams={k: v for k, v in recs[0].streams.items() if k not in ("line", "joints")},
+                                 metadata=dict(recs[0].metadata), attachments=dict(recs[0].attachments),
+                                 source="no_line_stream.mcap")
+    dx = diagnose([stripped, recs[1]], "linuxcnc-xyz", config=FAST)
+    assert [f.parameter for f in dx.findings] == ["axes.x.acc_max"]
+    assert {dx.cases[u.case].name for u in dx.scorers["line"].units} == {recs[1].source.split(".")[0]}
