@@ -92,3 +92,17 @@ def test_a_recording_without_a_level_leaves_that_level_to_the_others(hidden):
     dx = diagnose([stripped, recs[1]], "linuxcnc-xyz", config=FAST)
     assert [f.parameter for f in dx.findings] == ["axes.x.acc_max"]
     assert {dx.cases[u.case].name for u in dx.scorers["line"].units} == {recs[1].source.split(".")[0]}
+
+
+def test_an_unexplained_residual_gets_a_learned_correction_judged_on_held_out_recordings(hidden, tmp_path):
+    from feedlog.diagnose.write import write_outputs
+
+    recs = hidden("arcs", edit=slower_after_arcs)
+    dx = diagnose(recs, "linuxcnc-xyz", config=DiagnoseConfig(learned=True))
+    (entry,) = dx.unexplained
+    lc = entry["learned_correction"]
+    assert lc["model"] == "hybrid" and [r["name"] for r in lc["held_out"]] == [c.name for c in dx.cases]
+    assert all(abs(r["error_before_pct"]) >= 0 and abs(r["error_after_pct"]) < 1e3 for r in lc["held_out"])
+    files = write_outputs(dx, tmp_path / "dx")
+    assert ("learned.pt" in files) == (lc["gain_pct"] > 0)   # kept only when it generalises
+    assert "Learned correction" in (tmp_path / "dx" / "report.md").read_text()
