@@ -79,23 +79,13 @@ class Finding:
     scheme: str = ""                # how it was held out
 
     def as_dict(self) -> dict[str, Any]:
-        return {"parameter": self.parameter, "profile_value": _plain(self.profile_value),
-                "fitted_value": _plain(self.fitted_value), "unit": self.unit,
-                "interval": None if self.interval is None else [_plain(self.interval[0]), _plain(self.interval[1])],
-                "gain_pct": round(self.gain_pct, 3), "error_before": _plain(self.error_before),
-                "error_after": _plain(self.error_after), "kind": self.kind, "level": self.level,
-                "family": self.family, "evidence": self.evidence, "predicts": self.predicts,
-                "alternatives": self.alternatives, "fold_values": [_plain(v) for v in self.fold_values],
+        """The finding as the `--json` object has it (`summary.clean` makes it JSON-ready)."""
+        return {"parameter": self.parameter, "profile_value": self.profile_value, "fitted_value": self.fitted_value,
+                "unit": self.unit, "interval": None if self.interval is None else list(self.interval),
+                "gain_pct": self.gain_pct, "error_before": self.error_before, "error_after": self.error_after,
+                "kind": self.kind, "level": self.level, "family": self.family, "evidence": self.evidence,
+                "predicts": self.predicts, "alternatives": self.alternatives, "fold_values": list(self.fold_values),
                 "where": self.where, "held_out": self.scheme}
-
-
-def _plain(v: Any) -> Any:
-    if isinstance(v, (np.floating, float)):
-        v = float(v)
-        return round(v, 10 - int(np.floor(np.log10(abs(v)))) if v else 0) if np.isfinite(v) else None
-    if isinstance(v, np.integer):
-        return int(v)
-    return v
 
 
 @dataclass
@@ -312,8 +302,8 @@ def _noise_floor(scorers: dict[str, Scorer], cfg: DiagnoseConfig, cases: Sequenc
 def _finding(j: Judged, sel: Selection, scorer: Scorer, ev: Evidence, error) -> Finding:
     hyp = j.held.hyp
     value = sel.model.get(hyp.key, j.held.value)
-    alts = [{"parameter": a.key, "fitted_value": _plain(a.held.value), "unit": a.held.hyp.unit,
-             "gain_pct": round(100 * a.held.gain, 3)} for a in _alternatives(sel, hyp.key)]
+    alts = [{"parameter": a.key, "fitted_value": a.held.value, "unit": a.held.hyp.unit,
+             "gain_pct": 100 * a.held.gain} for a in _alternatives(sel, hyp.key)]
     return Finding(parameter=hyp.key, profile_value=hyp.baseline, fitted_value=_round_value(hyp, value),
                    unit=hyp.unit, interval=j.held.interval, gain_pct=100 * j.held.gain,
                    error_before=j.error_before, error_after=j.error_after, kind=hyp.kind, level=hyp.level,

@@ -86,9 +86,6 @@ class Hypothesis:
             value = int(round(value))
         return {**self.also, self.key: value}
 
-    def apply(self, profile: MachineProfile, value: Any) -> MachineProfile:
-        return keys.with_values(profile, self.values(value))
-
 
 def family_function(name: str):
     try:

@@ -91,7 +91,6 @@ class Selection:
     rejected: list[Judged]          # the best candidates of the step that stopped the search
     base_losses: np.ndarray
     final_losses: np.ndarray        # per unit, held-out (each step's fold values)
-    refit: dict[str, Any] = field(default_factory=dict)
 
 
 def _priority(hyp: Hypothesis) -> int:
@@ -235,7 +234,7 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
             refit = _swap(scorer, steps, refit, hyps, cfg, error, evidence, progress)
         current = scorer.unit_losses(refit)
     return Selection(level=scorer.level, model=refit, steps=steps, rejected=rejected, base_losses=base,
-                     final_losses=current, refit=refit)
+                     final_losses=current)
 
 
 def _swap(scorer: Scorer, steps: list[Step], model: dict[str, Any], hyps: Sequence[Hypothesis], cfg: SelectConfig,
