@@ -106,3 +106,14 @@ def test_an_unexplained_residual_gets_a_learned_correction_judged_on_held_out_re
     files = write_outputs(dx, tmp_path / "dx")
     assert ("learned.pt" in files) == (lc["gain_pct"] > 0)   # kept only when it generalises
     assert "Learned correction" in (tmp_path / "dx" / "report.md").read_text()
+
+
+def test_a_five_axis_fir_machine_has_its_filter_time_found(hidden):
+    recs = hidden("fir", values={"interpolator.fir_t1_s": 0.1}, programs=("mix5ax_011", "mix5ax_015"), base="chien-ac")
+    dx = diagnose(recs, "chien-ac", config=FAST)
+    assert [f.parameter for f in dx.findings] == ["interpolator.fir_t1_s"]
+    assert dx.findings[0].fitted_value == pytest.approx(0.1, rel=0.15)
+    assert _cycle_error_removed(dx) >= 0.8
+    control = diagnose(hidden("fir_control", programs=("mix5ax_011", "mix5ax_015"), base="chien-ac"), "chien-ac",
+                       config=FAST)
+    assert control.findings == [] and control.unexplained == []
