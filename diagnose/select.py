@@ -210,6 +210,15 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
         if not judged:
             break
         best = judged[0]
+        if not best.accepted and len(steps) + 2 <= cfg.max_causes:
+            pair = _pair(scorer, model, judged, remaining, cfg, error, evidence, many, progress)
+            if pair is not None:
+                model, new = pair
+                steps.extend(new)
+                current = new[-1].chosen.held.after
+                taken = {k for st in new for k in st.chosen.held.hyp.keys}
+                remaining = [h for h in remaining if not (h.keys & taken)]
+                continue
         ties = [j for j in judged[1:] if j.veto is None and
                 float(j.held.after.sum()) <= float(best.held.after.sum()) * (1 + cfg.tie) + 1e-300]
         group = sorted([best, *ties], key=lambda j: (_priority(j.held.hyp), float(j.held.after.sum())))
@@ -239,6 +248,42 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
         current = scorer.unit_losses(refit)
     return Selection(level=scorer.level, model=refit, steps=steps, rejected=rejected, base_losses=base,
                      final_losses=current)
+
+
+def _pair(scorer: Scorer, model: dict[str, Any], judged: list[Judged], remaining: Sequence[Hypothesis],
+          cfg: SelectConfig, error: Callable[[np.ndarray, list[int]], float], evidence: Evidence | None,
+          many: Callable[[dict[str, Any], Sequence[Hypothesis]], list[HeldOut]],
+          progress: Callable[[str], None] | None) -> tuple[dict[str, Any], list[Step]] | None:
+    """One step of look-ahead when no single cause survives its held-out test. With two causes in the
+    data, the fit of the first on part of it can carry the second and spoil the rest (a path speed cap,
+    fitted on recordings whose rapids a Z acceleration limit slows, comes out far too low for a program
+    that reaches the cap on its feed moves). So the candidate that fits all the data best is put in
+    provisionally, the next cause is looked for given it, and the two are kept only if each then passes
+    every rule held out given the other (refitted together first). Otherwise nothing is kept."""
+    lead = sorted((j for j in judged if j.veto is None), key=lambda j: float(j.held.fit_after.sum()))
+    if not lead or error(lead[0].held.before, list(range(len(scorer.units)))) < cfg.min_effect:
+        return None
+    first = lead[0].held
+    trial = {**model, **first.hyp.values(first.value)}
+    pool = [h for h, _ in screen(scorer, trial, [h for h in remaining if not (h.keys & first.hyp.keys)])]
+    if not pool:
+        return None
+    if progress:
+        progress(f"{scorer.level}: no single cause holds out; {len(pool)} second causes tried with {first.hyp.key}")
+    second = [j for j in (judge(held, scorer, cfg, error, evidence) for held in many(trial, pool)) if j.accepted]
+    if not second:
+        return None
+    pick = min(second, key=lambda j: float(j.held.after.sum()))
+    hyps = [first.hyp, pick.held.hyp]
+    joint = _refit(scorer, hyps, {**trial, **pick.held.hyp.values(pick.held.value)}, 2)
+    steps = []
+    for hyp, considered in zip(hyps, (judged, second)):
+        others = {k: v for k, v in joint.items() if k not in hyp.keys}
+        j = judge(held_out(scorer, others, hyp), scorer, cfg, error, evidence)
+        if not j.accepted:
+            return None
+        steps.append(Step(chosen=j, alternatives=[], considered=considered))
+    return joint, steps
 
 
 def _rechoose(scorer: Scorer, steps: list[Step], model: dict[str, Any], cfg: SelectConfig,
