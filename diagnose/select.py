@@ -238,10 +238,7 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
         remaining = [h for h in remaining if h.key != chosen.key]
     refit = _refit(scorer, [s.chosen.held.hyp for s in steps], model, cfg.refit_rounds)
     if len(steps) > 1:  # each cause judged again with the others at their refitted values
-        for step in steps:
-            hyp = step.chosen.held.hyp
-            others = {k: v for k, v in refit.items() if k not in hyp.keys}
-            step.chosen = judge(held_out(scorer, others, hyp), scorer, cfg, error, evidence)
+        refit = _rejudged(scorer, steps, refit, cfg, error, evidence)
         refit = _rechoose(scorer, steps, refit, cfg, error, evidence, many, progress)
         if error(scorer.unit_losses(refit), units) >= cfg.min_effect:  # something material left: try swaps
             refit = _swap(scorer, steps, refit, hyps, cfg, error, evidence, progress)
@@ -320,12 +317,8 @@ def _rechoose(scorer: Scorer, steps: list[Step], model: dict[str, Any], cfg: Sel
             changed = True
     if not changed:
         return model
-    model = _refit(scorer, [s.chosen.held.hyp for s in steps], model, 2)
-    for step in steps:
-        hyp = step.chosen.held.hyp
-        others = {k: v for k, v in model.items() if k not in hyp.keys}
-        step.chosen = judge(held_out(scorer, others, hyp), scorer, cfg, error, evidence)
-    return model
+    return _rejudged(scorer, steps, _refit(scorer, [s.chosen.held.hyp for s in steps], model, 2), cfg, error,
+                     evidence)
 
 
 def _swap(scorer: Scorer, steps: list[Step], model: dict[str, Any], hyps: Sequence[Hypothesis], cfg: SelectConfig,
@@ -354,7 +347,13 @@ def _swap(scorer: Scorer, steps: list[Step], model: dict[str, Any], hyps: Sequen
             chosen = (chosen - {hyp.key}) | {best.key}
             steps[i] = Step(chosen=best, alternatives=[], considered=[step.chosen, *step.considered])
             model = {**others, **best.held.hyp.values(best.held.value)}
-    model = _refit(scorer, [s.chosen.held.hyp for s in steps], model, 2)
+    return _rejudged(scorer, steps, _refit(scorer, [s.chosen.held.hyp for s in steps], model, 2), cfg, error,
+                     evidence)
+
+
+def _rejudged(scorer: Scorer, steps: list[Step], model: dict[str, Any], cfg: SelectConfig,
+              error: Callable[[np.ndarray, list[int]], float], evidence: Evidence | None) -> dict[str, Any]:
+    """Each step's cause judged again, held out, given the others at their values in `model`."""
     for step in steps:
         hyp = step.chosen.held.hyp
         others = {k: v for k, v in model.items() if k not in hyp.keys}
