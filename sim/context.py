@@ -24,14 +24,37 @@ Samples = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 @dataclass
+class Window:
+    """What a windowed simulation (feedlog.sim.window) tells the mechanisms about the rows they see.
+
+    `last`: the rows reach the program's end (the last row is the program's last). `state`: what each
+    mechanism handed over from the previous window (by name). A `limits` mechanism whose result for
+    the last rows depends on rows still to come calls `pending(name, block, ...)`: rows from program
+    block `block` on are done again with the next window, and the keyword values are the state it
+    gets then. `core`: the pieces [lo, hi) of `ctx.pieces` the window keeps (the rest is context
+    either side), for a corner law's counts."""
+
+    last: bool = True
+    state: dict[str, object] = field(default_factory=dict)
+    core: tuple[int, int] | None = None
+    pending_from: dict[str, tuple[int, dict]] = field(default_factory=dict)
+
+    def pending(self, name: str, block: int, **state) -> None:
+        """Rows from program block `block` on may still change; `state` goes to the window that redoes them."""
+        self.pending_from[name] = (int(block), state)
+
+
+@dataclass
 class Context:
-    """Mutable state of one simulation run. `limits` mechanisms edit `blocks`, corner laws `pieces`."""
+    """Mutable state of one simulation run. `limits` mechanisms edit `blocks`, corner laws `pieces`.
+    `window` is None when the whole program is simulated at once."""
 
     profile: MachineProfile
     blocks: Blocks
     pieces: Pieces | None = None
     dt_s: float = 0.001
     notes: dict[str, object] = field(default_factory=dict)
+    window: Window | None = None
 
 
 class Trajectory:
