@@ -29,19 +29,29 @@ class Window:
 
     `last`: the rows reach the program's end (the last row is the program's last). `state`: what each
     mechanism handed over from the previous window (by name). A `limits` mechanism whose result for
-    the last rows depends on rows still to come calls `pending(name, block, ...)`: rows from program
-    block `block` on are done again with the next window, and the keyword values are the state it
-    gets then. `core`: the pieces [lo, hi) of `ctx.pieces` the window keeps (the rest is context
-    either side), for a corner law's counts."""
+    the last rows may change with rows still to come calls `pending(name, block)`: the rows from
+    program block `block` on are done again, with the next rows, in the next window. The window
+    restarts at the earliest such block of all mechanisms, P; a mechanism that carries state across
+    windows registers `carry(name, state_at)`, and `state_at(P)` is what it gets in the next window.
+    `core`: the pieces [lo, hi) of `ctx.pieces` the window keeps (the rest is context either side),
+    for a corner law's counts."""
 
     last: bool = True
-    state: dict[str, object] = field(default_factory=dict)
+    state: dict[str, dict] = field(default_factory=dict)
     core: tuple[int, int] | None = None
-    pending_from: dict[str, tuple[int, dict]] = field(default_factory=dict)
+    pending_from: dict[str, int] = field(default_factory=dict)
+    hand_over: dict[str, object] = field(default_factory=dict)
 
-    def pending(self, name: str, block: int, **state) -> None:
-        """Rows from program block `block` on may still change; `state` goes to the window that redoes them."""
-        self.pending_from[name] = (int(block), state)
+    def pending(self, name: str, block: int) -> None:
+        """Rows from program block `block` on may still change with later rows."""
+        self.pending_from[name] = min(int(block), self.pending_from.get(name, int(block)))
+
+    def carry(self, name: str, state_at) -> None:
+        """`state_at(block) -> dict`: the state to start from when the next window starts at `block`."""
+        self.hand_over[name] = state_at
+
+    def mine(self, name: str) -> dict:
+        return self.state.get(name) or {}
 
 
 @dataclass

@@ -98,6 +98,7 @@ def inscribed_limit(binormal: np.ndarray, bounds: np.ndarray) -> np.ndarray:
 class BlendArcCorner(Mechanism):
     name = "blend_arc"
     kind = "corner"
+    windowed = True
 
     kink_ratio: float = 0.1
     gap_cycles: float = 4.0
@@ -214,9 +215,11 @@ class BlendArcCorner(Mechanism):
         end_stop = np.append(hard & ~sharp & ~mode_change, True)
         half = continuous & end_stop & ~halved & (length > 0)
         a_max[half] *= 0.5
-        ctx.pieces = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)
-        ctx.notes.update(blend_arcs=int(use_arc.sum()), tangent_junctions=int(use_kink.sum()),
-                         parabolic_blends=int(overlap.sum()), consumed_lines=int((ctx.pieces.clamp_len == 0).sum()))
+        ctx.pieces, line_clamp = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)
+        # counts over the junctions after the pieces a window keeps (all of them when not windowed)
+        lo, hi = ctx.window.core if ctx.window is not None and ctx.window.core is not None else (0, m)
+        ctx.notes.update(blend_arcs=int(use_arc[lo:hi].sum()), tangent_junctions=int(use_kink[lo:hi].sum()),
+                         parabolic_blends=int(overlap[lo:hi].sum()), consumed_lines=int((line_clamp[lo:hi] == 0).sum()))
 
     @staticmethod
     def _continuous(blocks, b: np.ndarray) -> np.ndarray:
@@ -343,4 +346,4 @@ class BlendArcCorner(Mechanism):
         arc_pos = line_pos[ja] + 1
         merged = {f: _interleave(getattr(lines, f), getattr(arcp, f), line_pos, arc_pos)
                   for f in Pieces.__dataclass_fields__}
-        return Pieces(**merged)
+        return Pieces(**merged), clamp

@@ -127,6 +127,7 @@ class NaiveCamMerge(Mechanism):
     name = "naive_cam"
     kind = "limits"
     order = 5
+    windowed = True
 
     max_chain: int = 100
 
@@ -151,19 +152,31 @@ class NaiveCamMerge(Mechanism):
         b = ctx.blocks
         n = len(b)
         window = ctx.window
+        if window is not None:
+            lead = bool(window.mine(self.name).get("lead", False))
         if n < 2:
             if window is not None and n and not window.last:
-                window.pending(self.name, int(b.block[0]), lead=False)
+                window.pending(self.name, int(b.block[0]))
+                window.carry(self.name, lambda block: {"lead": lead})
             return
         cand = self.candidates(b)
-        lead = bool(window.state.get(self.name, {}).get("lead", False)) if window is not None else False
+        if window is None:
+            lead = False
         lin = b.linear_index
         tol = np.nan_to_num(b.merge_tol, nan=0.0)
         start, end, open_from = chains(b.p0[:, lin], b.p1[:, lin], cand, tol, self.max_chain,
                                        lead_candidate=lead)
-        if window is not None and not window.last:
-            # the chain holding the last row may still grow: it is redone with the next rows
-            window.pending(self.name, int(b.block[open_from]), lead=bool(cand[open_from - 1]) if open_from else lead)
+        if window is not None:
+            if not window.last:  # the chain holding the last row may still grow: it is redone with the next rows
+                window.pending(self.name, int(b.block[open_from]))
+            blocks = b.block.copy()
+
+            def state_at(block: int) -> dict:
+                """Whether the row of `block` began its chain after a failed test (a candidate before it)."""
+                r = int(np.searchsorted(blocks, block))
+                return {"lead": bool(cand[r - 1]) if 0 < r <= len(cand) else lead}
+
+            window.carry(self.name, state_at)
         if not len(start):
             return
         keep = np.ones(n, bool)
