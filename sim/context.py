@@ -46,6 +46,11 @@ class Window:
         """Rows from program block `block` on may still change with later rows."""
         self.pending_from[name] = min(int(block), self.pending_from.get(name, int(block)))
 
+    def restart(self) -> float:
+        """The earliest pending block so far (inf: none): rows from it on may change, so a row whose
+        result depends on a later row at or after it is pending too."""
+        return min(self.pending_from.values(), default=float("inf"))
+
     def carry(self, name: str, state_at) -> None:
         """`state_at(block) -> dict`: the state to start from when the next window starts at `block`."""
         self.hand_over[name] = state_at

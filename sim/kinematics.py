@@ -33,11 +33,15 @@ from feedlog.sim.path import projected_limits
 from feedlog.units import seconds_to_ns
 
 
-def rotary_from_orientation(ori: np.ndarray, before: dict | None = None,
-                            last: bool = True) -> tuple[np.ndarray, np.ndarray, dict | None]:
-    """Chien Eq. 7: A = acos(Ok), C = atan2(Oi, Oj) in degrees; C unwrapped, held through A = 0.
+def rotary_from_orientation(ori: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Chien Eq. 7: A = acos(Ok), C = atan2(Oi, Oj) in degrees; C unwrapped, held through A = 0."""
+    a, c, _ = rotary_carried(ori)
+    return a, c
 
-    `before` continues the rows of an earlier window (its `after`: the last filled C in rad and the
+
+def rotary_carried(ori: np.ndarray, before: dict | None = None,
+                   last: bool = True) -> tuple[np.ndarray, np.ndarray, dict | None]:
+    """`rotary_from_orientation` for a window of vectors: `before` continues the rows of an earlier window (its `after`: the last filled C in rad and the
     unwrap correction so far). Returns (A, C, after); after is None while every vector so far is at the
     singularity and more rows may come (`last` False): their C waits for the first defined one."""
     o = ori / np.linalg.norm(ori, axis=1, keepdims=True)
@@ -142,7 +146,7 @@ class TrunnionKinematics(Mechanism):
         elif self.orientation_from_vectors and ori is not None and len(b):
             have = ~np.isnan(ori).any(axis=1) & (np.linalg.norm(np.nan_to_num(ori), axis=1) > 0)
             if have.any():
-                a_end, c_end, _ = rotary_from_orientation(ori[have])
+                a_end, c_end = rotary_from_orientation(ori[have])
                 b.p1[have, ia], b.p1[have, ic] = a_end, c_end
                 # each block starts where the previous one ended
                 b.p0[1:, ia], b.p0[1:, ic] = b.p1[:-1, ia], b.p1[:-1, ic]
@@ -221,7 +225,7 @@ class TrunnionKinematics(Mechanism):
         after = before
         chained = bool(mine.get("chained", False))
         if have.any():
-            a_end, c_end, after = rotary_from_orientation(ori[have], before, last=window.last)
+            a_end, c_end, after = rotary_carried(ori[have], before, last=window.last)
             if after is None:        # all singular so far: C is unknown until a defined vector comes
                 window.pending(self.name, int(first[np.flatnonzero(have)[0]]))
             else:

@@ -58,7 +58,10 @@ class ReversalDwell(Mechanism):
         mark[rows] = True
         b.extra["reversal"] = mark          # counted by the windowed run on the rows it keeps
         first = b.extra["first_block"].copy()
-        if not window.last and len(moving):   # the last moving row stops if the next one reverses
-            window.pending(self.name, int(first[moving[-1]]))
+        # a row stops if the next moving row reverses: the last moving row before the rows still
+        # pending (with the program's last row, the rows of an open merge chain) waits for them
+        before_pending = moving[first[moving] < window.restart()]
+        if not window.last and len(before_pending):
+            window.pending(self.name, int(first[before_pending[-1]]))
         moving_first = first[moving]
         window.carry(self.name, lambda block: {"last": last[int(np.searchsorted(moving_first, block))]})

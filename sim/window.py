@@ -159,12 +159,14 @@ class WindowedSimulation:
             if ended:          # the program's last row stops
                 work.stop_after[-1] = True
                 work.exact_path[-1] = False
-            ctx = Context(profile=self.profile, blocks=work, dt_s=self.dt_s, window=Window(last=ended, state=state))
+            window = Window(last=ended, state=state)
+            if not ended:
+                window.pending("rows", int(buf.block[-1]))   # the last row stops if it is the program's last
+            ctx = Context(profile=self.profile, blocks=work, dt_s=self.dt_s, window=window)
             for mech in limits:
                 mech.limit(ctx)
             out = ctx.blocks
-            restart = np.iinfo(np.int64).max if ended else min([int(buf.block[-1]),
-                                                                 *ctx.window.pending_from.values()])
+            restart = np.iinfo(np.int64).max if ended else int(window.restart())
             final = np.flatnonzero(out.extra["first_block"] < restart)
             kept = out.take(final)
             self._count("merged_blocks", int(np.count_nonzero(buf.block < restart)) - len(kept))
