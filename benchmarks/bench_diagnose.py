@@ -7,7 +7,7 @@ the bundled LinuxCNC recordings of those programs instead (the reference machine
 Prints the wall time per phase, the simulations run and what was found, best of `--repeat`.
 
     .venv/bin/python benchmarks/bench_diagnose.py [--programs A,B] [--hidden KEY=VALUE ...] [--bundled]
-        [--repeat 3] [--learned] [--json]
+        [--repeat 3] [--learned] [-j N] [--scheduler local] [--json]
 """
 
 from __future__ import annotations
@@ -52,6 +52,8 @@ def main() -> None:
     ap.add_argument("--bundled", action="store_true", help="the bundled LinuxCNC recordings of the programs")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--learned", action="store_true", help="also fit the learned correction when something is unexplained")
+    ap.add_argument("--jobs", "-j", type=int, default=1, help="worker processes (feedlog.execution)")
+    ap.add_argument("--scheduler", help="a Dask scheduler, or 'local' for a LocalCluster of --jobs workers")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     from feedlog.diagnose.engine import DiagnoseConfig, diagnose
@@ -65,7 +67,8 @@ def main() -> None:
         runs = []
         for _ in range(args.repeat):
             t0 = time.perf_counter()
-            dx = diagnose(paths, "linuxcnc-xyz", config=DiagnoseConfig(learned=args.learned))
+            dx = diagnose(paths, "linuxcnc-xyz", config=DiagnoseConfig(learned=args.learned, jobs=args.jobs,
+                                                                       scheduler=args.scheduler))
             wall = time.perf_counter() - t0
             sims = sum(getattr(s, "simulations", 0) for s in dx.scorers.values())
             runs.append({"wall_s": round(wall, 2), "phases_s": dx.timings_s, "simulations": sims,
@@ -78,8 +81,9 @@ def main() -> None:
     if args.json:
         print(json.dumps({"hidden": hidden, "programs": programs, "runs": runs, "best": best, "load": load}))
         return
+    where = f"scheduler {args.scheduler}" if args.scheduler else f"{args.jobs} job(s)"
     print(f"diagnose {len(programs)} recordings ({best['motion_s']} s of motion at 1 kHz), hidden {hidden or 'nothing'}, "
-          f"load {load:.1f}")
+          f"{where}, load {load:.1f}")
     for r in runs:
         print(f"  wall {r['wall_s']:6.2f} s  phases {r['phases_s']}  simulations {r['simulations']}")
     print(f"best {best['wall_s']:.2f} s; found {best['findings'] or 'nothing'}; cycle error "

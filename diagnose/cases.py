@@ -22,7 +22,7 @@ import pandas as pd
 
 from feedlog.align.blocks import NO_TIME
 from feedlog.diagnose.progress import block_end_progress, crossing_times, sample_progress
-from feedlog.errors import FeedlogError
+from feedlog.errors import AlignmentError, FeedlogError
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import LINEAR_AXES, MachineProfile
 from feedlog.toolpath.schema import AXIS_UNITS
@@ -30,6 +30,7 @@ from feedlog.toolpath.schema import AXIS_UNITS
 ROTARY_COLUMNS = {"a": "a_deg", "b": "b_deg", "c": "c_deg"}
 MOVE_MM = 1e-3  # an axis that moves less than this (mm or deg) over a recording does not move
 SPARSE_S = 0.005  # sampling periods above this are monitoring data (5 Hz), not a servo trace
+WIDE_TOL_MM = 1.0  # alignment tolerance for a path that leaves the program's corners (smoothing controllers)
 
 
 class DiagnoseError(FeedlogError):
@@ -98,6 +99,7 @@ class Case:
     on_path_mm: float = 1e-6             # align's threshold for leaving a line into a blend
     sample_offsets_s: np.ndarray | None = None  # position sample times from motion start (sparse data)
     cl: CLPolyline | None = None         # the program's CL points with their measured times (sparse data)
+    notes: list[str] = field(default_factory=list)
     _arrays: Any = field(default=None, repr=False)
     span_acc_mm_s2: float = float("inf")  # acceleration align assumed leaving / reaching rest
 
@@ -120,17 +122,15 @@ class Case:
         return self.period_s / np.sqrt(12.0)
 
 
-def _program(rec: Recording, program: Any, name: str, lenient: bool):
-    from feedlog.toolpath import Program, parse_program  # noqa: PLC0415
+def _program(rec: Recording, program: Any, lenient: bool):
+    """The given program, or the one the recording carries (align's rule)."""
+    from feedlog.align.pipeline import _program as align_program  # noqa: PLC0415
+    from feedlog.errors import AlignmentError  # noqa: PLC0415
 
-    if isinstance(program, Program):
-        return program
-    if program is not None:
-        return parse_program(Path(program), lenient=lenient)
-    text = rec.program_text
-    if text is None:
-        raise DiagnoseError(f"{name}: the recording carries no part program (program.ngc); give one with --program")
-    return parse_program(text, lenient=lenient, name=f"{name}:program.ngc")
+    try:
+        return align_program(rec, program, lenient)
+    except AlignmentError as exc:
+        raise DiagnoseError(str(exc)) from None
 
 
 def _check_axes(rec: Recording, profile: MachineProfile, name: str) -> pd.DataFrame:
@@ -226,9 +226,21 @@ def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, pro
     src = rec.source or (str(source) if not isinstance(source, Recording) else "recording")
     name = Path(src).stem or "recording"
     axes = _check_axes(rec, profile, name)
-    prog = _program(rec, program, name, lenient)
+    prog = _program(rec, program, lenient)
+    notes: list[str] = []
     try:
         alignment = align_recording(rec, prog, profile=profile, **(align_overrides or {}))
+    except AlignmentError as exc:
+        # a machine that smooths its corners leaves the programmed path by more than G64 P: align it with a
+        # wider tolerance, and say so (the evidence shows how far the path left the corners)
+        if "farther than their tolerance" not in str(exc):
+            raise DiagnoseError(f"{name}: cannot align the recording with its program: {exc}") from None
+        try:
+            alignment = align_recording(rec, prog, profile=profile, **{**(align_overrides or {}), "tol_mm": WIDE_TOL_MM})
+        except FeedlogError as again:
+            raise DiagnoseError(f"{name}: cannot align the recording with its program: {again}") from None
+        notes.append(f"the path leaves the program by more than its tolerance ({str(exc).split('; worst: ')[-1][:120]}); "
+                     f"aligned with {WIDE_TOL_MM} mm")
     except FeedlogError as exc:
         raise DiagnoseError(f"{name}: cannot align the recording with its program: {exc}") from None
     t = axes["t_ns"].to_numpy(np.int64)
@@ -257,7 +269,7 @@ def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, pro
                 line_offsets=line_offsets(alignment),
                 machine=machine_identity(rec), still_mm=float(alignment.report.get("still_mm", 1e-6)),
                 on_path_mm=_on_path(alignment, axes),
-                sample_offsets_s=(t - t0) / 1e9 if period > SPARSE_S else None, cl=cl,
+                sample_offsets_s=(t - t0) / 1e9 if period > SPARSE_S else None, cl=cl, notes=notes,
                 span_acc_mm_s2=span_acceleration(profile))
 
 

@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
 from feedlog.errors import FeedlogError
+from feedlog.execution import add_arguments as add_execution_arguments
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -34,7 +36,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-learned", action="store_true", help="do not fit a learned correction")
     parser.add_argument("--no-rrd", action="store_true", help="do not write diagnose.rrd")
     parser.add_argument("--lenient", action="store_true", help="skip unsupported program codes")
-    parser.add_argument("--jobs", "-j", type=int, default=1, help="parallel hypothesis fits (default 1)")
+    add_execution_arguments(parser, jobs_help="worker processes for the recordings and the hypothesis fits "
+                                              "(default: 1, here; FEEDLOG_SCHEDULER or --scheduler: a Dask cluster)")
     parser.add_argument("--quiet", "-q", action="store_true", help="no progress messages")
 
 
@@ -48,8 +51,11 @@ def run(args: argparse.Namespace) -> int:
                 not args.out.is_dir() or any(args.out.iterdir())):
             raise FeedlogError(f"{args.out} exists; pass --overwrite to replace it")
         families = tuple(f.strip() for f in args.families.split(",")) if args.families else None
+        scheduler = args.scheduler or (os.environ.get("FEEDLOG_SCHEDULER") if args.jobs is None else None)
+        jobs = args.jobs if args.jobs is not None else (None if scheduler else 1)
         config = DiagnoseConfig(min_effect_pct=args.min_effect, min_gain=args.min_gain, families=families,
-                                learned=not args.no_learned, jobs=max(1, args.jobs))
+                                learned=not args.no_learned, jobs=jobs,
+                                scheduler=None if scheduler in (None, "", "none") else scheduler)
         say = None if args.quiet or args.json else (lambda msg: print(f"  {msg}", file=sys.stderr, flush=True))
         dx = diagnose(args.recordings, args.profile, program=args.program, config=config, lenient=args.lenient,
                       progress=say)

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +23,7 @@ import numpy as np
 
 from feedlog.diagnose import keys
 from feedlog.diagnose.cases import Case, DiagnoseError, attached_profile, check_same_machine, prepare_case
-from feedlog.diagnose.evidence import Evidence, describe, gather
+from feedlog.diagnose.evidence import Evidence, describe, gather, suggest
 from feedlog.diagnose.fit import Scorer
 from feedlog.diagnose.hypothesis import candidates
 from feedlog.diagnose.select import Judged, SelectConfig, Selection, select
@@ -44,7 +44,12 @@ class DiagnoseConfig:
     families: tuple[str, ...] | None = None
     min_segment_s: float | None = None
     learned: bool = True               # fit a learned correction where a systematic residual is unexplained
-    jobs: int = 1                      # parallel hypothesis fits
+    jobs: int | None = 1               # worker processes for recordings and hypothesis fits (1: here, serially)
+    scheduler: str | None = None       # a Dask scheduler for them instead (feedlog.execution)
+
+    @property
+    def parallel(self) -> bool:
+        return self.scheduler is not None or self.jobs != 1
 
     def select_config(self, level: str, noise: float = 0.0) -> SelectConfig:
         """`noise`: the level's noise scale (feedback: position noise at rest; line: sampling period)."""
@@ -74,23 +79,13 @@ class Finding:
     scheme: str = ""                # how it was held out
 
     def as_dict(self) -> dict[str, Any]:
-        return {"parameter": self.parameter, "profile_value": _plain(self.profile_value),
-                "fitted_value": _plain(self.fitted_value), "unit": self.unit,
-                "interval": None if self.interval is None else [_plain(self.interval[0]), _plain(self.interval[1])],
-                "gain_pct": round(self.gain_pct, 3), "error_before": _plain(self.error_before),
-                "error_after": _plain(self.error_after), "kind": self.kind, "level": self.level,
-                "family": self.family, "evidence": self.evidence, "predicts": self.predicts,
-                "alternatives": self.alternatives, "fold_values": [_plain(v) for v in self.fold_values],
+        """The finding as the `--json` object has it (`summary.clean` makes it JSON-ready)."""
+        return {"parameter": self.parameter, "profile_value": self.profile_value, "fitted_value": self.fitted_value,
+                "unit": self.unit, "interval": None if self.interval is None else list(self.interval),
+                "gain_pct": self.gain_pct, "error_before": self.error_before, "error_after": self.error_after,
+                "kind": self.kind, "level": self.level, "family": self.family, "evidence": self.evidence,
+                "predicts": self.predicts, "alternatives": self.alternatives, "fold_values": list(self.fold_values),
                 "where": self.where, "held_out": self.scheme}
-
-
-def _plain(v: Any) -> Any:
-    if isinstance(v, (np.floating, float)):
-        v = float(v)
-        return round(v, 10 - int(np.floor(np.log10(abs(v)))) if v else 0) if np.isfinite(v) else None
-    if isinstance(v, np.integer):
-        return int(v)
-    return v
 
 
 @dataclass
@@ -123,8 +118,9 @@ class Diagnosis:
 
 
 def load_cases(sources: Sequence[str | Path | Recording], profile: MachineProfile | str | Path | None, *,
-               program: Any = None, lenient: bool = False) -> tuple[MachineProfile, list[Case]]:
-    """Read and align every recording; the profile is the given one or the one the recordings carry."""
+               program: Any = None, lenient: bool = False, runner: Any = None) -> tuple[MachineProfile, list[Case]]:
+    """Read and align every recording (as tasks on `runner` when given and the sources are files); the
+    profile is the given one or the one the recordings carry."""
     if not sources:
         raise DiagnoseError("no recordings to diagnose")
     if profile is None:
@@ -137,7 +133,24 @@ def load_cases(sources: Sequence[str | Path | Recording], profile: MachineProfil
         sources = [first, *sources[1:]]
     else:
         prof = profile if isinstance(profile, MachineProfile) else load_profile(profile)
-    cases = [prepare_case(s, prof, program=program, lenient=lenient) for s in sources]
+    if runner is not None and len(sources) > 1 and not any(isinstance(s, Recording) for s in sources):
+        from feedlog import storage  # noqa: PLC0415
+        from feedlog.diagnose.parallel import PrepareItem, prepare_task  # noqa: PLC0415
+
+        prog = program
+        if prog is not None and not hasattr(prog, "blocks"):  # parsed once here, sent as data
+            from feedlog.toolpath import parse_program  # noqa: PLC0415
+
+            prog = parse_program(Path(prog), lenient=lenient)
+        items = [PrepareItem(source=storage.absolute(str(s)), profile=prof, program=prog, lenient=lenient)
+                 for s in sources]
+        results = runner.run(prepare_task, items, desc="prepare", label=lambda i: Path(i.source).name)
+        failed = [r for r in results if not r.ok]
+        if failed:
+            raise DiagnoseError(failed[0].error or f"{failed[0].label}: could not be prepared")
+        cases = [r.value for r in results]
+    else:
+        cases = [prepare_case(s, prof, program=program, lenient=lenient) for s in sources]
     check_same_machine(cases)
     names = [c.name for c in cases]
     if len(set(names)) != len(names):
@@ -199,14 +212,27 @@ def diagnose(sources: Sequence[str | Path | Recording], profile: MachineProfile 
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Diagnose `profile` (default: the one the recordings carry) on the recordings."""
     cfg = config or DiagnoseConfig()
+    if not cfg.parallel:
+        return _diagnose(sources, profile, program, cfg, lenient, progress, runner=None)
+    from feedlog.execution import task_runner  # noqa: PLC0415
+
+    with task_runner(jobs=cfg.jobs, scheduler=cfg.scheduler, progress=False,
+                     log=progress or (lambda _msg: None)) as runner:
+        return _diagnose(sources, profile, program, cfg, lenient, progress, runner=runner)
+
+
+def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, progress, *, runner) -> Diagnosis:
+    import uuid  # noqa: PLC0415
+
     laps: dict[str, float] = {}
     t0 = time.perf_counter()
     say = progress or (lambda _msg: None)
-    prof, cases = load_cases(sources, profile, program=program, lenient=lenient)
+    token = uuid.uuid4().hex
+    prof, cases = load_cases(sources, profile, program=program, lenient=lenient, runner=runner)
     laps["prepare"] = time.perf_counter() - t0
     say(f"{len(cases)} recording(s) aligned")
     ev = gather(cases, prof)
-    hyps = candidates(prof, cases, families=cfg.families)
+    hyps = [replace(h, seeds=suggest(ev, h.key, h.baseline)) for h in candidates(prof, cases, families=cfg.families)]
     selections: dict[str, Selection] = {}
     scorers: dict[str, Scorer] = {}
     for level in LEVELS:
@@ -221,8 +247,13 @@ def diagnose(sources: Sequence[str | Path | Recording], profile: MachineProfile 
         scorers[level] = scorer
         error = level_error(scorer)
         noise = {"feedback": feedback_noise(cases), "line": max(c.period_s for c in cases)}.get(level, 0.0)
+        many = None
+        if runner is not None:
+            from feedlog.diagnose.parallel import held_out_on  # noqa: PLC0415
+
+            many = held_out_on(runner, f"{token}:{level}", scorer, cfg.min_segment_s)
         selections[level] = select(scorer, level_hyps, error=error, evidence=ev,
-                                   cfg=cfg.select_config(level, noise), progress=say)
+                                   cfg=cfg.select_config(level, noise), progress=say, held_out_many=many)
         laps[level] = time.perf_counter() - t1
     model: dict[str, Any] = {}
     for sel in selections.values():
@@ -271,8 +302,8 @@ def _noise_floor(scorers: dict[str, Scorer], cfg: DiagnoseConfig, cases: Sequenc
 def _finding(j: Judged, sel: Selection, scorer: Scorer, ev: Evidence, error) -> Finding:
     hyp = j.held.hyp
     value = sel.model.get(hyp.key, j.held.value)
-    alts = [{"parameter": a.key, "fitted_value": _plain(a.held.value), "unit": a.held.hyp.unit,
-             "gain_pct": round(100 * a.held.gain, 3)} for a in _alternatives(sel, hyp.key)]
+    alts = [{"parameter": a.key, "fitted_value": a.held.value, "unit": a.held.hyp.unit,
+             "gain_pct": 100 * a.held.gain} for a in _alternatives(sel, hyp.key)]
     return Finding(parameter=hyp.key, profile_value=hyp.baseline, fitted_value=_round_value(hyp, value),
                    unit=hyp.unit, interval=j.held.interval, gain_pct=100 * j.held.gain,
                    error_before=j.error_before, error_after=j.error_after, kind=hyp.kind, level=hyp.level,

@@ -1,10 +1,11 @@
-"""Planner settings: look-ahead depth, blend tolerance, servo period, block processing time.
+"""Planner settings: look-ahead depth, blend tolerance, servo period, block processing time, FIR times.
 
 A shorter look-ahead makes runs of short blocks slower (the planner must be able to stop within
 the window); a smaller share of the G64 tolerance used for blending slows blended corners; a longer
 servo period slows runs of very short segments (each lasts at least about one period) and changes
 which corners count as tangent; a block processing time floor caps short blocks at
-length / floor (time lost on runs of short blocks, none on long ones).
+length / floor (time lost on runs of short blocks, none on long ones); an FIR interpolator's T1 and T2
+spread every speed change over the filter's length.
 """
 
 from __future__ import annotations
@@ -25,6 +26,14 @@ def candidates(profile, cases) -> list[Hypothesis]:
                               baseline=int(keys.value(profile, key)),
                               predicts="runs of short blocks slower than modelled (the planner must stop within a "
                                        "shorter window); long blocks unchanged"))
+    if keys.enabled(profile, "fir"):  # FIR-filter interpolation: acceleration time T1 and jerk time T2
+        t1, t2 = interp.fir_t1_s, interp.fir_t2_s
+        out.append(Hypothesis(key="interpolator.fir_t1_s", family="planner", lower=max(t2, 1e-3), upper=max(10 * t1, 0.01),
+                              baseline=t1, predicts="every speed change spread over T1: longer corners and starts, "
+                                                    "slower short blocks"))
+        if t1 > 2e-4:
+            out.append(Hypothesis(key="interpolator.fir_t2_s", family="planner", lower=1e-4, upper=t1,
+                                  baseline=max(t2, 1e-4), predicts="jerk-limited edges of every speed change (T2)"))
     if keys.enabled(profile, "blend_arc") and has_blending(cases):
         out.append(Hypothesis(key="sim.blend_arc.tolerance_scale", family="planner", lower=0.02, upper=1.0,
                               baseline=float(keys.value(profile, "sim.blend_arc.tolerance_scale")),

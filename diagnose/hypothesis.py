@@ -52,6 +52,7 @@ class Hypothesis:
     level: str = "timing"
     predicts: str = ""              # the residual pattern this cause produces
     also: dict[str, Any] = field(default_factory=dict)  # keys set together with it (e.g. a switch)
+    seeds: tuple[float, ...] = ()   # values the data points at (evidence.suggest): added to the search grid
 
     def __post_init__(self) -> None:
         keys.split(self.key)
@@ -85,9 +86,6 @@ class Hypothesis:
         if self.scale == "int":
             value = int(round(value))
         return {**self.also, self.key: value}
-
-    def apply(self, profile: MachineProfile, value: Any) -> MachineProfile:
-        return keys.with_values(profile, self.values(value))
 
 
 def family_function(name: str):

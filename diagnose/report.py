@@ -145,6 +145,7 @@ def write_report(dx, out: Path) -> Path:
                "segments": plot_segments(dx, plots), "evidence": plot_evidence(dx, plots)}
     lines = ["# feedlog diagnose", "", "```", *summary_lines(dx), "```", ""]
     lines += [f"Profile diagnosed: `{dx.profile.name}`; recordings: " + ", ".join(f"`{c.name}`" for c in dx.cases), ""]
+    lines += [f"- note on {c.name}: {n}" for c in dx.cases for n in c.notes] + ([""] if any(c.notes for c in dx.cases) else [])
     lines += ["## Findings", ""]
     if dx.findings:
         lines += _table([{"parameter": f"`{f.parameter}`", "profile": "off" if f.profile_value is None else

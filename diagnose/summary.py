@@ -57,7 +57,7 @@ def summary_lines(dx) -> list[str]:
     if fb and fb.get("rms_before_mm") is not None:
         fb_text = f"; feedback RMS {fb['rms_before_mm'] * 1e3:.2f} -> {fb['rms_after_mm'] * 1e3:.2f} um"
     if dx.findings:
-        target = dx.profile_out or "the extended profile"
+        target = dx.profile_out or "(not written; pass -o DIR)"
         lines.append(f"extended profile {target}: error {_signed(cyc['error_before_pct'])} -> "
                      f"{_signed(cyc['error_after_pct'])}{held_text}{fb_text}")
     else:
@@ -111,4 +111,5 @@ def to_json(dx) -> dict[str, Any]:
         "profile_out": dx.profile_out, "profile_diff": [{"key": k, "before": a, "after": b} for k, a, b in dx.diff],
         "evidence": dx.evidence.as_dict(), "noise_floor": dx.noise_floor, "rejected": rejected,
         "where": {k: v for k, v in dx.where.items() if k in ("before", "after", "classes_before", "top_segments")},
+        "notes": {c.name: c.notes for c in dx.cases if c.notes},
         "summary": summary_lines(dx), "timings_s": dx.timings_s})

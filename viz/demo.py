@@ -17,6 +17,7 @@ from pathlib import Path
 from feedlog.errors import FeedlogError
 from feedlog.execution import add_arguments as add_execution_arguments
 from feedlog.viz.overlay import save_view
+from feedlog.viz.mystery import Mystery, diagnose_mystery
 from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, run_demo
 from feedlog.viz.plots import plot_cycle_times, plot_view
 from feedlog.viz.report import (ReportSection, TableRow, cycle_time_table, table_json, table_markdown,
@@ -26,7 +27,7 @@ DEFAULT_RECORDINGS = Path("recordings")
 DEFAULT_OUT = Path("demo-out")
 MARKER = ".feedlog-demo"   # marks a folder the demo wrote, so a rerun may replace it
 DETAIL_PLOTS = 4  # recordings that get all four plots; the others get the feed plot
-OUTPUTS = ("report.md", "cycle_times.json", "plots", "rerun", "models", MARKER)
+OUTPUTS = ("report.md", "cycle_times.json", "plots", "rerun", "models", "diagnose", MARKER)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -94,7 +95,8 @@ def detail_runs(result: DemoResult, count: int) -> set[str]:
     return {r.entry.name for r in chosen}
 
 
-def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PLOTS) -> dict[str, Path]:
+def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PLOTS,
+                  mystery: Mystery | None = None) -> dict[str, Path]:
     """Plots, .rrd files, JSON table and the Markdown report; returns what was written.
 
     Every recording gets its feed plot and .rrd; `detail` recordings also get the axis, path and
@@ -119,8 +121,11 @@ def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PL
     result.timings_s["total"] = result.timings_s.get("total", 0.0) + result.timings_s["plots_and_rrd"]
     json_path = out / "cycle_times.json"
     json_path.write_text(table_json(table) + "\n")
+    sections = _sections(result, bars)
+    if mystery is not None:
+        sections.insert(0, _mystery_section(mystery, out))
     report = write_report(out / "report.md", title="feedlog demo: cycle times on the bundled recordings",
-                          intro=_intro(result, out), table=table, sections=_sections(result, bars))
+                          intro=_intro(result, out), table=table, sections=sections)
     return {"report": report, "json": json_path, "rerun": rerun_dir, "plots": plots_dir,
             "models": out / "models", "table": table}
 
@@ -150,6 +155,21 @@ def _intro(result: DemoResult, out: Path) -> list[str]:
         lines.append(f"- measured cycle time taken from the program-line stream (not aligned, see the recording's "
                      f"section) for {len(from_lines)} recording(s): {', '.join(from_lines)}")
     return lines
+
+
+def _mystery_section(mystery: Mystery, out: Path) -> ReportSection:
+    s = ReportSection("The mystery machine: what feedlog diagnose finds")
+    if mystery.error:
+        s.lines.append(f"- error: {mystery.error}")
+        return s
+    s.lines.append("recordings/mystery/ holds three sessions of a LinuxCNC machine that differs from its profile "
+                   "(linuxcnc-xyz) in one way nobody wrote down. `feedlog diagnose recordings/mystery/*.mcap` "
+                   f"({mystery.seconds:.1f} s):")
+    s.lines += ["", "```", *mystery.lines, "```", "",
+                f"Full diagnosis: `{_rel(mystery.report, out)}` (tables, plots, `diagnose.rrd`, the extended "
+                "`profile.toml`)."]
+    s.images = [(name, path) for name, path in mystery.images if name.startswith("profile_")][:1]
+    return s
 
 
 def _rel(path: Path, root: Path) -> str:
@@ -191,7 +211,10 @@ def run(args: argparse.Namespace) -> int:
                         jobs=args.jobs, scheduler=args.scheduler)
     prepare_out(args.out)
     result = run_demo(config)
-    written = write_outputs(result, args.out, log=log, detail=args.detail_plots)
+    mystery = diagnose_mystery(recordings, args.out, log=log)
+    if mystery is not None:
+        result.timings_s["diagnose"] = mystery.seconds
+    written = write_outputs(result, args.out, log=log, detail=args.detail_plots, mystery=mystery)
     if args.json:
         print(table_json(written["table"]))
         return 0
@@ -206,9 +229,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"  Rerun recordings:              {written['rerun']}/")
         print(f"  open them in Rerun with:       rerun {written['rerun']}/*.rrd   (or one: rerun {rrds[0]})")
         print("  or one recording at a time:    feedlog view RECORDING --sim")
+    if mystery is not None and mystery.report is not None:
+        print(f"  the mystery machine diagnosed: {mystery.report.parent}/ (report.md, profile.toml, diagnose.rrd)")
     missing = [s for s, reason in result.stages.items() if reason]
     if missing:
         print(f"  stages not available here: {', '.join(missing)} (the report says why)")
+    if mystery is not None:
+        print()
+        print("The mystery machine (recordings/mystery/, one undisclosed change), feedlog diagnose:")
+        print("\n".join(f"  {line}" for line in mystery.lines) if mystery.lines else f"  error: {mystery.error}")
     print()
     print(table_markdown(written["table"]))
     return 0

@@ -113,7 +113,7 @@ def _no_axes(src: Recording) -> Recording:
 
 
 BAD = [
-    ("no program", _without_program, [], "carries no part program"),
+    ("no program", _without_program, [], "no program given and none attached"),
     ("no motion", _motionless, [], "shows no motion"),
     ("no positions", _no_axes, [], "has no 'axes' stream"),
     ("wrong kinematics", lambda r: r, ["--profile", "linuxcnc-xyzac"], "no A, C positions"),
@@ -179,3 +179,12 @@ def test_an_output_that_cannot_be_written_is_exit_1_and_leaves_nothing(xacc_file
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("feedlog diagnose: error: ") and "cannot write" in lines[0]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_worker_processes_give_the_same_diagnosis(xacc_files, capsys):
+    runs = []
+    for jobs in ("1", "2"):
+        code, stdout, _ = _run([*xacc_files, "--profile", "linuxcnc-xyz", "--json", "--no-learned", "-j", jobs], capsys)
+        assert code == 0
+        runs.append(json.loads(stdout))
+    assert runs[0]["findings"] == runs[1]["findings"] and runs[0]["levels"]["cycle"] == runs[1]["levels"]["cycle"]

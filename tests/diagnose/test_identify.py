@@ -82,3 +82,69 @@ def test_at_5_hz_a_hidden_change_is_still_named(hidden, name, values, key, truth
 def test_the_unchanged_machine_at_5_hz_gives_no_finding(hidden):
     dx = diagnose(hidden("control_5hz", rate_hz=5.0), "linuxcnc-xyz", config=FAST)
     assert dx.findings == [] and dx.unexplained == []
+
+
+def test_a_recording_without_a_level_leaves_that_level_to_the_others(hidden):
+    recs = hidden("xacc", values={"axes.x.acc_max": 300.0})
+    stripped = recs[0].__class__(streams={k: v for k, v in recs[0].streams.items() if k not in ("line", "joints")},
+                                 metadata=dict(recs[0].metadata), attachments=dict(recs[0].attachments),
+                                 source="no_line_stream.mcap")
+    dx = diagnose([stripped, recs[1]], "linuxcnc-xyz", config=FAST)
+    assert [f.parameter for f in dx.findings] == ["axes.x.acc_max"]
+    assert {dx.cases[u.case].name for u in dx.scorers["line"].units} == {recs[1].source.split(".")[0]}
+
+
+def test_an_unexplained_residual_gets_a_learned_correction_judged_on_held_out_recordings(hidden, tmp_path):
+    from feedlog.diagnose.write import write_outputs
+
+    recs = hidden("arcs", edit=slower_after_arcs)
+    dx = diagnose(recs, "linuxcnc-xyz", config=DiagnoseConfig(learned=True))
+    (entry,) = dx.unexplained
+    lc = entry["learned_correction"]
+    assert lc["model"] == "hybrid" and [r["name"] for r in lc["held_out"]] == [c.name for c in dx.cases]
+    assert all(abs(r["error_before_pct"]) >= 0 and abs(r["error_after_pct"]) < 1e3 for r in lc["held_out"])
+    files = write_outputs(dx, tmp_path / "dx")
+    assert ("learned.pt" in files) == (lc["gain_pct"] > 0)   # kept only when it generalises
+    assert "Learned correction" in (tmp_path / "dx" / "report.md").read_text()
+
+
+def test_a_five_axis_fir_machine_has_its_filter_time_found(hidden):
+    recs = hidden("fir", values={"interpolator.fir_t1_s": 0.1}, programs=("mix5ax_011", "mix5ax_015"), base="chien-ac")
+    dx = diagnose(recs, "chien-ac", config=FAST)
+    assert [f.parameter for f in dx.findings] == ["interpolator.fir_t1_s"]
+    assert dx.findings[0].fitted_value == pytest.approx(0.1, rel=0.15)
+    assert _cycle_error_removed(dx) >= 0.8
+    control = diagnose(hidden("fir_control", programs=("mix5ax_011", "mix5ax_015"), base="chien-ac"), "chien-ac",
+                       config=FAST)
+    assert control.findings == [] and control.unexplained == []
+
+
+def test_a_small_change_between_search_grid_points_is_found(hidden):
+    """A 7 % feed override lies between the screen's grid points (0.78 and 1.0): the screen refines
+    around its best point, and the data's own cruise ratio joins the grid."""
+    dx = diagnose(hidden("override93", values={"sim.feed_override.override": 0.93}), "linuxcnc-xyz", config=FAST)
+    assert [f.parameter for f in dx.findings] == ["sim.feed_override.override"]
+    assert dx.findings[0].fitted_value == pytest.approx(0.93, rel=0.02)
+    assert _cycle_error_removed(dx) >= 0.8
+
+
+def test_a_limit_that_binds_on_few_moves_is_found(hidden):
+    """A Y velocity limit of 37 mm/s on programs at 50 mm/s that move along Y little: it binds in a band
+    narrower than the grid's step; the Y speed ceiling the data shows is where to look."""
+    recs = hidden("yvel37", values={"axes.y.vel_max": 37.0}, programs=("longdense_000", "pocket_f3000_p001"))
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    assert [f.parameter for f in dx.findings] == ["axes.y.vel_max"]
+    assert dx.findings[0].fitted_value == pytest.approx(37.0, rel=0.05)
+
+
+def test_a_first_choice_is_made_again_once_a_second_cause_is_in_the_model(hidden):
+    """Override 0.78 with a slow Z: before the Z limit is in the model a path speed cap (which also slows
+    the short Z rapids) explains more than the override; with it, the override is as good or better, and
+    of equals the operator's dial is named first."""
+    recs = hidden("override_zacc", values={"sim.feed_override.override": 0.78, "axes.z.acc_max": 306.0},
+                  programs=("mix_010", "pocket_f2000_p01"))
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    found = {f.parameter: f.fitted_value for f in dx.findings}
+    assert set(found) == {"sim.feed_override.override", "axes.z.acc_max"}
+    assert found["sim.feed_override.override"] == pytest.approx(0.78, rel=0.05)
+    assert found["axes.z.acc_max"] == pytest.approx(306.0, rel=0.15)

@@ -72,8 +72,9 @@ def test_cycle_times_match_linuxcnc_and_the_shared_measurements(manifest, held_b
 
 
 def test_folder_stays_small():
+    # 30 MB for the LinuxCNC sessions of the manifest, plus about 0.5 MB for the mystery machine (recordings/mystery)
     size = sum(p.stat().st_size for p in RECORDINGS.rglob("*") if p.is_file())
-    assert size < 30e6
+    assert size < 31e6
 
 
 @pytest.mark.parametrize("name", ["pocket_f3000_p001", "5ax_near_f1000_g61_offset", "mix_025", "mix5ax_009",

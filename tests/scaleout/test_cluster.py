@@ -147,3 +147,18 @@ def test_demo_on_cluster_same_table(cluster, tmp_path):
     rows = json.loads(remote.stdout)
     assert rows == json.loads(local.stdout) and len(rows) == 3
     assert all(r["measured_s"] and r["sim_s"] for r in rows)
+
+
+def test_diagnose_on_cluster_same_as_local(cluster, tmp_path):
+    client = tmp_path / "client"
+    client.mkdir()
+    for f in sorted((ROOT / "recordings" / "mystery").glob("*.mcap")):
+        shutil.copy(f, client)
+    recs = sorted(p.name for p in client.glob("*.mcap"))
+    local = feedlog("diagnose", *recs, "--profile", "linuxcnc-xyz", "--json", "--no-learned", "-j", "1", cwd=client)
+    remote = feedlog("diagnose", *recs, "--profile", "linuxcnc-xyz", "--json", "--no-learned", "--scheduler", cluster,
+                     cwd=client)
+    assert local.returncode == remote.returncode == 0, remote.stderr
+    a, b = json.loads(local.stdout), json.loads(remote.stdout)
+    assert a["findings"] and a["findings"] == b["findings"]   # fitted values, intervals, folds: identical
+    assert a["error_after_pct"] == b["error_after_pct"]

@@ -84,4 +84,6 @@ def test_demo_end_to_end_on_all_bundled_recordings(tmp_path, capsys):
     assert len(list((out / "rerun").glob("*.rrd"))) == len(entries)
     if availability()["train"] is None:
         assert list((out / "models").glob("*.pt"))
+    if (RECORDINGS / "mystery").is_dir():  # the mystery machine, diagnosed
+        assert "axes.y.acc_max" in (out / "diagnose" / "report.md").read_text()
     print(f"demo on {len(rows)} recordings: {elapsed:.1f} s")
