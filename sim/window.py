@@ -278,11 +278,16 @@ class WindowedSimulation:
         if self.series and final is not None:
             samples = stream.samples(final, end)
             if samples is not None:
-                series = self._series_frame(*samples)
+                series = self.series_frame(*samples)
                 self.result.samples += len(series)
+        elif self.series and not self.result.samples:   # no motion at all: one sample at rest, as `simulate`
+            k = len(self.profile.axis_names)
+            series = self.series_frame(np.zeros(1), np.zeros((1, k)), np.zeros(1), np.zeros(1, np.int64))
+            self.result.samples = 1
         return SimWindow(blocks=table, series=series)
 
-    def _series_frame(self, t, pos, speed, packed) -> pd.DataFrame:
+    def series_frame(self, t, pos, speed, packed) -> pd.DataFrame:
+        """Samples as `SimResult.series` has them (`packed`: block * LINE_SPAN + line)."""
         names = [f"{axis}_{AXIS_UNITS[axis]}" for axis in self.profile.axis_names]
         frame = pd.DataFrame(np.asfortranarray(pos), columns=names, copy=False)
         frame.insert(0, "t_ns", seconds_to_ns(t))

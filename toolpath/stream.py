@@ -40,6 +40,7 @@ class ProgramReader:
         self.state = ParseState()
         self.rows = 0                  # rows yielded so far
         self.batches = 0               # batches yielded so far
+        self.chars = 0                 # characters of text parsed so far (bytes, for ASCII G-code)
         self.motion_rows = 0
         self.done = False
         self.unsupported: list[Unsupported] = []
@@ -67,6 +68,7 @@ class ProgramReader:
         for text in self._chunks:
             blocks, facts, self.state = parse_chunk(text, self.state, file=self.name, lenient=self.lenient)
             self._gather(facts)
+            self.chars += len(text)
             self.rows += len(blocks)
             self.batches += 1
             yield blocks
