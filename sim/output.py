@@ -18,36 +18,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pandas as pd
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from feedlog.atomic import atomic_outputs
+from feedlog.parquet_sink import ParquetSink
 from feedlog.sim.window import WindowedResult, WindowedSimulation
 
 BYTES_PER_BLOCK = 2600     # program table (~1.0 kB) + simulation (~1.5 kB) per block, measured (issue #22)
 BYTES_PER_SAMPLE_VALUE = 16  # a float64 series column, and the copy pandas makes building the frame
-
-
-class ParquetSink:
-    """Frames appended to one Parquet file; the first frame fixes the schema."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        self._writer: pq.ParquetWriter | None = None
-
-    def write(self, frame: pd.DataFrame) -> None:
-        table = pa.Table.from_pandas(frame, preserve_index=False)
-        if self._writer is None:
-            self._writer = pq.ParquetWriter(self.path, table.schema)
-        self._writer.write_table(table)
-
-    def close(self, empty: pd.DataFrame | None = None) -> None:
-        """Finish the file; with no frame written, `empty` (the table's columns, no rows) is the file."""
-        if self._writer is None and empty is not None:
-            self.write(empty)
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
 
 
 def write_windowed(run: WindowedSimulation, *, series: str | os.PathLike | None = None,
