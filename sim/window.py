@@ -39,6 +39,7 @@ from feedlog.sim.cam import cam_block_times
 from feedlog.sim.context import Context, Window
 from feedlog.sim.mechanism import Mechanism, MechanismSpec, resolve_mechanisms
 from feedlog.sim.path import Blocks, Pieces, ProgramArrays, build_pieces, prepare_blocks
+from feedlog.sim.simulate import mechanism_params
 from feedlog.sim.stream_plan import LINE_SPAN, Chunk
 from feedlog.toolpath.schema import AXIS_UNITS
 from feedlog.units import MAX_TIME_S, seconds_to_ns
@@ -72,9 +73,7 @@ class WindowedResult:
 
     @property
     def mechanism_params(self) -> dict[str, dict[str, Any]]:
-        def clean(v: Any) -> Any:
-            return None if isinstance(v, float) and not np.isfinite(v) else v
-        return {m.name: {k: clean(v) for k, v in m.params().items()} for m in self.mechanisms}
+        return mechanism_params(self.mechanisms)
 
     def summary(self) -> dict[str, Any]:
         return {"profile": self.profile.name, "cycle_time_s": round(self.cycle_time_s, 6),

@@ -136,7 +136,8 @@ def parse_chunk(text: str, state: ParseState, *, file: str, lenient: bool = Fals
         selected = ffill(coords, coords >= 0, state.offsets.selected)
         system = SYSTEM_LUT[selected] if n else np.zeros(0, np.int8)
         if n:
-            new.offsets = replace(state.offsets, selected=int(selected[-1]))
+            # the active system too: a G10 L2 P0 in a later chunk writes to it
+            new.offsets = replace(state.offsets, selected=int(selected[-1]), active=int(system[-1]))
     check_positions(start, end, is_motion, R.error)
 
     # -- arcs --------------------------------------------------------------------------------------

@@ -127,3 +127,11 @@ def test_memory_is_bounded_by_the_chunk(tmp_path):
     with ProgramReader(path, chunk_bytes=64 << 10) as reader:
         sizes = [len(b) for b in reader]
     assert len(sizes) > 10 and max(sizes) < 6000 and sum(sizes) == 60001
+
+
+def test_g10_p0_after_a_system_switch_in_an_earlier_chunk():
+    """G55 in one chunk, G10 L2 P0 (the active system) in a later one: the active system is carried
+    (found by the random-program test above)."""
+    text = "G21 G90 G94 F600\nG0 X1 Y2 Z3\nG55\nG10 L2 P0 X0.0\nG90 G1 X0\nM2\n"
+    for chunk_bytes in (1, 4):
+        assert_same(parse_program(text), read_in_chunks(text, chunk_bytes)[1])
