@@ -110,7 +110,7 @@ def _run_one(args: argparse.Namespace, source: str) -> int:
         if out is not None and out.exists() and not args.force:
             raise FeedlogError(f"{out} exists; pass --force to overwrite")
     mechanisms = parse_settings(args.set, args.enable, args.disable) or None
-    if _streams(args, source):
+    if _streams(args, source, mechanisms):
         result = _run_windowed(args, source, mechanisms)
     else:
         program = _program(source)
@@ -133,14 +133,22 @@ def _run_one(args: argparse.Namespace, source: str) -> int:
     return 0
 
 
-def _streams(args: argparse.Namespace, source: str) -> bool:
-    """--stream, or by default a program file of STREAM_BYTES or more."""
+def _streams(args: argparse.Namespace, source: str, mechanisms) -> bool:
+    """--stream, or by default a program file of STREAM_BYTES or more whose mechanisms all have a
+    windowed form (otherwise the whole-program run, refused if it would not fit)."""
     if args.stream is not None:
         return args.stream
     try:
-        return Path(source).stat().st_size >= STREAM_BYTES
+        large = Path(source).stat().st_size >= STREAM_BYTES
     except OSError:
         return False      # not a local file: parse_program says what is wrong with it
+    if not large:
+        return False
+    from feedlog.profile import load_profile  # noqa: PLC0415
+    from feedlog.sim.mechanism import resolve_mechanisms  # noqa: PLC0415
+    from feedlog.sim.window import unsupported  # noqa: PLC0415
+
+    return not unsupported(resolve_mechanisms(load_profile(args.profile), mechanisms))
 
 
 def _run_windowed(args: argparse.Namespace, source: str, mechanisms):

@@ -85,7 +85,9 @@ def resolve_offsets(n: int, words: AxisWords, events: list[Event], state) -> tup
             k = np.searchsorted(rows_j, r, side="right") - 1
             if k >= 0:
                 la = int(rows_j[k])
-                pos[j] = words.values[j, la] + offset_at(la)[j] + words.cumsum[j, r] - words.cumsum[j, la]
+                # the machine position as the rows' own: cumsum + (value + offset - cumsum at the absolute row),
+                # so a program read in chunks, which starts a chunk from that position, gets the same floats
+                pos[j] = words.cumsum[j, r] + (words.values[j, la] + offset_at(la)[j] - words.cumsum[j, la])
             else:
                 pos[j] = words.cumsum[j, r] + words.term[j]
         return pos

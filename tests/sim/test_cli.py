@@ -130,3 +130,17 @@ def test_stream_with_a_mechanism_without_windowed_form_is_one_clear_error(tmp_pa
     assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "--stream", "--enable", "jerk_filter"]) == 2
     err = capsys.readouterr().err
     assert "cannot run window by window" in err and "Traceback" not in err
+
+
+def test_large_program_streams_by_default_unless_a_mechanism_cannot(tmp_path, capsys, monkeypatch):
+    import feedlog.sim.cli as cli  # noqa: PLC0415
+    import feedlog.sim.output as output  # noqa: PLC0415
+
+    src = tmp_path / "p.ngc"
+    src.write_text(PROGRAM)
+    monkeypatch.setattr(cli, "STREAM_BYTES", 10)          # every file is "large"
+    monkeypatch.setattr(output, "available_bytes", lambda: 1000)   # a whole-program run would not fit
+    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "-q", "--blocks-out", str(tmp_path / "b.parquet")]) == 0
+    assert len(pd.read_parquet(tmp_path / "b.parquet")) >= 2        # streamed
+    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "-q", "--enable", "jerk_filter"]) == 2
+    assert "needs about" in capsys.readouterr().err                 # whole-program run, refused
