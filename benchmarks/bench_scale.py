@@ -14,6 +14,9 @@ Each case runs `feedlog` in its own process (os.wait4 gives that process's peak 
 - program:  `feedlog program FILE --json` (parse and summarise the whole table in memory)
 - sim:      `feedlog sim FILE --stream --blocks-out B.parquet` (windowed, the per-block table)
 - sim+1kHz: the same with `--out S.parquet --dt 0.001` (the series at 1 kHz too)
+- predict:  `feedlog predict FILE --model mlp.pt --json -o P.parquet` with an MLP trained here for a few
+  epochs on synthetic tables (speed, not accuracy; 3-axis programs only, the model is a 3-axis one;
+  `predict` holds the whole program, so it is left out above --predict-max blocks)
 
 blocks are the program's motion blocks; bytes/block is the peak RSS over them (the process's baseline, ~150 MB of imports, included).
 
@@ -89,6 +92,20 @@ def run_case(args: list[str]) -> tuple[float, int, str]:
         return wall, usage.ru_maxrss * 1024, out.read()
 
 
+def _model(path: Path) -> None:
+    """A small MLP checkpoint for the predict case, trained once on synthetic tables."""
+    if path.exists():
+        return
+    from feedlog.train import make_model  # noqa: PLC0415
+    from feedlog.train.checkpoint import save_checkpoint  # noqa: PLC0415
+    from feedlog.train.synthetic import synthetic_set  # noqa: PLC0415
+
+    model = make_model("mlp", preset="quick", epochs=3)
+    model.fit(synthetic_set(n_train=4, n_test=0, n_blocks=300, seed=0), progress=False)
+    model.fingerprint = "bench_scale"
+    save_checkpoint(model, path)
+
+
 def _size(text: str) -> int:
     text = text.lower()
     scale = {"k": 1_000, "m": 1_000_000}.get(text[-1], 1)
@@ -100,7 +117,8 @@ def main() -> None:
     ap.add_argument("--sizes", default="10k,100k,1M", help="block counts (default 10k,100k,1M)")
     ap.add_argument("--with-10m", action="store_true", help="add 10M blocks")
     ap.add_argument("--kinds", default="3ax,5ax")
-    ap.add_argument("--cases", default="program,sim,sim+1kHz")
+    ap.add_argument("--cases", default="program,sim,sim+1kHz,predict")
+    ap.add_argument("--predict-max", type=_size, default=1_000_000, help="largest program to predict (default 1M)")
     ap.add_argument("--workdir", type=Path, default=Path(tempfile.gettempdir()) / "feedlog-bench-scale")
     opts = ap.parse_args()
     sizes = [_size(s) for s in opts.sizes.split(",")] + ([10_000_000] if opts.with_10m else [])
@@ -118,23 +136,31 @@ def main() -> None:
             n_blocks = int(count.read_text())
             profile = PROFILES[kind]
             out_b, out_s = path.with_suffix(".blocks.parquet"), path.with_suffix(".series.parquet")
+            out_p = path.with_suffix(".predict.parquet")
             cases = {
                 "program": ["program", str(path), "--profile", profile, "--json"],
                 "sim": ["sim", str(path), "--profile", profile, "--stream", "-q", "--json", "--force",
                         "--blocks-out", str(out_b)],
                 "sim+1kHz": ["sim", str(path), "--profile", profile, "--stream", "-q", "--json", "--force",
                              "--blocks-out", str(out_b), "--out", str(out_s), "--dt", "0.001"],
+                "predict": ["predict", str(path), "--model", str(opts.workdir / "mlp.pt"), "--json",
+                            "--overwrite", "-o", str(out_p)],
             }
             for case in opts.cases.split(","):
+                if case == "predict" and (kind != "3ax" or n > opts.predict_max):
+                    continue
+                if case == "predict":
+                    _model(opts.workdir / "mlp.pt")
                 wall, rss, out = run_case(cases[case])
                 doc = json.loads(out)
                 what = (f"cycle {doc['cycle_time_s']:.1f} s, {doc['blocks']} blocks run (merged chains)"
-                        if case.startswith("sim") else f"CAM time {doc['cam_time_s']:.1f} s")
+                        if case.startswith("sim") else f"CAM time {doc['cam_time_s']:.1f} s" if case == "program"
+                        else f"predicted cycle {doc['cycle_time_s']:.1f} s")
                 if case == "sim+1kHz":
                     what += f", series {out_s.stat().st_size / 1e6:.0f} MB on disk"
                 print(f"{path.stem:>14s} {case:9s} {n_blocks:9d} {path.stat().st_size / 1e6:7.1f} {wall:8.2f} "
                       f"{n_blocks / wall:10.0f} {rss / 1e6:11.0f} {rss / n_blocks:8.0f}  {what}", flush=True)
-            for p in (out_b, out_s):
+            for p in (out_b, out_s, out_p):
                 p.unlink(missing_ok=True)
 
 
