@@ -112,6 +112,7 @@ class WindowedSimulation:
         self.series = series
         self.result = WindowedResult(profile=self.profile, mechanisms=self.chain)
         self.reader = None
+        self._slice: int | None = None     # rows of a prepared batch handed on at once (None: all)
         if isinstance(program, (str, Path)):
             from feedlog.toolpath.stream import ProgramReader  # noqa: PLC0415
 
@@ -122,7 +123,9 @@ class WindowedSimulation:
             table = getattr(program, "blocks", program)
             if not isinstance(table, pd.DataFrame):
                 raise SimulationError(f"expected a Program, a block table or a path, got {type(program).__name__}")
-            self._tables = _table_batches(table, self.window)
+            # rows prepared in large batches (prepare_blocks is row by row), handed on a window at a time
+            self._tables = _table_batches(table, max(self.window, WINDOW))
+            self._slice = self.window
         self._notes: dict[str, int] = {}
 
     # -- 1. rows -------------------------------------------------------------------------------------
@@ -133,8 +136,9 @@ class WindowedSimulation:
             blocks.extra["first_block"] = blocks.block.copy()
             self.result.cam_time_s += float(cam_block_times(blocks).sum())
             self.result.rows += len(table)
-            if len(blocks):
-                yield blocks
+            step = self._slice or max(len(blocks), 1)
+            for lo in range(0, len(blocks), step):
+                yield blocks if step >= len(blocks) else blocks.take(np.arange(lo, min(lo + step, len(blocks))))
 
     # -- 2. limits -----------------------------------------------------------------------------------
     def _limited(self, raw: Iterator[Blocks]) -> Iterator[Blocks]:
