@@ -152,14 +152,17 @@ def _streams(args: argparse.Namespace, source: str, mechanisms) -> bool:
 
 
 def _run_windowed(args: argparse.Namespace, source: str, mechanisms):
+    from tqdm import tqdm  # noqa: PLC0415
+
     from feedlog.sim.output import write_windowed  # noqa: PLC0415
     from feedlog.sim.window import WindowedSimulation  # noqa: PLC0415
 
     run = WindowedSimulation(source, args.profile, mechanisms=mechanisms, dt_s=args.dt, series=args.out is not None)
-    size = Path(source).stat().st_size
-    from tqdm import tqdm  # noqa: PLC0415
-
-    # None: shown on a terminal only
+    try:
+        size = Path(source).stat().st_size
+    except OSError:
+        size = None       # G-code text or a source without a size: the bar counts bytes only
+    # disable=None: shown on a terminal only
     with tqdm(total=size, unit="B", unit_scale=True, desc="sim", disable=True if args.quiet else None,
               leave=False) as bar:
         return write_windowed(run, series=args.out, blocks=args.blocks_out,
