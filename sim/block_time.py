@@ -24,6 +24,7 @@ class BlockTimeFloor(Mechanism):
     name = "block_time"
     kind = "limits"
     order = 40
+    windowed = True
 
     min_block_time_s: float = 0.001
 

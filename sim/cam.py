@@ -28,6 +28,8 @@ class CamEstimate(Mechanism):
     name = "cam"
     kind = "interpolator"
     uses_corner_law = False
+    windowed = True
+    stream = "feedlog.sim.stream_plan:CamStream"   # its windowed form (feedlog.sim.window)
 
     def run(self, ctx: Context) -> Trajectory:
         pieces = ctx.pieces

@@ -14,9 +14,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from feedlog.atomic import atomic_outputs
 from feedlog.errors import FeedlogError, SimulationError
 from feedlog.execution import add_arguments as add_execution_arguments
+
+STREAM_BYTES = 16 << 20   # programs this large (~500k blocks) are simulated window by window
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -34,6 +38,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--enable", action="append", default=[], metavar="MECH", help="switch a mechanism on")
     parser.add_argument("--disable", action="append", default=[], metavar="MECH", help="switch a mechanism off")
     parser.add_argument("--dt", type=float, help="output period in seconds (default: the profile's)")
+    parser.add_argument("--stream", action=argparse.BooleanOptionalAction, default=None,
+                        help="simulate window by window in bounded memory, writing --out/--blocks-out as it goes "
+                             f"(default: for programs of {STREAM_BYTES >> 20} MiB or more)")
 
 
 def parse_settings(settings: list[str], enable: list[str], disable: list[str]) -> dict[str, Any]:
@@ -102,15 +109,19 @@ def _run_one(args: argparse.Namespace, source: str) -> int:
     for out in (args.out, args.blocks_out):
         if out is not None and out.exists() and not args.force:
             raise FeedlogError(f"{out} exists; pass --force to overwrite")
-    program = _program(source)
-    result = simulate(program, args.profile, mechanisms=parse_settings(args.set, args.enable, args.disable) or None,
-                      dt_s=args.dt)
-    outputs = {path: table for path, table in ((args.out, lambda: result.series), (args.blocks_out, lambda: result.blocks))
-               if path is not None}
-    if outputs:
-        with atomic_outputs(*outputs) as temporaries:  # both files or neither
-            for temporary, table in zip(temporaries, outputs.values()):
-                table().to_parquet(temporary, index=False)
+    mechanisms = parse_settings(args.set, args.enable, args.disable) or None
+    if _streams(args, source, mechanisms):
+        result = _run_windowed(args, source, mechanisms)
+    else:
+        program = _program(source)
+        _check_fits(args, program)
+        result = simulate(program, args.profile, mechanisms=mechanisms, dt_s=args.dt)
+        outputs = {path: table for path, table in ((args.out, lambda: result.series),
+                                                   (args.blocks_out, lambda: result.blocks)) if path is not None}
+        if outputs:
+            with atomic_outputs(*outputs) as temporaries:  # both files or neither
+                for temporary, table in zip(temporaries, outputs.values()):
+                    table().to_parquet(temporary, index=False)
     summary = {"program": str(source), **result.summary()}
     if args.json:
         json.dump(summary, sys.stdout, allow_nan=False)
@@ -120,3 +131,59 @@ def _run_one(args: argparse.Namespace, source: str) -> int:
               f"{result.cycle_time_s:.3f} s (CAM estimate {result.cam_time_s:.3f} s)")
         print("mechanisms: " + ", ".join(summary["mechanisms"]))
     return 0
+
+
+def _streams(args: argparse.Namespace, source: str, mechanisms) -> bool:
+    """--stream, or by default a program file of STREAM_BYTES or more whose mechanisms all have a
+    windowed form (otherwise the whole-program run, refused if it would not fit)."""
+    if args.stream is not None:
+        return args.stream
+    try:
+        large = Path(source).stat().st_size >= STREAM_BYTES
+    except OSError:
+        return False      # not a local file: parse_program says what is wrong with it
+    if not large:
+        return False
+    from feedlog.profile import load_profile  # noqa: PLC0415
+    from feedlog.sim.mechanism import resolve_mechanisms  # noqa: PLC0415
+    from feedlog.sim.window import unsupported  # noqa: PLC0415
+
+    return not unsupported(resolve_mechanisms(load_profile(args.profile), mechanisms))
+
+
+def _run_windowed(args: argparse.Namespace, source: str, mechanisms):
+    from tqdm import tqdm  # noqa: PLC0415
+
+    from feedlog.sim.output import write_windowed  # noqa: PLC0415
+    from feedlog.sim.window import WindowedSimulation  # noqa: PLC0415
+
+    run = WindowedSimulation(source, args.profile, mechanisms=mechanisms, dt_s=args.dt, series=args.out is not None)
+    try:
+        size = Path(source).stat().st_size
+    except OSError:
+        size = None       # G-code text or a source without a size: the bar counts bytes only
+    # disable=None: shown on a terminal only
+    with tqdm(total=size, unit="B", unit_scale=True, desc="sim", disable=True if args.quiet else None,
+              leave=False) as bar:
+        return write_windowed(run, series=args.out, blocks=args.blocks_out,
+                              progress=lambda r: bar.update(r.reader.chars - bar.n))
+
+
+def _check_fits(args: argparse.Namespace, program) -> None:
+    """Refuse (one line, exit 2) a whole-program run whose tables would not fit in memory."""
+    from feedlog.profile import load_profile  # noqa: PLC0415
+    from feedlog.sim.output import available_bytes, in_memory_bytes  # noqa: PLC0415
+
+    profile = load_profile(args.profile)
+    dt_s = args.dt or profile.interpolator.interpolation_period_s
+    series_s = None
+    if args.out is not None:   # the series lasts at least the CAM time (sum of L / F, dwells)
+        from feedlog.toolpath.features import block_features  # noqa: PLC0415
+        nominal = block_features(program, profile)["nominal_time_s"].to_numpy()
+        series_s = float(np.nansum(nominal)) + float(program.blocks["dwell_s"].sum())
+    need = in_memory_bytes(rows=len(program.blocks), series_s=series_s, dt_s=dt_s, axes=len(profile.axis_names))
+    have = available_bytes()
+    if need > have:
+        raise SimulationError(f"simulating {program.name} at once needs about {need / 1e9:.1f} GB "
+                              f"({have / 1e9:.1f} GB available); run it window by window with --stream "
+                              "(--out/--blocks-out are then written to Parquet as it goes)")

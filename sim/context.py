@@ -24,14 +24,52 @@ Samples = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 @dataclass
+class Window:
+    """What a windowed simulation (feedlog.sim.window) tells the mechanisms about the rows they see.
+
+    `last`: the rows reach the program's end (the last row is the program's last). `state`: what each
+    mechanism handed over from the previous window (by name). A `limits` mechanism whose result for
+    the last rows may change with rows still to come calls `pending(name, block)`: the rows from
+    program block `block` on are done again, with the next rows, in the next window. The window
+    restarts at the earliest such block of all mechanisms, P; a mechanism that carries state across
+    windows registers `carry(name, state_at)`, and `state_at(P)` is what it gets in the next window.
+    `core`: the pieces [lo, hi) of `ctx.pieces` the window keeps (the rest is context either side),
+    for a corner law's counts."""
+
+    last: bool = True
+    state: dict[str, dict] = field(default_factory=dict)
+    core: tuple[int, int] | None = None
+    pending_from: dict[str, int] = field(default_factory=dict)
+    hand_over: dict[str, object] = field(default_factory=dict)
+
+    def pending(self, name: str, block: int) -> None:
+        """Rows from program block `block` on may still change with later rows."""
+        self.pending_from[name] = min(int(block), self.pending_from.get(name, int(block)))
+
+    def restart(self) -> float:
+        """The earliest pending block so far (inf: none): rows from it on may change, so a row whose
+        result depends on a later row at or after it is pending too."""
+        return min(self.pending_from.values(), default=float("inf"))
+
+    def carry(self, name: str, state_at) -> None:
+        """`state_at(block) -> dict`: the state to start from when the next window starts at `block`."""
+        self.hand_over[name] = state_at
+
+    def mine(self, name: str) -> dict:
+        return self.state.get(name) or {}
+
+
+@dataclass
 class Context:
-    """Mutable state of one simulation run. `limits` mechanisms edit `blocks`, corner laws `pieces`."""
+    """Mutable state of one simulation run. `limits` mechanisms edit `blocks`, corner laws `pieces`.
+    `window` is None when the whole program is simulated at once."""
 
     profile: MachineProfile
     blocks: Blocks
     pieces: Pieces | None = None
     dt_s: float = 0.001
     notes: dict[str, object] = field(default_factory=dict)
+    window: Window | None = None
 
 
 class Trajectory:

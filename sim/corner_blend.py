@@ -98,6 +98,7 @@ def inscribed_limit(binormal: np.ndarray, bounds: np.ndarray) -> np.ndarray:
 class BlendArcCorner(Mechanism):
     name = "blend_arc"
     kind = "corner"
+    windowed = True
 
     kink_ratio: float = 0.1
     gap_cycles: float = 4.0
@@ -222,9 +223,11 @@ class BlendArcCorner(Mechanism):
         # tp.c tpGetRealTargetVel) under the TRAJ velocity cap
         v_dial = arcs["v_req"] * feed_scale(blocks)[b1]
         arcs["v_run"] = np.minimum(np.minimum(arcs["v"], v_dial), ctx.profile.interpolator.path_vel_max_mm_s)
-        ctx.pieces = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)
-        ctx.notes.update(blend_arcs=int(use_arc.sum()), tangent_junctions=int(use_kink.sum()),
-                         parabolic_blends=int(overlap.sum()), consumed_lines=int((ctx.pieces.clamp_len == 0).sum()))
+        ctx.pieces, line_clamp = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)
+        # counts over the junctions after the pieces a window keeps (all of them when not windowed)
+        lo, hi = ctx.window.core if ctx.window is not None and ctx.window.core is not None else (0, m)
+        ctx.notes.update(blend_arcs=int(use_arc[lo:hi].sum()), tangent_junctions=int(use_kink[lo:hi].sum()),
+                         parabolic_blends=int(overlap[lo:hi].sum()), consumed_lines=int((line_clamp[lo:hi] == 0).sum()))
 
     @staticmethod
     def _continuous(blocks, b: np.ndarray) -> np.ndarray:
@@ -353,4 +356,4 @@ class BlendArcCorner(Mechanism):
         arc_pos = line_pos[ja] + 1
         merged = {f: _interleave(getattr(lines, f), getattr(arcp, f), line_pos, arc_pos)
                   for f in Pieces.__dataclass_fields__}
-        return Pieces(**merged)
+        return Pieces(**merged), clamp

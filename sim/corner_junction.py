@@ -35,6 +35,7 @@ def junction_speed(u1: np.ndarray, u2: np.ndarray, acc: np.ndarray, deviation: n
 class JunctionDeviationCorner(Mechanism):
     name = "junction_deviation"
     kind = "corner"
+    windowed = True
 
     default_deviation_mm: float = 0.01
 

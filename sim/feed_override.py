@@ -34,6 +34,7 @@ class FeedOverride(Mechanism):
     name = "feed_override"
     kind = "limits"
     order = 10
+    windowed = True
 
     override: float = 1.0  # 1.0 = 100 %
 

@@ -93,6 +93,8 @@ class FirInterpolator(Mechanism):
     name = "fir"
     kind = "interpolator"
     uses_corner_law = False
+    windowed = True
+    stream = "feedlog.sim.stream_fir:FirStream"   # its windowed form (feedlog.sim.window)
 
     t1_s: float = 0.070
     t2_s: float = 0.010
@@ -120,19 +122,20 @@ class FirInterpolator(Mechanism):
 
     def pulses(self, ctx: Context) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Per piece: feed F, corner feeds at start/end, zone lengths at start/end."""
-        pc: Pieces = ctx.pieces
-        blocks = ctx.blocks
+        return self.shapes(ctx.pieces, ctx.blocks.tol[ctx.pieces.block], ctx.blocks.linear_index)
+
+    def shapes(self, pc: Pieces, tol_piece: np.ndarray, lin: list[int]):
+        """`pulses` from the pieces, each piece's G64 P tolerance and the linear axis columns."""
         m = len(pc)
         feed = np.minimum(pc.v_max, pc.a_max * self.t1_s)
         f_start = np.full(m, np.inf)
         f_end = np.full(m, np.inf)
         if m > 1:
-            lin = blocks.linear_index
             j = np.arange(m - 1)
             u1 = pc.tangent_xyz(j, pc.length[j], lin)
             u2 = pc.tangent_xyz(j + 1, np.zeros(m - 1), lin)
             theta = np.arccos(np.clip(np.einsum("ij,ij->i", u1, u2), -1.0, 1.0))
-            tol = blocks.tol[pc.block[j]]
+            tol = tol_piece[:-1]
             tol = np.where(tol > 0, tol, self.tolerance_mm)
             fc = np.minimum(corner_feed(theta, tol, self.t1_s, self.t2_s), np.minimum(feed[j], feed[j + 1]))
             f_end[j] = fc
@@ -146,27 +149,38 @@ class FirInterpolator(Mechanism):
         f_end = np.where(slow_e, f_end, feed)
         return feed, f_start, f_end, zone_s, zone_e
 
-    def run(self, ctx: Context) -> Trajectory:
-        pc = ctx.pieces
-        blocks = ctx.blocks
-        dt = ctx.dt_s
-        feed, f_s, f_e, z_s, z_e = self.pulses(ctx)
+    def timing(self, pc: Pieces, shapes, stop: np.ndarray) -> Pulses:
+        """The pulses of the pieces: phase durations, the standstill after each (`stop`: an exact stop
+        follows, the filter settles), and their positions along the piece."""
+        feed, f_s, f_e, z_s, z_e = shapes
         mid = np.maximum(pc.length - z_s - z_e, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):
             d_s = np.where(z_s > 0, z_s / f_s, 0.0)
             d_m = np.where(mid > 0, mid / feed, 0.0)
             d_e = np.where(z_e > 0, z_e / f_e, 0.0)
-        td = self.t1_s + self.t2_s
+        gap = pc.hold_s + np.where(stop, self.t1_s + self.t2_s, 0.0)
+        dur = d_s + d_m + d_e
+        s_1 = d_s * f_s
+        s_2 = s_1 + d_m * feed
+        s_end = np.minimum(s_2 + d_e * f_e, pc.length)
+        return Pulses(d_s=d_s, d_m=d_m, dur=dur, gap=gap,
+                      s_phase=np.stack([np.zeros(len(pc)), s_1, s_2, s_end], axis=1).ravel(),
+                      f_phase=np.stack([f_s, feed, f_e, np.zeros(len(pc))], axis=1).ravel())
+
+    def run(self, ctx: Context) -> Trajectory:
+        pc = ctx.pieces
+        blocks = ctx.blocks
+        dt = ctx.dt_s
         stop = blocks.stop_after[pc.block].copy()
         if len(stop):
             stop[-1] = False
-        gap = pc.hold_s + np.where(stop, td, 0.0)
-        dur = d_s + d_m + d_e
+        pulses = self.timing(pc, self.pulses(ctx), stop)
+        dur, gap = pulses.dur, pulses.gap
         t0 = np.concatenate(([0.0], np.cumsum(dur + gap)[:-1])) if len(pc) else dur
         raw_end = float((t0 + dur + gap)[-1]) if len(pc) else 0.0
+        td = self.t1_s + self.t2_s
         delay = 0.5 * td
-        n1 = max(int(round(self.t1_s / dt)), 1)
-        n2 = max(int(round(self.t2_s / dt)), 1)
+        n1, n2 = self.filter_samples(dt)
         lin = blocks.linear_index
 
         def sample():
@@ -174,36 +188,8 @@ class FirInterpolator(Mechanism):
             if not len(pc):
                 return t, np.repeat(blocks.p0[:1], len(t), axis=0) if len(blocks) else \
                     np.zeros((len(t), len(blocks.axes))), np.zeros(len(t)), np.zeros(len(t), np.int64)
-            # pulses as phases (start zone, middle, end zone, rest) of constant feed: s = S + F tau
-            phase_start = np.maximum.accumulate(np.stack([t0, t0 + d_s, t0 + d_s + d_m, t0 + dur], axis=1).ravel())
-            s_1 = d_s * f_s
-            s_2 = s_1 + d_m * feed
-            s_end = np.minimum(s_2 + d_e * f_e, pc.length)
-            s_phase = np.stack([np.zeros(len(pc)), s_1, s_2, s_end], axis=1).ravel()
-            f_phase = np.stack([f_s, feed, f_e, np.zeros(len(pc))], axis=1).ravel()
-            g = grid_index(t, phase_start)
-            k = pc.p0.shape[1]
-            p0_cols = [np.ascontiguousarray(pc.p0[:, c]) for c in range(k)]
-            dir_cols = [np.ascontiguousarray(pc.dir[:, c]) if pc.dir[:, c].any() else None for c in range(k)]
-            curved = pc.radius > 0
-            raw = np.empty((len(t), k), order="F")
-            for a in range(0, len(t), CHUNK):  # chunks of samples: temporaries stay in cache
-                b = min(a + CHUNK, len(t))
-                gc = g[a:b]
-                tau = t[a:b] - phase_start.take(gc)
-                np.maximum(tau, 0.0, out=tau)
-                s = s_phase.take(gc) + f_phase.take(gc) * tau
-                idx = gc >> 2
-                np.minimum(s, pc.length.take(idx), out=s)
-                for c in range(k):
-                    out = raw[a:b, c]
-                    p0_cols[c].take(idx, out=out)
-                    if dir_cols[c] is not None:
-                        out += dir_cols[c].take(idx) * s
-                rows_c = np.flatnonzero(curved.take(idx))
-                if len(rows_c):  # arcs: the full position including the circular part
-                    raw[a + rows_c] = pc.position(idx.take(rows_c).astype(np.int64), s.take(rows_c))
-            del g
+            phase_start = np.maximum.accumulate(pulses.phase_starts(t0))
+            raw = raw_samples(pc, pulses, phase_start, t, grid_index(t, phase_start))
             pos = moving_average(moving_average(raw, n1), n2)
             speed = path_speed(pos, lin, dt)
             row = pc.block.take(grid_index(t - delay, t0))
@@ -216,3 +202,49 @@ class FirInterpolator(Mechanism):
         b_start, b_end = cover_motion(b_start, b_end, m_start, m_end)
         return Trajectory(sample, block_start_s=b_start, block_end_s=b_end,
                           motion_start_s=m_start, motion_end_s=m_end)
+
+    def filter_samples(self, dt: float) -> tuple[int, int]:
+        """Widths of the two moving averages in samples."""
+        return max(int(round(self.t1_s / dt)), 1), max(int(round(self.t2_s / dt)), 1)
+
+
+@dataclass
+class Pulses:
+    """Per piece: start-zone and middle durations, pulse duration, standstill after; per phase (start
+    zone, middle, end zone, rest: four per piece) the position at its start and the feed in it."""
+
+    d_s: np.ndarray
+    d_m: np.ndarray
+    dur: np.ndarray
+    gap: np.ndarray
+    s_phase: np.ndarray
+    f_phase: np.ndarray
+
+    def phase_starts(self, t0: np.ndarray) -> np.ndarray:
+        return np.stack([t0, t0 + self.d_s, t0 + self.d_s + self.d_m, t0 + self.dur], axis=1).ravel()
+
+
+def raw_samples(pc: Pieces, pulses: Pulses, phase_start: np.ndarray, t: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """The unfiltered motion (len(t), k) at times t, sample i in phase g[i]: constant feed in each phase."""
+    k = pc.p0.shape[1]
+    p0_cols = [np.ascontiguousarray(pc.p0[:, c]) for c in range(k)]
+    dir_cols = [np.ascontiguousarray(pc.dir[:, c]) if pc.dir[:, c].any() else None for c in range(k)]
+    curved = pc.radius > 0
+    raw = np.empty((len(t), k), order="F")
+    for a in range(0, len(t), CHUNK):  # chunks of samples: temporaries stay in cache
+        b = min(a + CHUNK, len(t))
+        gc = g[a:b]
+        tau = t[a:b] - phase_start.take(gc)
+        np.maximum(tau, 0.0, out=tau)
+        s = pulses.s_phase.take(gc) + pulses.f_phase.take(gc) * tau
+        idx = gc >> 2
+        np.minimum(s, pc.length.take(idx), out=s)
+        for c in range(k):
+            out = raw[a:b, c]
+            p0_cols[c].take(idx, out=out)
+            if dir_cols[c] is not None:
+                out += dir_cols[c].take(idx) * s
+        rows_c = np.flatnonzero(curved.take(idx))
+        if len(rows_c):  # arcs: the full position including the circular part
+            raw[a + rows_c] = pc.position(idx.take(rows_c).astype(np.int64), s.take(rows_c))
+    return raw

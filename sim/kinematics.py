@@ -35,14 +35,42 @@ from feedlog.units import seconds_to_ns
 
 def rotary_from_orientation(ori: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Chien Eq. 7: A = acos(Ok), C = atan2(Oi, Oj) in degrees; C unwrapped, held through A = 0."""
+    a, c, _ = rotary_carried(ori)
+    return a, c
+
+
+def rotary_carried(ori: np.ndarray, before: dict | None = None,
+                   last: bool = True) -> tuple[np.ndarray, np.ndarray, dict | None]:
+    """`rotary_from_orientation` for a window of vectors: `before` continues the rows of an earlier window (its `after`: the last filled C in rad and the
+    unwrap correction so far). Returns (A, C, after); after is None while every vector so far is at the
+    singularity and more rows may come (`last` False): their C waits for the first defined one."""
     o = ori / np.linalg.norm(ori, axis=1, keepdims=True)
     a = np.degrees(np.arccos(np.clip(o[:, 2], -1.0, 1.0)))
     c = np.arctan2(o[:, 0], o[:, 1])
     singular = np.hypot(o[:, 0], o[:, 1]) < 1e-9
-    if singular.all():
-        return a, np.zeros(len(a))
-    c = pd.Series(np.where(singular, np.nan, c)).ffill().bfill().to_numpy()
-    return a, np.degrees(np.unwrap(c))
+    if before is None and singular.all():
+        return a, np.zeros(len(a)), (None if not last else {"c": None})
+    if before is not None and before.get("c") is None:   # the program's vectors were all singular so far
+        return a, np.zeros(len(a)), before
+    held = None if before is None else before["c"]
+    c = pd.Series(np.where(singular, np.nan, c)).ffill().fillna(np.nan if held is None else held).bfill().to_numpy()
+    if before is None:
+        dd = np.diff(c)
+        correction0, head = 0.0, c[:1]
+    else:
+        dd = np.diff(np.concatenate(([held], c)))
+        correction0, head = before["correction"], c[:0]
+    # np.unwrap's operations, continuing its running correction
+    ddmod = np.mod(dd + np.pi, 2 * np.pi) - np.pi
+    np.copyto(ddmod, np.pi, where=(ddmod == -np.pi) & (dd > 0))
+    ph_correct = ddmod - dd
+    np.copyto(ph_correct, 0, where=np.abs(dd) < np.pi)
+    correction = np.cumsum(np.concatenate(([correction0], ph_correct)))[1:]
+    rest = c[len(head):]
+    up = np.concatenate([head, rest + correction])
+    after = {"c": float(c[-1]), "correction": float(correction[-1]) if len(correction) else correction0,
+             "c_rows": c, "correction_rows": np.concatenate([[correction0] * len(head), correction])}
+    return a, np.degrees(up), after
 
 
 def trunnion_joints(xyz: np.ndarray, a_deg: np.ndarray, c_deg: np.ndarray, *, workpiece_offset_mm,
@@ -74,6 +102,7 @@ class TrunnionKinematics(Mechanism):
     name = "trunnion"
     kind = "limits"
     order = 30
+    windowed = True
 
     workpiece_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rotary_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -111,20 +140,17 @@ class TrunnionKinematics(Mechanism):
         b = ctx.blocks
         ia, ic = self._axes(ctx)
         ori = b.extra.get("ori")
-        if self.orientation_from_vectors and ori is not None and len(b):
+        window = ctx.window
+        if window is not None:
+            self._window_orientation(ctx, ia, ic)
+        elif self.orientation_from_vectors and ori is not None and len(b):
             have = ~np.isnan(ori).any(axis=1) & (np.linalg.norm(np.nan_to_num(ori), axis=1) > 0)
             if have.any():
                 a_end, c_end = rotary_from_orientation(ori[have])
                 b.p1[have, ia], b.p1[have, ic] = a_end, c_end
                 # each block starts where the previous one ended
                 b.p0[1:, ia], b.p0[1:, ic] = b.p1[:-1, ia], b.p1[:-1, ic]
-                b.rotary = (np.abs(b.p1[:, [ia, ic]] - b.p0[:, [ia, ic]]) > 1e-9).any(axis=1)
-                vel = np.array([ctx.profile.axes[a].vel_max for a in b.axes])
-                acc = np.array([ctx.profile.axes[a].acc_max for a in b.axes])
-                v_axis, a_axis = projected_limits(b.p1 - b.p0, b.length, vel, acc)
-                b.v_limit = np.minimum(b.v_limit, v_axis)
-                b.v_axis = np.minimum(b.v_axis, v_axis)
-                b.a_max = np.minimum(b.a_max, a_axis)
+                self._rotary_limits(ctx)
         if not self.limit_joints or not len(b):
             return
         k = self.samples_per_block
@@ -174,6 +200,62 @@ class TrunnionKinematics(Mechanism):
         b.v_axis = np.minimum(b.v_axis, v_joint)
         b.a_max = np.minimum(b.a_max, a_joint)
         ctx.notes["joint_feed_limit"] = v_joint
+
+    def _rotary_limits(self, ctx: Context) -> None:
+        b = ctx.blocks
+        ia, ic = self._axes(ctx)
+        b.rotary = (np.abs(b.p1[:, [ia, ic]] - b.p0[:, [ia, ic]]) > 1e-9).any(axis=1)
+        vel = np.array([ctx.profile.axes[a].vel_max for a in b.axes])
+        acc = np.array([ctx.profile.axes[a].acc_max for a in b.axes])
+        v_axis, a_axis = projected_limits(b.p1 - b.p0, b.length, vel, acc)
+        b.v_limit = np.minimum(b.v_limit, v_axis)
+        b.v_axis = np.minimum(b.v_axis, v_axis)
+        b.a_max = np.minimum(b.a_max, a_axis)
+
+    def _window_orientation(self, ctx: Context, ia: int, ic: int) -> None:
+        """The orientation vectors of a window (feedlog.sim.window): C continues the window before,
+        and rows whose C still waits for a defined vector stay pending."""
+        b = ctx.blocks
+        window = ctx.window
+        mine = window.mine(self.name)
+        ori = b.extra.get("ori")
+        first = b.extra["first_block"].copy()
+        have = np.zeros(len(b), bool)
+        if self.orientation_from_vectors and ori is not None and len(b):
+            have = ~np.isnan(ori).any(axis=1) & (np.linalg.norm(np.nan_to_num(ori), axis=1) > 0)
+        before = mine.get("rotary")
+        after = before
+        chained = bool(mine.get("chained", False))
+        if have.any():
+            a_end, c_end, after = rotary_carried(ori[have], before, last=window.last)
+            if after is None:        # all singular so far: C is unknown until a defined vector comes
+                window.pending(self.name, int(first[np.flatnonzero(have)[0]]))
+            else:
+                b.p1[have, ia], b.p1[have, ic] = a_end, c_end
+            chained = True
+        if chained and len(b):
+            b.p0[1:, ia], b.p0[1:, ic] = b.p1[:-1, ia], b.p1[:-1, ic]
+            if "p1" in mine:
+                b.p0[0, ia], b.p0[0, ic] = mine["p1"]
+            self._rotary_limits(ctx)
+        rows_have = np.flatnonzero(have)
+        p1 = b.p1[:, [ia, ic]].copy()
+
+        def state_at(block: int) -> dict:
+            r = int(np.searchsorted(first, block))            # rows before the restart
+            k = int(np.searchsorted(rows_have, r))            # vectors before it
+            out: dict = {"chained": chained if r else bool(mine.get("chained", False))}
+            if r:
+                out["p1"] = tuple(float(v) for v in p1[r - 1])
+            elif "p1" in mine:
+                out["p1"] = mine["p1"]
+            if k == 0 or after is None or after.get("c_rows") is None:
+                out["rotary"] = before
+            else:
+                out["rotary"] = {"c": float(after["c_rows"][k - 1]), "correction": float(after["correction_rows"][k - 1])}
+            return out
+
+        window.carry(self.name, state_at)
 
     def after(self, ctx: Context, trajectory: Trajectory) -> Trajectory:
         def joints() -> pd.DataFrame:

@@ -65,6 +65,11 @@ class Mechanism:
     order: ClassVar[int] = 50  # position among mechanisms of the same kind (low runs first)
     uses_corner_law: ClassVar[bool] = True  # interpolators: whether corner laws run before them
     signed_times: ClassVar[tuple[str, ...]] = ()  # `*_s` parameters that may be negative (time offsets)
+    # windowed simulation (feedlog.sim.window): `windowed` says the mechanism gives a window's rows the
+    # result it gives them in the whole program (ctx.window); an interpolator names its windowed form in
+    # `stream` ("module:Class"). `feedback` and `measurement` mechanisms never change the motion.
+    windowed: ClassVar[bool] = False
+    stream: ClassVar[str] = ""
 
     @classmethod
     def default_enabled(cls, profile: MachineProfile) -> bool:

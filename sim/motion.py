@@ -84,12 +84,17 @@ def reachable_speeds_sq(cap_sq: np.ndarray, acc: np.ndarray, length: np.ndarray)
 
 def plan_speeds(pieces: Pieces, *, lookahead: int | None = None) -> Plan:
     """Junction speeds by backward/forward passes, then a trapezoid per piece."""
-    m = len(pieces)
+    v1 = np.sqrt(reachable_speeds_sq(junction_caps(pieces, lookahead=lookahead), pieces.a_max, pieces.length))
+    v0 = np.concatenate(([0.0], v1[:-1])) if len(pieces) else v1
+    return plan_from_speeds(pieces, v0, v1)
+
+
+def plan_from_speeds(pieces: Pieces, v0: np.ndarray, v1: np.ndarray, t_start: float = 0.0) -> Plan:
+    """A trapezoid per piece between its junction speeds v0 -> v1, the pieces one after the other from
+    `t_start` (a windowed simulation continues the running sum of the times of the pieces before)."""
     length = pieces.length
     acc = pieces.a_max
     d = 2.0 * acc * length
-    v1 = np.sqrt(reachable_speeds_sq(junction_caps(pieces, lookahead=lookahead), acc, length))
-    v0 = np.concatenate(([0.0], v1[:-1])) if m else v1
     vmax = np.maximum(pieces.v_max, 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         vp = np.minimum(vmax, np.sqrt(np.maximum((d + v0 ** 2 + v1 ** 2) / 2.0, 0.0)))
@@ -108,7 +113,7 @@ def plan_speeds(pieces: Pieces, *, lookahead: int | None = None) -> Plan:
     blend_v = np.minimum(pieces.v_end, vp)
     overlap_s = np.where(pieces.overlap & moving, np.minimum(blend_v / np.where(acc > 0, acc, np.inf), t_dec), 0.0)
     step = t_acc + t_cru + t_dec + pieces.hold_s - overlap_s
-    t0 = np.concatenate(([0.0], np.cumsum(step)[:-1])) if m else step
+    t0 = np.cumsum(np.concatenate(([t_start], step)))[:-1]
     return Plan(t0=t0, v0=v0, v1=v1, vp=vp, acc=acc, t_acc=t_acc, t_cru=t_cru, t_dec=t_dec,
                 hold=pieces.hold_s.copy(), overlap_s=overlap_s)
 
@@ -219,16 +224,25 @@ def sample_plan(plan: Plan, pieces: Pieces, t: np.ndarray) -> tuple[np.ndarray, 
 
     Vectorised: the trapezoid phases are found by counting grid points per phase (`grid_counts`),
     one np.repeat gives every sample its phase, and the quadratic of its phase is evaluated in chunks
-    of `CHUNK` samples (np.take of the phase coefficients), positions written column by column into a
-    Fortran-ordered array (a DataFrame takes its columns without copying)."""
-    m = len(pieces)
+    of `CHUNK` samples (`evaluate_phases`)."""
+    n = len(t)
+    if not len(pieces):
+        return np.zeros((n, pieces.p0.shape[1]), order="F"), np.zeros(n), np.zeros(n, np.int64)
+    dt = float(t[1] - t[0]) if n > 1 else 1.0
+    phases = _phases(plan, pieces)
+    g = np.repeat(np.arange(len(phases[0]), dtype=np.int32), grid_counts(phases[0], n, dt))
+    pos, speed = evaluate_phases(plan, pieces, phases, t, g)
+    return pos, speed, g >> 2
+
+
+def evaluate_phases(plan: Plan, pieces: Pieces, phases, t: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (len(t), k) and path speed at times t, sample i in phase g[i] of `phases` (`_phases`):
+    np.take of the phase coefficients, positions written column by column into a Fortran-ordered array
+    (a DataFrame takes its columns without copying). A windowed simulation passes a window of the grid
+    and its pieces with the piece before them first (the predecessor of a parabolic blend)."""
     n = len(t)
     k = pieces.p0.shape[1]
-    if not m:
-        return np.zeros((n, k), order="F"), np.zeros(n), np.zeros(n, np.int64)
-    dt = float(t[1] - t[0]) if n > 1 else 1.0
-    start, S, V, H, R, overshoot = _phases(plan, pieces)
-    g = np.repeat(np.arange(len(start), dtype=np.int32), grid_counts(start, n, dt))
+    start, S, V, H, R, _ = phases
     idx = g >> 2                                   # four phases per piece
     blend = _Blend(plan, pieces) if plan.overlap_s.any() else None
     rest_speed = R.any()
@@ -253,8 +267,9 @@ def sample_plan(plan: Plan, pieces: Pieces, t: np.ndarray) -> tuple[np.ndarray, 
         if rest_speed:
             sp += R.take(gc)
         np.maximum(sp, 0.0, out=sp)
-        if overshoot:   # rounding may carry a deceleration a hair past the piece's end
-            np.minimum(s, pieces.length.take(ic), out=s)
+        # rounding may carry a deceleration a hair past the piece's end (a no-op elsewhere, so done
+        # everywhere: a window of the grid gives the samples of the whole grid)
+        np.minimum(s, pieces.length.take(ic), out=s)
         prev = blend.at(tc, ic) if blend is not None else None
         if prev is not None:
             sp += prev[1]
@@ -278,4 +293,4 @@ def sample_plan(plan: Plan, pieces: Pieces, t: np.ndarray) -> tuple[np.ndarray, 
                 if len(rows):  # the predecessor is an arc: its circular part at sp minus at its end
                     arcs.add(chunk, pc, prev[2], rows)
                     arcs.add(chunk, pc, pieces.length.take(pc), rows, sign=-1.0)
-    return pos, speed, idx
+    return pos, speed

@@ -6,9 +6,18 @@ stays within Q of the straight line from the chain's start to the newest end poi
 `max_chain` points; the chain then goes to the planner as one line (reported with the last block's
 line number). Merged-away blocks get no time in the block table.
 
-Exactness note: a vectorised three-point test (the previous end point against the line from the
-previous start to the new end) pre-selects the candidates; the exact test of all chained points
-then runs in a short Python loop over the candidate runs only.
+How it is computed (`chains`): a three-point pre-test (the previous end point against the line from
+the previous start to the new end) finds the rows that may join their predecessor; an isolated
+candidate forms the chain [i - 1, i] that the pre-test already decided. Runs of candidates are
+walked chain by chain, all runs at once: each step tests, for every run's open chain, the next few
+rows (4, then up to 16, then up to `max_chain` + 1) against all the chain's points in one flat array,
+and the first failing row starts the run's next chain. The float operations are those of the
+sequential loop of emccanon.cc's test, so the chains are the same to the last bit
+(tests/sim/test_naive_cam.py compares against that loop).
+
+In a windowed simulation (feedlog.sim.window) the chain still open at the window's end stays
+pending, and the next window starts at its first row (`lead_candidate`: that row began a chain after
+a failed test, as opposed to after a row that could not join).
 """
 
 from __future__ import annotations
@@ -22,92 +31,160 @@ from feedlog.sim.mechanism import Mechanism
 from feedlog.sim.path import KIND_LINEAR, projected_limits
 
 
+def _ragged(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(owner, position) of a flat array holding counts[k] items for each k, positions 0..counts[k]-1."""
+    total = int(counts.sum())
+    owner = np.repeat(np.arange(len(counts)), counts)
+    starts = np.cumsum(counts) - counts
+    return owner, np.arange(total) - starts.take(owner)
+
+
+def _fails(p0: np.ndarray, p1: np.ndarray, tol: np.ndarray, c: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Whether row c + t may not join the chain c .. c + t - 1: some chained end point p1[c + q]
+    (q < t) lies farther than tol[c + t] from the segment p0[c] -> p1[c + t]. The operations and their
+    order are emccanon's test in floats, point by point."""
+    pair, q = _ragged(t)
+    cs = c.take(pair)
+    ends = cs + t.take(pair)
+    pts = cs + q
+    s = [p0[:, j].take(cs) for j in range(3)]
+    mx, my, mz = (p1[:, j].take(ends) - s[j] for j in range(3))
+    dx, dy, dz = (p1[:, j].take(pts) - s[j] for j in range(3))
+    mm = mx * mx + my * my + mz * mz
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = (dx * mx + dy * my + dz * mz) / mm
+    u = np.where(mm <= 0, 0.0, np.clip(u, 0.0, 1.0))
+    ex, ey, ez = dx - u * mx, dy - u * my, dz - u * mz
+    tol_e = tol.take(ends)
+    bad = ex * ex + ey * ey + ez * ez > tol_e * tol_e
+    out = np.zeros(len(t), dtype=bool)
+    out[pair[bad]] = True
+    return out
+
+
+def chains(p0: np.ndarray, p1: np.ndarray, cand: np.ndarray, tol: np.ndarray, max_chain: int, *,
+           lead_candidate: bool = False) -> tuple[np.ndarray, np.ndarray, int]:
+    """The merge chains of n rows. `cand[i - 1]`: row i may join row i - 1 (the pre-test, n - 1 values);
+    `lead_candidate`: row 0 began a chain after a failed test (a window that starts mid-run).
+
+    Returns (start, end, open_from): chains of rows start..end (end > start) that merge into row end,
+    and the first row of the chain that holds the last row (it may still grow with later rows)."""
+    n = len(p0)
+    is_cand = np.zeros(n + 1, bool)
+    is_cand[1:n] = cand
+    is_cand[0] = lead_candidate and n > 0
+    idx = np.flatnonzero(is_cand[1:n]) + 1
+    alone = ~is_cand[idx - 1] & ~is_cand[idx + 1]
+    starts = [idx[alone] - 1]
+    ends = [idx[alone]]
+    rest = idx[~alone]
+    open_from = n - 1
+    if n and is_cand[n - 1] and len(idx) and alone[-1]:
+        open_from = n - 2
+    if len(rest):
+        brk = np.flatnonzero(np.diff(rest) != 1) + 1
+        first = rest[np.r_[0, brk]]
+        last = rest[np.r_[brk - 1, len(rest) - 1]]
+        c = first - 1                  # open chain start per run
+        done = np.zeros(len(c), dtype=np.int64)   # rows after c already tested and joined
+        active = np.arange(len(c))
+        while len(active):
+            ca, la, da = c[active], last[active], done[active]
+            room = la - ca             # rows after c left in the run
+            t_to = np.minimum(np.minimum(room, max_chain + 1), np.maximum(4, 4 * (da + 1)))
+            nt = t_to - da
+            tr, k = _ragged(nt)
+            t = da.take(tr) + 1 + k
+            fail = _fails(p0, p1, tol, ca.take(tr), t) | (t > max_chain)
+            first_fail = np.full(len(active), np.iinfo(np.int64).max)
+            hit = np.flatnonzero(fail)          # (run, t) pairs come sorted by run, then by t
+            if len(hit):
+                lead_hit = hit[np.r_[True, tr[hit[1:]] != tr[hit[:-1]]]]
+                first_fail[tr[lead_hit]] = t[lead_hit]
+            failed = first_fail <= t_to
+            t_end = np.where(failed, first_fail - 1, t_to)   # rows joined to the chain
+            merges = t_end > 0
+            finished = failed | (t_to >= room)
+            closed = finished & merges
+            starts.append(ca[closed])
+            ends.append(ca[closed] + t_end[closed])
+            # a failure starts the run's next chain at the failing row; a run that ends closes its chain
+            nxt = ca + first_fail
+            cont = failed & (nxt < la)
+            reached_end = (finished & ~failed & (la == n - 1)) | (failed & (nxt == la) & (la == n - 1))
+            if reached_end.any():
+                at = np.flatnonzero(reached_end)[-1]
+                open_from = int(ca[at] if not failed[at] else nxt[at])
+            c[active[failed]] = nxt[failed]
+            done[active[failed]] = 0
+            done[active[~finished]] = t_to[~finished]
+            active = active[cont | ~finished]
+    return np.concatenate(starts), np.concatenate(ends), int(open_from)
+
+
 @dataclass
 class NaiveCamMerge(Mechanism):
     name = "naive_cam"
     kind = "limits"
     order = 5
+    windowed = True
 
     max_chain: int = 100
 
     def __post_init__(self) -> None:
         self.check_positive(max_chain=self.max_chain)
 
-    def limit(self, ctx: Context) -> None:
-        b = ctx.blocks
-        n = len(b)
-        if n < 2:
-            return
+    @staticmethod
+    def candidates(b) -> np.ndarray:
+        """Row i may join row i - 1 (n - 1 values): both eligible, the same feed, and the end of i - 1
+        within tol of the line from the start of i - 1 to the end of i (the pre-test)."""
         lin = b.linear_index
         tol = np.nan_to_num(b.merge_tol, nan=0.0)
         ok = (b.kind == KIND_LINEAR) & ~b.rotary & (b.length > 0) & ~b.stop_after & (tol > 0)
-        # i can join the chain of i - 1 only if both are eligible, the feed is unchanged, and (pre-test)
-        # the end of i - 1 lies within tol of the line from the start of i - 1 to the end of i
         p0, p1 = b.p0[:, lin], b.p1[:, lin]
         m = p1[1:] - p0[:-1]
         mm = np.einsum("ij,ij->i", m, m)
         t = np.clip(np.einsum("ij,ij->i", p1[:-1] - p0[:-1], m) / np.where(mm > 0, mm, 1.0), 0.0, 1.0)
         d3 = np.linalg.norm(p1[:-1] - (p0[:-1] + t[:, None] * m), axis=1)
-        cand = ok[:-1] & ok[1:] & (b.feed[1:] == b.feed[:-1]) & (d3 <= tol[1:])
-        if not cand.any():
+        return ok[:-1] & ok[1:] & (b.feed[1:] == b.feed[:-1]) & (d3 <= tol[1:])
+
+    def limit(self, ctx: Context) -> None:
+        b = ctx.blocks
+        n = len(b)
+        window = ctx.window
+        if window is not None:
+            lead = bool(window.mine(self.name).get("lead", False))
+        if n < 2:
+            if window is not None and n and not window.last:
+                window.pending(self.name, int(b.block[0]))
+                window.carry(self.name, lambda block: {"lead": lead})
+            return
+        cand = self.candidates(b)
+        if window is None:
+            lead = False
+        lin = b.linear_index
+        tol = np.nan_to_num(b.merge_tol, nan=0.0)
+        start, end, open_from = chains(b.p0[:, lin], b.p1[:, lin], cand, tol, self.max_chain,
+                                       lead_candidate=lead)
+        if window is not None:
+            if not window.last:  # the chain holding the last row may still grow: it is redone with the next rows
+                window.pending(self.name, int(b.block[open_from]))
+            blocks = b.block.copy()
+
+            def state_at(block: int) -> dict:
+                """Whether the row of `block` began its chain after a failed test (a candidate before it)."""
+                r = int(np.searchsorted(blocks, block))
+                return {"lead": bool(cand[r - 1]) if 0 < r <= len(cand) else lead}
+
+            window.carry(self.name, state_at)
+        if not len(start):
             return
         keep = np.ones(n, bool)
-        start_of = np.arange(n)       # for kept rows: the row whose start is the merged start
-        idx = np.flatnonzero(cand) + 1  # rows that may join their predecessor
-        # an isolated candidate (neither neighbour is one) forms the chain [i - 1, i], whose exact
-        # test is the three-point pre-test it passed: merge those without the loop
-        is_cand = np.zeros(n + 1, bool)
-        is_cand[idx] = True
-        alone = ~is_cand[idx - 1] & ~is_cand[idx + 1]
-        keep[idx[alone] - 1] = False
-        start_of[idx[alone]] = idx[alone] - 1
-        idx = idx[~alone]
-        # plain Python values for the loop, aligned with idx (ends and starts of i and i - 1)
-        e_cur, s_cur = p1[idx].tolist(), p0[idx].tolist()
-        e_prev, s_prev = p1[idx - 1].tolist(), p0[idx - 1].tolist()
-        max_chain = self.max_chain
-        dropped: list[int] = []      # rows merged into the next one
-        joined: list[int] = []       # rows joined to a chain
-        joined_start: list[int] = []  # the start row of that chain
-        chain_start, chain_len, pts, s0 = -1, 0, [], None
-        prev = -2
-        for i, e_i, s_i, e_p, s_p, tol_i in zip(idx.tolist(), e_cur, s_cur, e_prev, s_prev, tol[idx].tolist()):
-            if i != prev + 1 or chain_start < 0:
-                chain_start, chain_len, pts, s0 = i - 1, 1, [e_p], s_p
-            # _within(pts, s0, e_i, tol_i) written out: the same float operations, no calls
-            ok = chain_len <= max_chain
-            if ok:
-                sx, sy, sz = s0
-                mx, my, mz = e_i[0] - sx, e_i[1] - sy, e_i[2] - sz
-                mm = mx * mx + my * my + mz * mz
-                tol2 = tol_i * tol_i
-                for px, py, pz in pts:
-                    dx, dy, dz = px - sx, py - sy, pz - sz
-                    if mm <= 0:
-                        t = 0.0
-                    else:
-                        t = (dx * mx + dy * my + dz * mz) / mm
-                        t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
-                    ex, ey, ez = dx - t * mx, dy - t * my, dz - t * mz
-                    if ex * ex + ey * ey + ez * ez > tol2:
-                        ok = False
-                        break
-            if ok:
-                dropped.append(i - 1)
-                joined.append(i)
-                joined_start.append(chain_start)
-                pts.append(e_i)
-                chain_len += 1
-            else:  # the chain ending at i - 1 is flushed; i starts a new one
-                chain_start, chain_len, pts, s0 = i, 1, [e_i], s_i
-            prev = i
-        if dropped:
-            keep[np.asarray(dropped)] = False
-            start_of[np.array(joined, dtype=np.int64)] = np.array(joined_start, dtype=np.int64)
-        merged = np.flatnonzero(keep & (start_of != np.arange(n)))
-        if not len(merged):
-            return
-        b.p0[merged] = b.p0[start_of[merged]]
+        counts = end - start
+        dropped = np.repeat(start, counts) + _ragged(counts)[1]
+        keep[dropped] = False
+        merged = end
+        b.p0[merged] = b.p0[start]
         delta = b.p1[merged] - b.p0[merged]
         length = np.linalg.norm(delta[:, lin], axis=1)
         vel = np.array([ctx.profile.axes[a].vel_max for a in b.axes])
@@ -117,5 +194,8 @@ class NaiveCamMerge(Mechanism):
         b.v_axis[merged] = v_axis
         b.v_limit[merged] = np.minimum(v_axis, ctx.profile.interpolator.path_vel_max_mm_s)
         b.a_max[merged] = a_axis
+        first = b.extra.get("first_block")
+        if first is not None:
+            first[merged] = first[start]
         ctx.blocks = b.take(np.flatnonzero(keep))
         ctx.notes["merged_blocks"] = int(n - keep.sum())

@@ -80,6 +80,23 @@ class Blocks:
         return Blocks(axes=self.axes, extra={k: rows(v, index) for k, v in self.extra.items()},
                       **{k: rows(v, index) for k, v in fields.items()})
 
+    @staticmethod
+    def concat(parts: list[Blocks]) -> Blocks:
+        """The rows of `parts` one after the other; an `extra` column some parts lack is NaN there."""
+        parts = [p for p in parts if p is not None]
+        if len(parts) == 1:
+            return parts[0]
+        first = parts[0]
+        fields = [k for k in first.__dataclass_fields__ if k not in ("axes", "extra")]
+        names = list(dict.fromkeys(k for p in parts for k in p.extra))
+        extra = {}
+        for k in names:
+            like = next(p.extra[k] for p in parts if k in p.extra)
+            extra[k] = np.concatenate([p.extra[k] if k in p.extra else np.full((len(p),) + like.shape[1:], np.nan)
+                                       for p in parts])
+        return Blocks(axes=first.axes, extra=extra,
+                      **{k: np.concatenate([getattr(p, k) for p in parts]) for k in fields})
+
     @property
     def v_max(self) -> np.ndarray:
         """Cruise speed: programmed feed capped by the velocity limits."""
@@ -115,6 +132,17 @@ class Pieces:
 
     def take(self, index: np.ndarray) -> Pieces:
         return Pieces(**{k: rows(getattr(self, k), index) for k in self.__dataclass_fields__})
+
+    def slice(self, lo: int, hi: int) -> Pieces:
+        """Pieces lo..hi - 1 (views)."""
+        return Pieces(**{k: getattr(self, k)[lo:hi] for k in self.__dataclass_fields__})
+
+    @staticmethod
+    def concat(parts: list[Pieces]) -> Pieces:
+        parts = [p for p in parts if p is not None]
+        if len(parts) == 1:
+            return parts[0]
+        return Pieces(**{k: np.concatenate([getattr(p, k) for p in parts]) for k in Pieces.__dataclass_fields__})
 
     def position(self, index: np.ndarray, sigma: np.ndarray) -> np.ndarray:
         """Axis positions (len(index), k) at path parameter sigma within the given pieces."""
@@ -224,9 +252,10 @@ class ProgramArrays:
         return _where(self.table, int(self.sel[i]))
 
 
-def prepare_blocks(program, profile: MachineProfile) -> Blocks:
+def prepare_blocks(program, profile: MachineProfile, *, last: bool = True) -> Blocks:
     """Motion and dwell rows of the block table as `Blocks`, with axis-projected limits. `program` is a
-    Program, a block table or its `ProgramArrays`."""
+    Program, a block table or its `ProgramArrays`. `last`: its last row is the program's last (which
+    stops); a windowed simulation (feedlog.sim.window) passes False for all but the last batch."""
     arrays = program if isinstance(program, ProgramArrays) else ProgramArrays(program)
     code = arrays.code
     col = arrays.col
@@ -312,7 +341,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
     stop_after = (mode != 1) | (code == KIND_DWELL)
     exact_path = (mode == 2) & (code != KIND_DWELL)
     extra["continuous"] = mode == 1
-    if n:
+    if n and last:
         stop_after[-1] = True
         exact_path[-1] = False
     hold = np.where(code == KIND_DWELL, np.nan_to_num(col("dwell_s", 0.0)), 0.0)

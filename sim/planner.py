@@ -35,6 +35,7 @@ from feedlog.sim.path import Pieces, feed_scale, with_columns
 class LookAheadPlanner(Mechanism):
     name = "lookahead"
     kind = "interpolator"
+    windowed = True
 
     lookahead_blocks: int = 50
     arc_acc_ratio_tangential: float = 0.5
@@ -59,10 +60,13 @@ class LookAheadPlanner(Mechanism):
                 "servo_period_s": profile.interpolator.servo_period_s,
                 "path_acc_max_mm_s2": profile.interpolator.path_acc_max_mm_s2}
 
-    def limit_pieces(self, pieces: Pieces, scale: np.ndarray | None = None) -> Pieces:
+    stream = "feedlog.sim.stream_plan:LookaheadStream"   # its windowed form (feedlog.sim.window)
+
+    def limit_pieces(self, pieces: Pieces, scale: np.ndarray | None = None, *, ends_program: bool = True) -> Pieces:
         """Centripetal and sample-rate limits on the pieces' cruise speed and acceleration. `scale`: per
         piece, the feed override factor, which scales a programmed arc's centripetal speed (part of its
-        requested speed in LinuxCNC) but not a blend arc's or the sample-rate clamp (caps)."""
+        requested speed in LinuxCNC) but not a blend arc's or the sample-rate clamp (caps).
+        `ends_program`: the last piece is the program's last (a windowed run passes False before)."""
         curved = pieces.radius > 0
         pieces = with_columns(pieces, a_max=np.minimum(pieces.a_max, self.path_acc_max_mm_s2))
         ratio_n = math.sqrt(1.0 - self.arc_acc_ratio_tangential ** 2)
@@ -75,9 +79,10 @@ class LookAheadPlanner(Mechanism):
             v_sample = pieces.clamp_len / (self.min_piece_cycles * self.servo_period_s)
             v_max = np.where(pieces.clamp_len > 0, np.minimum(v_max, v_sample), v_max)
         hold = pieces.hold_s
-        if self.stop_settle_s > 0 and len(pieces) > 1:
+        if self.stop_settle_s > 0 and len(pieces):
             stops = (pieces.v_end <= 0) & ~pieces.overlap & (pieces.length > 0)
-            stops[-1] = False
+            if ends_program:
+                stops[-1] = False
             hold = hold + np.where(stops, self.stop_settle_s, 0.0)
         return with_columns(pieces, v_max=v_max, a_max=a_max, hold_s=hold)
 

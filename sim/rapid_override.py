@@ -21,6 +21,7 @@ class RapidOverride(Mechanism):
     name = "rapid_override"
     kind = "limits"
     order = 10
+    windowed = True
 
     override: float = 1.0  # 1.0 = 100 %
 

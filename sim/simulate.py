@@ -91,14 +91,19 @@ class SimResult:
     @property
     def mechanism_params(self) -> dict[str, dict[str, Any]]:
         """Parameters of the mechanisms that ran (infinite values as None, so the dict is valid JSON)."""
-        def clean(v: Any) -> Any:
-            return None if isinstance(v, float) and not np.isfinite(v) else v
-        return {m.name: {k: clean(v) for k, v in m.params().items()} for m in self.mechanisms}
+        return mechanism_params(self.mechanisms)
 
     def summary(self) -> dict[str, Any]:
         return {"profile": self.profile.name, "cycle_time_s": round(self.cycle_time_s, 6),
                 "cam_time_s": round(self.cam_time_s, 6), "blocks": int(len(self.blocks)),
                 "mechanisms": self.mechanism_params}
+
+
+def mechanism_params(mechanisms: list[Mechanism]) -> dict[str, dict[str, Any]]:
+    """Each mechanism's parameters, infinite values as None (valid JSON)."""
+    def clean(v: Any) -> Any:
+        return None if isinstance(v, float) and not np.isfinite(v) else v
+    return {m.name: {k: clean(v) for k, v in m.params().items()} for m in mechanisms}
 
 
 def _profile(profile: MachineProfile | str | Path) -> MachineProfile:

@@ -66,9 +66,10 @@ class Tokens:
     unsupported: list[tuple[int, str, str]] = field(default_factory=list)  # (line index, code, why)
 
 
-def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
+def lex(text: str, *, file: str, lenient: bool = False, first_line: int = 0) -> Tokens:
     """Split `text` into words. Malformed text raises ProgramError; unsupported constructs raise
-    too unless `lenient`, which lists them in `Tokens.unsupported` and skips their line."""
+    too unless `lenient`, which lists them in `Tokens.unsupported` and skips their line. Line
+    indices are within `text`; `first_line` (0-based, in the file) only numbers the error messages."""
     data = text.encode("utf-8", errors="surrogateescape")
     source_lines: list[str] = []
 
@@ -78,7 +79,7 @@ def lex(text: str, *, file: str, lenient: bool = False) -> Tokens:
         return source_lines[int(i)].strip()
 
     def fail(i: int, message: str, code: str | None = None) -> ProgramError:
-        return ProgramError(message, file=file, line=int(i) + 1, code=code or line_text(i)[:40])
+        return ProgramError(message, file=file, line=int(i) + 1 + first_line, code=code or line_text(i)[:40])
 
     data, comment_lines, comment_text = _strip_comments(data)
 

@@ -49,14 +49,16 @@ def check_positions(start: np.ndarray, end: np.ndarray, rows: np.ndarray,
 
 
 def check_run_time(seconds: np.ndarray, fail: Callable[[int, str, str], ProgramError], *, what: str,
-                   code: Callable[[int], str]) -> None:
-    """The running sum of per-row times (NaN: no time) must stay within MAX_TIME_S."""
+                   code: Callable[[int], str], before: float = 0.0) -> float:
+    """The running sum of per-row times (NaN: no time), after `before` seconds of earlier rows, must stay
+    within MAX_TIME_S. Returns the sum after the last row."""
     finite = np.nan_to_num(np.asarray(seconds, dtype=np.float64), nan=0.0, posinf=np.inf)
-    total = np.cumsum(finite)
+    total = np.cumsum(np.r_[before, finite])[1:] if before else np.cumsum(finite)
     if len(total) and not total[-1] <= MAX_TIME_S:
         r = int(np.flatnonzero(~(total <= MAX_TIME_S))[0])
         raise fail(r, f"the program would run longer than {sci(MAX_TIME_S)} s (31.7 years) by this block, "
                       f"which alone takes {finite[r]:.3g} s ({what})", code(r))
+    return float(total[-1]) if len(total) else float(before)
 
 
 def check_axes(table: pd.DataFrame, axes: tuple[str, ...], profile_name: str, rows: np.ndarray | None = None) -> None:

@@ -36,11 +36,14 @@ WORK_OFFSET_COLUMNS = tuple(c for c in OFFSET_COLUMNS if c != "coord_system")  #
 @dataclass
 class AxisWords:
     """Per-axis motion words (axis-major, (6, n)): `values` the program value in mm/deg of absolute
-    words (NaN elsewhere), `absolute` where they are, `cumsum` the running sum of G91 deltas."""
+    words (NaN elsewhere), `absolute` where they are, `cumsum` the running sum of G91 deltas (continued
+    from earlier chunks); `term` and `machine` the position carry of the rows before (toolpath.carry)."""
 
     values: np.ndarray       # (6, n)
     absolute: np.ndarray     # (6, n) bool: an absolute motion word for the axis on this row
     cumsum: np.ndarray       # (6, n) cumulative incremental deltas
+    term: np.ndarray         # (6,) machine - cumsum at the last absolute word before these rows
+    machine: np.ndarray      # (6,) machine position before the first row
 
 
 @dataclass
@@ -55,12 +58,13 @@ class Event:
     values: np.ndarray       # (6,) mm/deg, NaN for absent axis words
 
 
-def resolve_offsets(n: int, words: AxisWords, events: list[Event]) -> tuple[np.ndarray, np.ndarray]:
+def resolve_offsets(n: int, words: AxisWords, events: list[Event], state) -> tuple[np.ndarray, np.ndarray]:
     """Work offset per row (6, n) and active coordinate system per row (int8, 1..9), from the events
-    in row order."""
-    table = np.zeros((10, 6))   # coordinate systems 1..9
-    g92 = np.zeros(6)
-    active = 1
+    in row order. `state` (toolpath.carry.OffsetCarry: table, G92 offset, active system) is the state
+    before the first row; it is updated to the state after the last."""
+    table, g92 = state.table, state.g92
+    initial = state.total.copy()
+    initial_system = state.active
     ev_rows: list[int] = []
     ev_total: list[np.ndarray] = []
     ev_system: list[int] = []
@@ -68,30 +72,32 @@ def resolve_offsets(n: int, words: AxisWords, events: list[Event]) -> tuple[np.n
 
     def offset_at(row: int) -> np.ndarray:
         k = bisect_right(ev_rows, row) - 1
-        return ev_total[k] if k >= 0 else np.zeros(6)
+        return ev_total[k] if k >= 0 else initial
 
     def machine_before(row: int) -> np.ndarray:
         """Machine position at the start of `row` (the end of row - 1)."""
-        pos = np.zeros(6)
         if row == 0:
-            return pos
+            return words.machine.copy()
+        pos = np.zeros(6)
         r = row - 1
         for j in range(6):
             rows_j = abs_rows[j]
             k = np.searchsorted(rows_j, r, side="right") - 1
             if k >= 0:
                 la = int(rows_j[k])
-                pos[j] = words.values[j, la] + offset_at(la)[j] + words.cumsum[j, r] - words.cumsum[j, la]
+                # the machine position as the rows' own: cumsum + (value + offset - cumsum at the absolute row),
+                # so a program read in chunks, which starts a chunk from that position, gets the same floats
+                pos[j] = words.cumsum[j, r] + (words.values[j, la] + offset_at(la)[j] - words.cumsum[j, la])
             else:
-                pos[j] = words.cumsum[j, r]
+                pos[j] = words.cumsum[j, r] + words.term[j]
         return pos
 
     for ev in events:
         if ev.system:
-            active = ev.system
+            state.active = ev.system
         given = ~np.isnan(ev.values)
         if ev.code == G10:
-            target = active if ev.p_word == 0 else ev.p_word
+            target = state.active if ev.p_word == 0 else ev.p_word
             if ev.l_word == 2:
                 table[target, given] = ev.values[given]
             else:  # L20: the current point gets the given program coordinates
@@ -99,22 +105,22 @@ def resolve_offsets(n: int, words: AxisWords, events: list[Event]) -> tuple[np.n
                 table[target, given] = (here - g92 - ev.values)[given]
         elif ev.code == G92:
             here = machine_before(ev.row)
-            g92[given] = (here - table[active] - ev.values)[given]
+            g92[given] = (here - table[state.active] - ev.values)[given]
         elif ev.code == G92_1:
             g92[:] = 0.0
-        total = table[active] + g92
+        total = table[state.active] + g92
         if ev_rows and ev_rows[-1] == ev.row:
-            ev_total[-1], ev_system[-1] = total, active
+            ev_total[-1], ev_system[-1] = total, state.active
         else:
             ev_rows.append(ev.row)
             ev_total.append(total)
-            ev_system.append(active)
+            ev_system.append(state.active)
 
     at = np.asarray(ev_rows, dtype=np.int64)
     reps = np.diff(np.r_[0, at, n])
-    held = np.vstack([np.zeros((1, 6)), np.asarray(ev_total).reshape(-1, 6)])
+    held = np.vstack([initial[None, :], np.asarray(ev_total).reshape(-1, 6)])
     offsets = np.repeat(held, reps, axis=0).T.copy()
-    system = np.repeat(np.r_[1, ev_system].astype(np.int8), reps)
+    system = np.repeat(np.r_[initial_system, ev_system].astype(np.int8), reps)
     return offsets, system
 
 

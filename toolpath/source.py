@@ -8,9 +8,12 @@ message that says so instead of a wall of "unsupported character" errors. Bytes 
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 from feedlog.errors import ProgramError
+
+CHUNK_BYTES = 4 << 20  # text parsed at once: ~110k lines of CAM output, ~150 MB of parser temporaries
 
 
 def _looks_like_path(source: str) -> bool:
@@ -44,3 +47,78 @@ def read_source(source: str | Path, name: str | None) -> tuple[str, Path | None,
     if "\r" in text:
         text = text.replace("\r\n", "\n").replace("\r", "\n")
     return text, path_out, label
+
+
+def _line_ends(text: str) -> str:
+    return text.replace("\r\n", "\n").replace("\r", "\n") if "\r" in text else text
+
+
+def _cut(buf: bytes | str, final: bool) -> int:
+    """End of the last complete line in `buf` (after its line end), 0 when none is complete yet. A CR at
+    the very end may be the first half of a CR LF, so it waits for the next read."""
+    if final:
+        return len(buf)
+    lf = buf.rfind(b"\n" if isinstance(buf, bytes) else "\n")
+    cr = buf.rfind(b"\r" if isinstance(buf, bytes) else "\r", 0, len(buf) - 1)
+    return max(lf, cr) + 1
+
+
+def open_source(source: str | Path, name: str | None, *, chunk_bytes: int = CHUNK_BYTES
+                ) -> tuple[Path | None, str, Iterator[str]]:
+    """(path or None, name for messages, chunks): the program's text in pieces of whole lines of about
+    `chunk_bytes`, line ends made "\n", as `read_source` would give it at once. A file is read as the
+    chunks are taken, so its size does not matter."""
+    if not (isinstance(source, Path) or _looks_like_path(source)):
+        text, _, label = read_source(source, name)
+        return None, label, _text_chunks(text, chunk_bytes)
+    path = Path(source)
+    label = name or str(path)
+    try:
+        handle = path.open("rb")
+    except OSError as exc:
+        raise ProgramError(f"cannot read part program: {exc.strerror or exc}", file=label) from None
+    return path, label, _file_chunks(handle, label, chunk_bytes)
+
+
+def _text_chunks(text: str, chunk_bytes: int) -> Iterator[str]:
+    start = 0
+    while True:
+        end = min(start + chunk_bytes, len(text))
+        if end < len(text):
+            cut = text.rfind("\n", start, end) + 1
+            end = cut if cut > start else (text.find("\n", end) + 1 or len(text))
+        yield text[start:end]
+        if end >= len(text):
+            return
+        start = end
+
+
+def _file_chunks(handle, label: str, chunk_bytes: int) -> Iterator[str]:
+    with handle:
+        carry = b""
+        first = True
+        while True:
+            try:
+                data = handle.read(chunk_bytes)
+            except OSError as exc:
+                raise ProgramError(f"cannot read part program: {exc.strerror or exc}", file=label) from None
+            final = not data
+            buf = carry + data
+            if first:
+                if len(buf) < 3 and not final:
+                    carry = buf
+                    continue
+                if buf.startswith((b"\xff\xfe", b"\xfe\xff")):
+                    raise ProgramError("the file is UTF-16 text (it starts with a UTF-16 byte-order mark); save "
+                                       "the part program as ASCII or UTF-8", file=label, line=1)
+                buf = buf.removeprefix(b"\xef\xbb\xbf")
+            cut = _cut(buf, final)
+            if cut == 0 and not final:
+                carry = buf
+                continue
+            if cut or first:
+                yield _line_ends(buf[:cut].decode("utf-8", errors="replace"))
+            first = False
+            carry = buf[cut:]
+            if final:
+                return

@@ -24,6 +24,20 @@ def _num(x: float) -> float | None:
 def extents(program: Program) -> dict[str, list[float]]:
     """[min, max] per axis over the programmed path (arcs by their extreme points, not their ends);
     rotary axes only when they move."""
+    return _moving(_extents(program))
+
+
+def _moving(box: dict[str, list[float]]) -> dict[str, list[float]]:
+    """The linear axes, and the rotary ones that leave 0."""
+    out = {}
+    for j, name in enumerate(END_COLUMNS):
+        if name in box and (j < 3 or box[name][0] != 0 or box[name][1] != 0):
+            out[name] = box[name]
+    return out
+
+
+def _extents(program: Program) -> dict[str, list[float]]:
+    """`extents` with every axis."""
     m = program.motion
     if not len(m):
         return {}
@@ -56,80 +70,148 @@ def extents(program: Program) -> dict[str, list[float]]:
             xyz = arcs.from_plane(uv, idx[on])
             lo[:3] = np.minimum(lo[:3], xyz.min(axis=0))
             hi[:3] = np.maximum(hi[:3], xyz.max(axis=0))
-    names = [c for c in END_COLUMNS]
-    return {name: [float(lo[j]), float(hi[j])] for j, name in enumerate(names)
-            if j < 3 or lo[j] != 0 or hi[j] != 0}
+    return {name: [float(lo[j]), float(hi[j])] for j, name in enumerate(END_COLUMNS)}
 
 
 SYSTEM_NAMES = ("", "G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
 
 
-def work_offsets(program: Program) -> list[dict[str, Any]]:
-    """The work offsets in force on motion blocks, in order of first use: coordinate system, offset per
-    axis (only axes with one), number of blocks. Empty when every offset is 0 or the table has none."""
+def _offset_counts(program: Program) -> dict[tuple, int]:
+    """Motion blocks per (work offset, coordinate system), in order of first use; empty when every
+    offset is 0 or the table has none."""
     m = program.motion
     if not len(m) or not all(c in m.columns for c in WORK_OFFSET_COLUMNS) \
             or not m[list(WORK_OFFSET_COLUMNS)].to_numpy().any():
-        return []
-    cols = [*WORK_OFFSET_COLUMNS, "coord_system"]
-    counts = m.groupby(cols, sort=False).size()
+        return {}
+    return {key: int(n) for key, n in m.groupby([*WORK_OFFSET_COLUMNS, "coord_system"], sort=False).size().items()}
+
+
+def _offset_list(counts: dict[tuple, int]) -> list[dict[str, Any]]:
     return [{"coord_system": SYSTEM_NAMES[int(key[-1])],
              "offset": {c: float(v) for c, v in zip(WORK_OFFSET_COLUMNS, key[:-1]) if v != 0},
-             "blocks": int(n)} for key, n in counts.items()]
+             "blocks": n} for key, n in counts.items()]
+
+
+def work_offsets(program: Program) -> list[dict[str, Any]]:
+    """The work offsets in force on motion blocks, in order of first use: coordinate system, offset per
+    axis (only axes with one), number of blocks. Empty when every offset is 0 or the table has none."""
+    return _offset_list(_offset_counts(program))
+
+
+def _merge_box(box: dict[str, list[float]], more: dict[str, list[float]]) -> None:
+    for name, (lo, hi) in more.items():
+        old = box.setdefault(name, [lo, hi])
+        old[0], old[1] = min(old[0], lo), max(old[1], hi)
+
+
+class Summary:
+    """`summarize` over the block table in batches (toolpath.ProgramReader): counts, sums, extents and
+    ranges gathered batch by batch, so a program of any length is summarised in the memory of a batch.
+    Sums over several batches may differ from one sum in the last bits."""
+
+    def __init__(self, profile: MachineProfile, *, name: str) -> None:
+        self.profile, self.name = profile, name
+        self.rows = self.blocks = self.without_time = 0
+        self.kinds: dict[str, int] = {}
+        self.length = self.rapid_length = self.cam_time = self.rapid_time = self.dwell = 0.0
+        self.run_time = 0.0                      # CAM time so far, for the 31.7-year check
+        self.bbox: dict[str, list[float]] = {}
+        self.bbox_machine: dict[str, list[float]] = {}
+        self.feed: list[float] | None = None
+        self.tol: list[float] | None = None
+        self.modes: set[str] = set()
+        self.units: set[str] = set()
+        self.offsets: dict[tuple, int] = {}
+        self.five_axis = False
+
+    def add(self, blocks) -> None:
+        """The next batch of rows of the block table."""
+        program, b, profile = Program(blocks=blocks, metadata={"file": self.name}), blocks, self.profile
+        check_axes(b, profile.axis_names, profile.name)
+        feats = block_features(program, profile)
+        self.run_time = _check_cam_time(program, feats, profile, before=self.run_time)
+        for k, v in b["kind"].value_counts().items():
+            self.kinds[str(k)] = self.kinds.get(str(k), 0) + int(v)
+        rapid = feats["kind"].to_numpy() == RAPID
+        feed = feats.loc[~rapid, "feed_mm_min"].to_numpy()
+        feed = feed[np.isfinite(feed)]
+        nominal = feats["nominal_time_s"].to_numpy()
+        self.rows += len(b)
+        self.blocks += len(feats)
+        self.length += float(feats["length_mm"].sum())
+        self.rapid_length += float(feats.loc[rapid, "length_mm"].sum())
+        dwell_s = float(b["dwell_s"].sum())
+        self.cam_time += float(np.nansum(nominal)) + dwell_s
+        self.without_time += int(np.isnan(nominal).sum())
+        self.rapid_time += float(feats.loc[rapid, "nominal_time_s"].sum())
+        self.dwell += dwell_s
+        _merge_box(self.bbox, _extents(program))
+        if len(feed):
+            self.feed = _range(self.feed, float(feed.min()), float(feed.max()))
+        tol = feats["tol_mm"].to_numpy()
+        if np.isfinite(tol).any():
+            self.tol = _range(self.tol, float(np.nanmin(tol)), float(np.nanmax(tol)))
+        self.modes |= {str(m) for m in program.motion["path_mode"].unique()}
+        self.units |= {str(u) for u in b["units"].unique()}
+        counts = _offset_counts(program)
+        for key, n in counts.items():
+            self.offsets[key] = self.offsets.get(key, 0) + n
+        if counts:
+            _merge_box(self.bbox_machine, _extents(Program(blocks=to_machine(b))))
+        self.five_axis |= bool(b["ori_i"].notna().any() or (b[["a_deg", "b_deg", "c_deg"]] != 0).any(axis=None))
+
+    def result(self, *, warnings, unsupported, metadata) -> dict[str, Any]:
+        return {
+            "file": self.name,
+            "profile": self.profile.name,
+            "rows": self.rows,
+            "blocks": self.blocks,
+            "kinds": {k: self.kinds.get(k, 0) for k in (*MOTION_KINDS, "dwell")},
+            "length_mm": self.length,
+            "rapid_length_mm": self.rapid_length,
+            "cam_time_s": self.cam_time,
+            "blocks_without_time": self.without_time,
+            "rapid_time_s": self.rapid_time,
+            "dwell_s": self.dwell,
+            "bbox": _moving(self.bbox),
+            "feed_mm_min": self.feed,
+            "path_modes": sorted(self.modes),
+            "tol_mm": None if self.tol is None else [_num(self.tol[0]), _num(self.tol[1])],
+            "units": sorted(self.units),
+            "work_offsets": _offset_list(self.offsets),
+            "bbox_machine": _moving(self.bbox_machine) if self.offsets else None,
+            "five_axis": self.five_axis,
+            "warnings": list(warnings),
+            "unsupported": [{"line": u.line, "code": u.code, "reason": u.reason} for u in unsupported],
+            "metadata": {k: v for k, v in metadata.items() if k not in ("percent_lines",)},
+        }
+
+
+def _range(old: list[float] | None, lo: float, hi: float) -> list[float]:
+    return [lo, hi] if old is None else [min(old[0], lo), max(old[1], hi)]
 
 
 def summarize(program: Program, profile: MachineProfile) -> dict[str, Any]:
     """Summary of `program` on `profile`: CAM time is sum(L/F) over feed moves, rapids at the profile's
     rapid rate, plus dwells (no acceleration, no blending: what a CAM system estimates)."""
-    b = program.blocks
-    check_axes(b, profile.axis_names, profile.name)
-    feats = block_features(program, profile)
-    _check_cam_time(program, feats, profile)
-    kinds = b["kind"].value_counts()
-    rapid = feats["kind"].to_numpy() == RAPID
-    feed = feats.loc[~rapid, "feed_mm_min"].to_numpy()
-    feed = feed[np.isfinite(feed)]
-    dwell_s = float(b["dwell_s"].sum())
-    bbox = extents(program)
-    offsets = work_offsets(program)
-    tol = feats["tol_mm"].to_numpy()
-    return {
-        "file": program.name,
-        "profile": profile.name,
-        "rows": int(len(b)),
-        "blocks": int(len(feats)),
-        "kinds": {k: int(kinds.get(k, 0)) for k in (*MOTION_KINDS, "dwell")},
-        "length_mm": float(feats["length_mm"].sum()),
-        "rapid_length_mm": float(feats.loc[rapid, "length_mm"].sum()),
-        "cam_time_s": float(np.nansum(feats["nominal_time_s"].to_numpy())) + dwell_s,
-        "blocks_without_time": int(np.isnan(feats["nominal_time_s"].to_numpy()).sum()),
-        "rapid_time_s": float(feats.loc[rapid, "nominal_time_s"].sum()),
-        "dwell_s": dwell_s,
-        "bbox": bbox,
-        "feed_mm_min": [float(feed.min()), float(feed.max())] if len(feed) else None,
-        "path_modes": sorted(str(m) for m in program.motion["path_mode"].unique()),
-        "tol_mm": [_num(np.nanmin(tol)), _num(np.nanmax(tol))] if np.isfinite(tol).any() else None,
-        "units": sorted(str(u) for u in b["units"].unique()),
-        "work_offsets": offsets,
-        "bbox_machine": extents(Program(blocks=to_machine(b))) if offsets else None,
-        "five_axis": bool(b["ori_i"].notna().any() or (b[["a_deg", "b_deg", "c_deg"]] != 0).any(axis=None)),
-        "warnings": list(program.warnings),
-        "unsupported": [{"line": u.line, "code": u.code, "reason": u.reason} for u in program.unsupported],
-        "metadata": {k: v for k, v in program.metadata.items() if k not in ("percent_lines",)},
-    }
+    summary = Summary(profile, name=program.name)
+    summary.add(program.blocks)
+    return summary.result(warnings=program.warnings, unsupported=program.unsupported, metadata=program.metadata)
 
 
-def _check_cam_time(program: Program, feats, profile: MachineProfile) -> None:
-    """CAM time (rapids at the profile's rapid rate included) within what feedlog counts in int64 ns."""
+def _check_cam_time(program: Program, feats, profile: MachineProfile, *, before: float = 0.0) -> float:
+    """CAM time (rapids at the profile's rapid rate included) within what feedlog counts in int64 ns,
+    after `before` seconds of earlier batches; returns the running total."""
     b = program.blocks
     seconds = b["dwell_s"].to_numpy(dtype=np.float64, copy=True)
-    seconds[feats["block"].to_numpy()] += np.nan_to_num(feats["nominal_time_s"].to_numpy(dtype=np.float64))
+    first = int(b["block"].iloc[0]) if len(b) else 0    # a batch's rows are numbered from the file's start
+    seconds[feats["block"].to_numpy() - first] += np.nan_to_num(feats["nominal_time_s"].to_numpy(dtype=np.float64))
     kinds = b["kind"].astype(str).to_numpy()
 
     def fail(r: int, message: str, code: str) -> ProgramError:
         return ProgramError(message, file=program.name, line=int(b["line"].iloc[r]), code=code)
 
-    check_run_time(seconds, fail, what=f"CAM time on {profile.name}", code=lambda r: kinds[r])
+    return check_run_time(seconds, fail, what=f"CAM time on {profile.name}", code=lambda r: kinds[r], before=before)
 
 
 def format_summary(s: dict[str, Any]) -> str:

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pandas as pd
 
 from feedlog.cli import main
 
+ROOT = Path(__file__).resolve().parents[2]
 PROGRAM = "G21 G90 G61\nG1 X40 F3000\nG1 Y20\nM2\n"
 
 
@@ -74,3 +76,71 @@ def test_several_programs_write_one_folder_each_and_a_dataset(tmp_path, capsys):
     assert "pass --force" in capsys.readouterr().err
     assert main(["sim", str(a), "--profile", "linuxcnc-xyz", "-o", str(out), "--out", str(tmp_path / "s.parquet")]) == 2
     assert "--out/--blocks-out are for one program" in capsys.readouterr().err
+
+
+def _sim_tables(tmp_path, capsys, program, *extra):
+    out, blocks = tmp_path / f"s{len(extra)}.parquet", tmp_path / f"b{len(extra)}.parquet"
+    assert main(["sim", str(program), "--profile", "linuxcnc-xyz", "--json", "-q", "--out", str(out),
+                 "--blocks-out", str(blocks), "--force", *extra]) == 0
+    return json.loads(capsys.readouterr().out), pd.read_parquet(out), pd.read_parquet(blocks)
+
+
+def test_streamed_run_writes_the_tables_of_the_whole_run(tmp_path, capsys):
+    """--stream: windows written to Parquet as they come; the files and the summary are those of the
+    whole-program run (same columns, dtypes and values)."""
+    program = ROOT / "examples" / "pocket.ngc"
+    whole = _sim_tables(tmp_path, capsys, program, "--no-stream")
+    streamed = _sim_tables(tmp_path, capsys, program, "--stream")
+    assert streamed[0] == whole[0]
+    for a, b in zip(streamed[1:], whole[1:]):
+        assert len(a) > 10
+        pd.testing.assert_frame_equal(a, b, check_exact=True)
+
+
+def test_streamed_program_without_motion_writes_the_tables_of_the_whole_run(tmp_path, capsys):
+    src = tmp_path / "still.ngc"
+    src.write_text("G21 G90\nM2\n")
+    whole = _sim_tables(tmp_path, capsys, src, "--no-stream")
+    streamed = _sim_tables(tmp_path, capsys, src, "--stream")
+    assert streamed[0]["blocks"] == whole[0]["blocks"] == 0
+    pd.testing.assert_frame_equal(streamed[1], whole[1], check_exact=True)   # one sample at rest
+    pd.testing.assert_frame_equal(streamed[2], whole[2], check_exact=True)   # no blocks
+    assert len(streamed[2]) == 0
+
+
+def test_a_run_that_would_not_fit_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
+    import feedlog.sim.output as output  # noqa: PLC0415
+
+    src = tmp_path / "p.ngc"
+    src.write_text(PROGRAM)
+    monkeypatch.setattr(output, "available_bytes", lambda: 1000)
+    out = tmp_path / "series.parquet"
+    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "needs about" in err and "--stream" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+    # streamed, the same run needs no more than a window
+    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "--out", str(out), "--stream", "-q"]) == 0
+    assert len(pd.read_parquet(out)) > 100
+
+
+def test_stream_with_a_mechanism_without_windowed_form_is_one_clear_error(tmp_path, capsys):
+    src = tmp_path / "p.ngc"
+    src.write_text(PROGRAM)
+    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "--stream", "--enable", "jerk_filter"]) == 2
+    err = capsys.readouterr().err
+    assert "cannot run window by window" in err and "Traceback" not in err
+
+
+def test_large_program_streams_by_default_unless_a_mechanism_cannot(tmp_path, capsys, monkeypatch):
+    import feedlog.sim.cli as cli  # noqa: PLC0415
+    import feedlog.sim.output as output  # noqa: PLC0415
+
+    src = tmp_path / "p.ngc"
+    src.write_text(PROGRAM)
+    monkeypatch.setattr(cli, "STREAM_BYTES", 10)          # every file is "large"
+    monkeypatch.setattr(output, "available_bytes", lambda: 1000)   # a whole-program run would not fit
+    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "-q", "--blocks-out", str(tmp_path / "b.parquet")]) == 0
+    assert len(pd.read_parquet(tmp_path / "b.parquet")) >= 2        # streamed
+    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "-q", "--enable", "jerk_filter"]) == 2
+    assert "needs about" in capsys.readouterr().err                 # whole-program run, refused
