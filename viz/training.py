@@ -33,11 +33,16 @@ DEMO_MODELS = ("mlp", "bilstm-block", "bilstm-final", "hybrid")  # bilstm-r is a
 
 
 def program_table(run: RecordingRun):
-    """train's ProgramTable for an aligned run (block features and measured block times from align)."""
+    """train's ProgramTable for an aligned run (block features and measured block times from align), with
+    the program columns `feedlog train` attaches when it reads align's output (`with_program_columns`:
+    axis times, path limits, G64 Q), so the demo trains on what `feedlog predict` later computes from the
+    program alone: the model columns of report.md and models/results.md are then the same numbers."""
     from feedlog.train import ProgramTable  # train is optional: imported only when it exists
+    from feedlog.train.features import with_program_columns
 
     g = run.gathered
-    return ProgramTable(run.entry.name, g.aligned.blocks, program=run.entry.family or run.entry.program,
+    blocks = with_program_columns(g.aligned.blocks, g.program, g.profile) if g.program is not None else g.aligned.blocks
+    return ProgramTable(run.entry.name, blocks, program=run.entry.family or run.entry.program,
                         split=run.entry.split, points=g.aligned.points, profile=g.profile,
                         program_text=run.recording.program_text if run.recording is not None else None)
 
