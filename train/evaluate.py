@@ -123,6 +123,8 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
         train_s = time.perf_counter() - start
         if fit_on[0].profile is not None:
             model.params.setdefault("profile", fit_on[0].profile.name)
+            # every machine trained on: `feedlog predict` picks the one whose axes fit a program
+            model.params.setdefault("profiles", sorted({t.profile.name for t in fit_on if t.profile is not None}))
         model.fingerprint = fingerprint(fit_on, model.required_columns + [TARGET])
         path = save_checkpoint(model, out / f"{name}.pt", overwrite=overwrite)
         notes: list[str] = []
