@@ -16,6 +16,7 @@ from feedlog.align.batch import align_many
 from feedlog.align.feed import FeedSmoothing
 from feedlog.align.pipeline import BOUNDARIES, FEED_SOURCES, AlignConfig
 from feedlog.align.tables import to_json
+from feedlog.cli_options import add_output, add_overwrite, add_quiet
 from feedlog.errors import FeedlogError
 from feedlog.execution import add_arguments as add_execution_arguments
 
@@ -24,7 +25,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("recordings", nargs="+", metavar="RECORDING", help="feedlog recordings (.mcap)")
     parser.add_argument("--program", "-p", help="part program (default: the recording's program.ngc attachment)")
     parser.add_argument("--profile", help="machine profile name or TOML (default: the attached profile.toml)")
-    parser.add_argument("-o", "--outdir", required=True, help="output folder; one subfolder per recording")
+    add_output(parser, required=True, metavar="OUTDIR", aliases=("--outdir",),
+               help="output folder; one subfolder per recording, and OUTDIR/dataset/")
     parser.add_argument("--json", action="store_true", help="print cycle time and block times as JSON")
     parser.add_argument("--tol-mm", type=float, default=AlignConfig.tol_mm,
                         help="allowed CL point distance on top of the block's G64 P (default %(default)s); "
@@ -45,8 +47,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lenient", action="store_true",
                         help="skip unsupported program codes (reported in report.json) instead of failing")
     add_execution_arguments(parser)
-    parser.add_argument("--overwrite", action="store_true", help="replace existing output files")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    add_overwrite(parser, help="replace existing output files")
+    add_quiet(parser, help="no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -54,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
                          feed_source=args.feed_source, sync_lines=args.sync_lines,
                          smoothing=FeedSmoothing(window_s=args.feed_window_s),
                          work_offset_mm=tuple(args.work_offset), lenient=args.lenient)
-    items = align_many(args.recordings, args.outdir, program=args.program, profile=args.profile, config=config,
+    items = align_many(args.recordings, args.out, program=args.program, profile=args.profile, config=config,
                        jobs=args.jobs, scheduler=args.scheduler, overwrite=args.overwrite, progress=not args.quiet,
                        with_blocks=args.json)
     failed = [i for i in items if not i.ok]

@@ -1,9 +1,10 @@
-"""`feedlog sim PROGRAM... --profile PROFILE [--out series.parquet | -o OUTDIR] [--json]`: simulate part programs.
+"""`feedlog sim PROGRAM... --profile PROFILE [-o OUTDIR | -o SERIES.parquet] [--json]`: simulate part programs.
 
-One program prints its summary (and writes `--out`/`--blocks-out`). Several programs (or `-o OUTDIR`)
-run as one task each on `feedlog.execution`'s backend (`-j N`, `--scheduler ADDRESS`) and write
-OUTDIR/<program stem>/{series,blocks}.parquet, summary.json and the dataset OUTDIR/dataset/
-(`feedlog.sim.batch`). Programs and OUTDIR may be paths or fsspec URLs.
+One program prints its summary (and writes `-o SERIES.parquet`/`--blocks-out`). Several programs (or
+`-o OUTDIR`, a folder) run as one task each on `feedlog.execution`'s backend (`-j N`, `--scheduler
+ADDRESS`) and write OUTDIR/<program stem>/{series,blocks}.parquet, summary.json and the dataset
+OUTDIR/dataset/ (`feedlog.sim.batch`). Programs and OUTDIR may be paths or fsspec URLs. `--lenient`
+skips unsupported codes; the summary lists them (`skipped`) with the dialect read and its warnings.
 """
 
 from __future__ import annotations
@@ -15,18 +16,25 @@ from pathlib import Path
 from typing import Any
 
 from feedlog.atomic import atomic_outputs
+from feedlog.cli_options import add_output, add_overwrite, add_quiet
 from feedlog.errors import FeedlogError, SimulationError
 from feedlog.execution import add_arguments as add_execution_arguments
+from feedlog.toolpath.dialects import DIALECTS
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("programs", nargs="+", metavar="PROGRAM", help="part program(s) (G-code files)")
     parser.add_argument("--profile", required=True, help="machine profile: shipped name or .toml path")
-    parser.add_argument("--out", type=Path, help="write the interpolated series as Parquet")
-    parser.add_argument("--blocks-out", type=Path, help="write the per-block table as Parquet")
-    parser.add_argument("-o", "--outdir", help="output folder, one subfolder per program (needed for several)")
-    parser.add_argument("--force", action="store_true", help="overwrite existing output files")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    add_output(parser, metavar="OUT", aliases=("--outdir",),
+               help="output folder, one subfolder per program (needed for several); for one program a "
+                    "SERIES.parquet file gets the interpolated series")
+    parser.add_argument("--blocks-out", type=Path, help="one program: write the per-block table as Parquet")
+    add_overwrite(parser, help="replace existing output files", aliases=("--force",))
+    add_quiet(parser, help="no progress bar")
+    parser.add_argument("--lenient", action="store_true",
+                        help="skip unsupported program codes (listed in the summary) instead of failing")
+    parser.add_argument("--dialect", choices=DIALECTS, default="auto",
+                        help="G-code dialect: rs274ngc (LinuxCNC), fanuc/hurco, sinumerik (default: detected)")
     add_execution_arguments(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     parser.add_argument("--set", action="append", default=[], metavar="MECH.PARAM=VALUE",
@@ -56,31 +64,31 @@ def parse_settings(settings: list[str], enable: list[str], disable: list[str]) -
     return spec
 
 
-def _program(path: str):
-    try:
-        from feedlog.toolpath import parse_program  # noqa: PLC0415 (optional until toolpath lands)
-    except ImportError:
-        raise FeedlogError("feedlog.toolpath.parse_program is not available in this version") from None
-    return parse_program(path)
+def _program(path: str, *, lenient: bool = False, dialect: str = "auto"):
+    from feedlog.toolpath import load_program  # noqa: PLC0415
+
+    return load_program(path, lenient=lenient, dialect=dialect)
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.outdir is not None or len(args.programs) > 1:
+    series_file = args.out is not None and str(args.out).lower().endswith(".parquet")
+    if len(args.programs) > 1 or (args.out is not None and not series_file):
         return _run_many(args)
-    return _run_one(args, args.programs[0])
+    return _run_one(args, args.programs[0], series=Path(args.out) if series_file else None)
 
 
 def _run_many(args: argparse.Namespace) -> int:
     from feedlog.sim.batch import simulate_many  # noqa: PLC0415
 
-    if args.outdir is None:
+    if args.out is None or str(args.out).lower().endswith(".parquet"):
         raise FeedlogError(f"{len(args.programs)} programs need an output folder: pass -o OUTDIR")
-    if args.out is not None or args.blocks_out is not None:
-        raise FeedlogError("--out/--blocks-out are for one program without -o; with -o each program's tables go "
-                           "to OUTDIR/<program>/")
-    items = simulate_many(args.programs, args.outdir, profile=args.profile,
+    if args.blocks_out is not None:
+        raise FeedlogError("--blocks-out is for one program; with -o OUTDIR each program's tables go to "
+                           "OUTDIR/<program>/")
+    items = simulate_many(args.programs, str(args.out), profile=args.profile,
                           mechanisms=parse_settings(args.set, args.enable, args.disable) or None, dt_s=args.dt,
-                          jobs=args.jobs, scheduler=args.scheduler, overwrite=args.force, progress=not args.quiet)
+                          jobs=args.jobs, scheduler=args.scheduler, overwrite=args.overwrite, progress=not args.quiet,
+                          lenient=args.lenient, dialect=args.dialect)
     failed = [i for i in items if not i.ok]
     for item in failed:
         print(f"feedlog sim: error: {item.program}: {item.error}", file=sys.stderr)
@@ -96,22 +104,23 @@ def _run_many(args: argparse.Namespace) -> int:
     return min((i.exit_code or 2 for i in failed), default=0)  # 1 if an output could not be written, else 2
 
 
-def _run_one(args: argparse.Namespace, source: str) -> int:
+def _run_one(args: argparse.Namespace, source: str, *, series: Path | None) -> int:
+    from feedlog.sim.batch import program_notes  # noqa: PLC0415
     from feedlog.sim.simulate import simulate  # noqa: PLC0415
 
-    for out in (args.out, args.blocks_out):
-        if out is not None and out.exists() and not args.force:
-            raise FeedlogError(f"{out} exists; pass --force to overwrite")
-    program = _program(source)
+    for out in (series, args.blocks_out):
+        if out is not None and out.exists() and not args.overwrite:
+            raise FeedlogError(f"{out} exists; pass --overwrite to replace it")
+    program = _program(source, lenient=args.lenient, dialect=args.dialect)
     result = simulate(program, args.profile, mechanisms=parse_settings(args.set, args.enable, args.disable) or None,
                       dt_s=args.dt)
-    outputs = {path: table for path, table in ((args.out, lambda: result.series), (args.blocks_out, lambda: result.blocks))
+    outputs = {path: table for path, table in ((series, lambda: result.series), (args.blocks_out, lambda: result.blocks))
                if path is not None}
     if outputs:
         with atomic_outputs(*outputs) as temporaries:  # both files or neither
             for temporary, table in zip(temporaries, outputs.values()):
                 table().to_parquet(temporary, index=False)
-    summary = {"program": str(source), **result.summary()}
+    summary = {"program": str(source), **result.summary(), **program_notes(program)}
     if args.json:
         json.dump(summary, sys.stdout, allow_nan=False)
         sys.stdout.write("\n")
@@ -119,4 +128,11 @@ def _run_one(args: argparse.Namespace, source: str) -> int:
         print(f"{source}: {summary['blocks']} blocks on {summary['profile']}: cycle time "
               f"{result.cycle_time_s:.3f} s (CAM estimate {result.cam_time_s:.3f} s)")
         print("mechanisms: " + ", ".join(summary["mechanisms"]))
+        if summary["dialect"] != "rs274ngc":
+            print(f"dialect: {summary['dialect']}")
+        for item in summary.get("skipped", []):
+            print(f"skipped: line {item['line']}: {item['code']} ({item['reason']})")
+        for warning in summary.get("warnings", []):
+            if not warning.startswith("line ") or "skipped" not in warning:
+                print(f"warning: {warning}")
     return 0

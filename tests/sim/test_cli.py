@@ -70,7 +70,10 @@ def test_several_programs_write_one_folder_each_and_a_dataset(tmp_path, capsys):
     pd.testing.assert_frame_equal(blocks[blocks["program"] == "b"].drop(columns="program").reset_index(drop=True),
                                   pd.read_parquet(out / "b" / "blocks.parquet"), check_dtype=False)
     assert not (out / "bad").exists()
-    assert main(["sim", str(a), *opts, "-o", str(out), "-j", "1"]) == 2   # exists: --force to replace
-    assert "pass --force" in capsys.readouterr().err
-    assert main(["sim", str(a), "--profile", "linuxcnc-xyz", "-o", str(out), "--out", str(tmp_path / "s.parquet")]) == 2
-    assert "--out/--blocks-out are for one program" in capsys.readouterr().err
+    assert main(["sim", str(a), *opts, "-o", str(out), "-j", "1"]) == 2   # exists: --overwrite to replace
+    assert "pass --overwrite" in capsys.readouterr().err
+    # -o names one thing: a folder, or (one program) the series file; several programs need the folder
+    assert main(["sim", str(a), str(b), "--profile", "linuxcnc-xyz", "-o", str(tmp_path / "s.parquet")]) == 2
+    assert "need an output folder" in capsys.readouterr().err
+    assert main(["sim", str(a), "--profile", "linuxcnc-xyz", "-o", str(out), "--blocks-out", str(tmp_path / "b.parquet")]) == 2
+    assert "--blocks-out is for one program" in capsys.readouterr().err
