@@ -87,13 +87,14 @@ def align_one(task: AlignTask) -> BatchItem:
 def _shared_inputs(program: str | Path | None, profile: str | Path | None, config: AlignConfig):
     """The program and profile given for every recording, read here (errors stop the job before it starts)."""
     from feedlog.profile import MachineProfile, load_profile  # noqa: PLC0415
-    from feedlog.toolpath import parse_program  # noqa: PLC0415
+    from feedlog.toolpath import load_program  # noqa: PLC0415
 
     prog = prof = None
     if program is not None:
         text = str(program)
-        prog = (parse_program(storage.read_text(text), lenient=config.lenient, name=text) if storage.is_url(text)
-                else parse_program(Path(program), lenient=config.lenient))
+        source = storage.read_text(text) if storage.is_url(text) else Path(program)
+        prog = load_program(source, lenient=config.lenient, name=text if storage.is_url(text) else None,
+                            dialect=config.dialect)
     if profile is not None:
         text = str(profile)
         prof = MachineProfile.from_toml(storage.read_text(text), source=text) if storage.is_url(text) \

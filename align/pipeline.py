@@ -39,7 +39,7 @@ from feedlog.align.timing import stream_timing
 from feedlog.errors import AlignmentError, FeedlogError
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import MachineProfile, load_profile
-from feedlog.toolpath import Program, block_features, cl_points, parse_program, to_machine
+from feedlog.toolpath import Program, block_features, cl_points, load_program, to_machine
 from feedlog.toolpath.schema import RAPID
 
 BOUNDARIES = ("auto", "pass", "leave")
@@ -77,6 +77,7 @@ class AlignConfig:
                                      # the measured frame (one set on the machine, not in the program;
                                      # the program's own G10/G54/G92 come from toolpath)
     lenient: bool = False            # parse the program leniently (unsupported codes skipped, reported)
+    dialect: str = "auto"            # G-code dialect of the program (toolpath.dialects)
 
     def __post_init__(self) -> None:
         if not self.tol_mm > 0:
@@ -116,16 +117,18 @@ def _profile(recording: Recording, profile: MachineProfile | str | Path | None) 
     return None
 
 
-def _program(recording: Recording, program: Program | str | Path | None, lenient: bool) -> Program:
+def _program(recording: Recording, program: Program | str | Path | None, lenient: bool,
+             dialect: str = "auto") -> Program:
     if isinstance(program, Program):
         return program
     if program is not None:
-        return parse_program(Path(program), lenient=lenient)
+        return load_program(Path(program), lenient=lenient, dialect=dialect)
     text = recording.program_text
     if text is None:
         raise AlignmentError(f"{recording.source or 'recording'}: no program given and none attached "
                              "(program.ngc); pass one with --program")
-    return parse_program(text, lenient=lenient, name=f"{Path(recording.source).stem or 'recording'}:program.ngc")
+    return load_program(text, lenient=lenient, dialect=dialect,
+                        name=f"{Path(recording.source).stem or 'recording'}:program.ngc")
 
 
 def position_quantum(pos: np.ndarray, *, samples: int = 100_000) -> float:
@@ -171,7 +174,7 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     cfg = replace(config or AlignConfig(), **overrides) if overrides else (config or AlignConfig())
     lap = _Laps()
     prof = _profile(recording, profile)
-    prog = _program(recording, program, cfg.lenient)
+    prog = _program(recording, program, cfg.lenient, cfg.dialect)
     axes, cols, pos = _positions(recording, cfg)
     t = axes["t_ns"].to_numpy(dtype=np.int64)
     xyz = pos[:, :3]
