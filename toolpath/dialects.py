@@ -323,4 +323,13 @@ def _sinumerik_code(code: str, number: int, notes: _Notes) -> str:
 
     code = re.sub(r"\bG\d{2,3}\b", gcode, code, flags=re.IGNORECASE)
     code = re.sub(r"\bM17\b", "M2", code, flags=re.IGNORECASE)
-    return code
+    seen: set[str] = set()
+
+    def once(m: re.Match) -> str:  # `G500 G54` -> `G54 G54`: one is enough
+        word = m.group(0).upper()
+        if word in seen:
+            return ""
+        seen.add(word)
+        return m.group(0)
+
+    return re.sub(r"\bG\d+(?:\.\d)?\b", once, code, flags=re.IGNORECASE)
