@@ -47,7 +47,7 @@ import numpy as np
 from feedlog.profile import MachineProfile
 from feedlog.sim.context import Context
 from feedlog.sim.mechanism import Mechanism
-from feedlog.sim.path import KIND_RAPID, Pieces, rows, with_columns
+from feedlog.sim.path import KIND_RAPID, Pieces, feed_scale, rows, with_columns
 
 ACC_RATIO_TANGENTIAL = 0.5
 
@@ -147,9 +147,12 @@ class BlendArcCorner(Mechanism):
         length = pc.length
         u1 = pc.tangent_xyz(j, length[:-1], lin)
         u2 = pc.tangent_xyz(j + 1, np.zeros(m - 1), lin)
-        # speeds as LinuxCNC's segments know them: programmed feed, axis caps, one servo cycle
-        v_seg = np.minimum(pc.v_max, np.where(length > 0, length / cyc, np.inf))
-        v_req = np.minimum(blocks.feed[b], v_seg)
+        # speeds as LinuxCNC's segments know them (reqvel, maxvel): the programmed feed capped by the axis
+        # limits and one servo cycle; not the feed override dial nor the TRAJ velocity cap, which apply
+        # while running (tc.c tcGetMaxTargetVel, tp.c tpGetMaxTargetVel)
+        v_tc = np.minimum(blocks.feed / feed_scale(blocks), blocks.v_axis)[b]
+        v_seg = np.minimum(v_tc, np.where(length > 0, length / cyc, np.inf))
+        v_req = v_seg
         exact = blocks.stop_after[b1]
         # G61 (exact path) still passes tangent junctions; G61.1, dwells and holds always stop
         g61 = exact & blocks.exact_path[b1] & (pc.hold_s[:-1] <= 0)
@@ -183,7 +186,7 @@ class BlendArcCorner(Mechanism):
         cand = ~hard & ~rotary & moves_xyz
         # the kink check sees each line as LinuxCNC has it when the next one arrives: its feed, axis caps
         # and its full length in one servo cycle (tcClampVelocityByLength), before any arc trims it
-        v_tp = np.minimum(blocks.feed[b], np.minimum(blocks.v_limit[b], np.where(length > 0, length / cyc, np.inf)))
+        v_tp = v_seg
         v_kink = np.minimum(v_tp[:-1], v_tp[1:])
         a_inst = v_kink / cyc + pc.a_max[1:]
         acc_scale = np.zeros(m - 1)
@@ -196,7 +199,7 @@ class BlendArcCorner(Mechanism):
 
         # blend arcs for the remaining continuous-mode line-line corners
         arc_ok = cand & ~g61 & ~tangent & (pc.radius[:-1] <= 0) & (pc.radius[1:] <= 0)
-        arcs = self._arcs(pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, arc_ok)
+        arcs = self._arcs(pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, arc_ok, v_tc)
         use_arc = arc_ok & arcs["ok"] & (arcs["v_arc"] >= kink_vel)
         use_kink = cand & ~use_arc & ~(g61 & ~tangent)   # tangent blends, incl. arcs worse than the kink
         jk = np.flatnonzero(use_kink)
@@ -214,6 +217,8 @@ class BlendArcCorner(Mechanism):
         end_stop = np.append(hard & ~sharp & ~mode_change, True)
         half = continuous & end_stop & ~halved & (length > 0)
         a_max[half] *= 0.5
+        # an arc is sized for its segments' requested speed; it runs under the TRAJ velocity cap
+        arcs["v_run"] = np.minimum(arcs["v"], ctx.profile.interpolator.path_vel_max_mm_s)
         ctx.pieces = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)
         ctx.notes.update(blend_arcs=int(use_arc.sum()), tangent_junctions=int(use_kink.sum()),
                          parabolic_blends=int(overlap.sum()), consumed_lines=int((ctx.pieces.clamp_len == 0).sum()))
@@ -240,7 +245,7 @@ class BlendArcCorner(Mechanism):
         v_tol = 2.0 * np.sqrt(a1 * np.where(has_tol, tol, 0.0) / np.where(has_tol, cos_t, 1.0))
         return np.where(has_tol, np.minimum(v_b, v_tol), v_b)
 
-    def _arcs(self, pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, ok) -> dict[str, np.ndarray]:
+    def _arcs(self, pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, ok, v_tc) -> dict[str, np.ndarray]:
         nominal = blocks.length[pc.block]
         n1, n2 = nominal[:-1], nominal[1:]   # junction j: pieces j ([:-1]) and j + 1 ([1:])
         dot = np.clip(np.einsum("ij,ij->i", u1, u2), -1.0, 1.0)
@@ -263,8 +268,8 @@ class BlendArcCorner(Mechanism):
         phi = math.pi - 2 * th
         v_goal = np.maximum(v_req[:-1], v_req[1:])
         cphi = np.cos(np.minimum(phi, math.pi * 0.49))
-        vm1 = np.minimum(pc.v_max[:-1], pc.v_max[1:] / cphi)
-        vm2 = np.minimum(pc.v_max[1:], pc.v_max[:-1] / cphi)
+        vm1 = np.minimum(v_tc[:-1], v_tc[1:] / cphi)
+        vm2 = np.minimum(v_tc[1:], v_tc[:-1] / cphi)
         base = _norm(u2 * vm2[:, None] - u1 * vm1[:, None])
         v_alt = vm1 * vm2 * np.sin(phi) / np.where(base > 0, base, np.inf)
         v_goal = np.minimum(v_goal, np.maximum(v_alt, v_plane))
@@ -305,7 +310,8 @@ class BlendArcCorner(Mechanism):
         jc = ja[consumed]
         v_max[jc] = np.minimum(v_max[jc], v_plan[consumed])
         clamp[jc] = 0.0
-        v_end[ja] = v_plan
+        v_run = arcs["v_run"][ja]
+        v_end[ja] = v_run
         # arc pieces
         na = len(ja)
         theta = arcs["theta"][ja]
@@ -328,7 +334,7 @@ class BlendArcCorner(Mechanism):
         arc_len_full = arc_len + np.where(consumed, length[ja], 0.0)
         phi = math.pi - 2 * theta
         arcp = Pieces(block=pc.block[ja + 1], length=arc_len, p0=start, dir=np.zeros((na, k)), e1=e1, e2=e2,
-                      radius=r, omega=phi / arc_len, v_max=v_plan, a_max=arcs["a"][ja], v_end=v_plan,
+                      radius=r, omega=phi / arc_len, v_max=v_run, a_max=arcs["a"][ja], v_end=v_run,
                       hold_s=np.zeros(na), blend=np.ones(na, bool), overlap=np.zeros(na, bool),
                       clamp_len=arc_len_full)
         owner = pc.block.copy()

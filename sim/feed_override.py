@@ -1,7 +1,14 @@
 """Feed override: the operator's feed-rate dial scales every programmed feed (not rapids).
 
 Source: RS274/NGC and LinuxCNC feed override (`halui.feed-override`, MAX_FEED_OVERRIDE); ISO 6983
-controllers alike. Axis limits still cap the resulting feed.
+controllers alike.
+
+What the dial scales is the *requested* speed, which LinuxCNC's canon layer has already capped by the
+axis velocity limits (emccanon.cc: `vel = MIN(linearFeedRate, v_max)`, v_max from every axis' limit,
+rotary ones included; tp.c: `reqvel * feed_scale`, then the TRAJ velocity cap). So a move an axis
+limit slows runs at the override times that limit, not at the limit: measured on LinuxCNC's five-axis
+machine at 55 %, a line whose C axis turns at its 60 deg/s limit at 100 % turns at 33 deg/s. The
+path velocity cap is applied after the dial (it is a cap, not part of the request).
 
 LinuxCNC scales a programmed arc's (G2/G3) centripetal speed with the dial, as if it were part of
 the requested speed; blend arcs keep theirs (a cap). The dial's factor is kept per block
@@ -37,6 +44,7 @@ class FeedOverride(Mechanism):
 
     def limit(self, ctx) -> None:
         b = ctx.blocks
-        scale = np.where(b.kind != KIND_RAPID, self.override, 1.0)
-        b.feed = b.feed * scale
+        feed_moves = b.kind != KIND_RAPID
+        scale = np.where(feed_moves, self.override, 1.0)
+        b.feed = np.where(feed_moves, np.minimum(b.feed, b.v_axis) * self.override, b.feed)
         b.extra["feed_scale"] = b.extra.get("feed_scale", np.ones(len(b))) * scale

@@ -123,6 +123,7 @@ class TrunnionKinematics(Mechanism):
                 acc = np.array([ctx.profile.axes[a].acc_max for a in b.axes])
                 v_axis, a_axis = projected_limits(b.p1 - b.p0, b.length, vel, acc)
                 b.v_limit = np.minimum(b.v_limit, v_axis)
+                b.v_axis = np.minimum(b.v_axis, v_axis)
                 b.a_max = np.minimum(b.a_max, a_axis)
         if not self.limit_joints or not len(b):
             return
@@ -170,6 +171,7 @@ class TrunnionKinematics(Mechanism):
                 np.minimum(v_joint, np.where(fast, axis.vel_max / q_rate, np.inf), out=v_joint)
                 np.minimum(a_joint, np.where(fast, axis.acc_max / q_rate, np.inf), out=a_joint)
         b.v_limit = np.minimum(b.v_limit, v_joint)
+        b.v_axis = np.minimum(b.v_axis, v_joint)
         b.a_max = np.minimum(b.a_max, a_joint)
         ctx.notes["joint_feed_limit"] = v_joint
 

@@ -114,6 +114,7 @@ class NaiveCamMerge(Mechanism):
         acc = np.array([ctx.profile.axes[a].acc_max for a in b.axes])
         v_axis, a_axis = projected_limits(delta, length, vel, acc)
         b.length[merged] = length
+        b.v_axis[merged] = v_axis
         b.v_limit[merged] = np.minimum(v_axis, ctx.profile.interpolator.path_vel_max_mm_s)
         b.a_max[merged] = a_axis
         ctx.blocks = b.take(np.flatnonzero(keep))

@@ -55,6 +55,7 @@ class Blocks:
     length: np.ndarray       # path length (mm; deg for rotary-only moves)
     feed: np.ndarray         # programmed feed in length units per second (rapids: rapid rate)
     v_limit: np.ndarray      # speed limit from axis and path velocity limits (the feed may be lower)
+    v_axis: np.ndarray       # the axis velocity limits alone (projected on the block; LinuxCNC canon's limit)
     a_max: np.ndarray        # along-path acceleration limit from axis limits
     stop_after: np.ndarray   # exact stop at the end of the block (G61, G61.1, dwell, program end)
     exact_path: np.ndarray   # G61: the stop may be skipped where the next block continues tangentially
@@ -321,7 +322,7 @@ def prepare_blocks(program, profile: MachineProfile) -> Blocks:
         if not np.isnan(ori).all():
             extra["ori"] = ori
     return Blocks(axes=axes, block=arrays.block.copy(), line=arrays.line.copy(),
-                  kind=code, p0=p0, p1=p1, length=length, feed=feed, v_limit=v_limit, a_max=a_max,
+                  kind=code, p0=p0, p1=p1, length=length, feed=feed, v_limit=v_limit, v_axis=v_axis, a_max=a_max,
                   stop_after=stop_after, exact_path=exact_path, tol=col("tol_mm", np.nan),
                   merge_tol=col("merge_tol_mm", np.nan), hold_s=hold,
                   min_time_s=np.zeros(n), rotary=rot_len > 1e-9, center=center, normal_axis=normal_axis,

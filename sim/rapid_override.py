@@ -1,7 +1,8 @@
 """Rapid override: the rapid-traverse dial scales G0 speed (typically 0-100 %).
 
 Source: LinuxCNC `halui.rapid-override` / Fanuc ROV; the rapid speed is the axis maximum (or the
-profile's `rapid_mm_min`) times the override.
+profile's `rapid_mm_min`) times the override; the path velocity cap applies after the dial, as
+LinuxCNC's TRAJ limit does (tp.c caps `reqvel * scale`).
 """
 
 from __future__ import annotations
@@ -31,4 +32,4 @@ class RapidOverride(Mechanism):
     def limit(self, ctx) -> None:
         b = ctx.blocks
         rapid = b.kind == KIND_RAPID
-        b.feed = np.where(rapid, np.minimum(b.feed, b.v_limit) * self.override, b.feed)
+        b.feed = np.where(rapid, np.minimum(b.feed, b.v_axis) * self.override, b.feed)
