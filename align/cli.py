@@ -14,6 +14,7 @@ import sys
 
 from feedlog.align.batch import align_many
 from feedlog.align.feed import FeedSmoothing
+from feedlog.align.partial import parse_lines
 from feedlog.align.pipeline import BOUNDARIES, FEED_SOURCES, AlignConfig
 from feedlog.align.tables import to_json
 from feedlog.cli_options import add_output, add_overwrite, add_quiet
@@ -44,6 +45,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--work-offset", type=float, nargs=3, metavar=("X", "Y", "Z"), default=(0.0, 0.0, 0.0),
                         help="extra program origin offset in the recorded frame, mm, for a work offset set "
                              "on the machine rather than in the program (G10/G54/G92 in it are applied)")
+    parser.add_argument("--estimate-offset", action="store_true",
+                        help="estimate a constant work offset between program and recorded positions (machine "
+                             "coordinates with a G54 set on the machine); reported in report.json")
+    parser.add_argument("--lines", metavar="FIRST:LAST", type=parse_lines,
+                        help="the recording covers only these program lines (default: found from the recorded "
+                             "line or block-number stream when it leaves feed moves out)")
+    parser.add_argument("--whole-program", action="store_true",
+                        help="never cut the program to the lines the line stream saw")
     parser.add_argument("--lenient", action="store_true",
                         help="skip unsupported program codes (reported in report.json) instead of failing")
     add_execution_arguments(parser)
@@ -55,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
     config = AlignConfig(tol_mm=args.tol_mm, check_rapids=args.check_rapids, boundary=args.boundary,
                          feed_source=args.feed_source, sync_lines=args.sync_lines,
                          smoothing=FeedSmoothing(window_s=args.feed_window_s),
-                         work_offset_mm=tuple(args.work_offset), lenient=args.lenient)
+                         work_offset_mm=tuple(args.work_offset), lenient=args.lenient, lines=args.lines,
+                         auto_lines=not args.whole_program, estimate_offset=args.estimate_offset)
     items = align_many(args.recordings, args.out, program=args.program, profile=args.profile, config=config,
                        jobs=args.jobs, scheduler=args.scheduler, overwrite=args.overwrite, progress=not args.quiet,
                        with_blocks=args.json)

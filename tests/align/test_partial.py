@@ -1,0 +1,88 @@
+"""Partial recordings (--lines, from the line or block-number stream), N words -> lines, work offsets."""
+
+from __future__ import annotations
+
+import json
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from feedlog.align import align_recording
+from feedlog.align.partial import auto_lines, parse_lines, program_lines, slice_program
+from feedlog.align.work_offset import estimate_work_offset
+from feedlog.cli import main
+from feedlog.errors import AlignmentError
+from feedlog.ingest.readers import ImportOptions, read_source
+from feedlog.ingest.recording import Recording
+from feedlog.toolpath import load_program
+
+REAL = Path(__file__).resolve().parents[1] / "fixtures" / "ingest" / "real"
+
+
+@pytest.fixture(scope="module")
+def mazak():
+    return read_source(REAL / "mazak_streams.xml", ImportOptions()), load_program(REAL / "mazak_part.nc")
+
+
+def test_block_numbers_become_program_lines(mazak):
+    rec, prog = mazak
+    mapped = program_lines(rec, prog)
+    line = mapped.streams["line"]
+    assert "line" in line.columns and line["line"].iloc[-1] == 20          # N190 is on line 20
+    assert program_lines(mapped, prog) is mapped                            # already in lines
+    unknown = Recording(streams={"line": pd.DataFrame({"t_ns": np.arange(3, dtype=np.int64),
+                                                       "block_number": np.array([7, 8, 9], dtype=np.int64)})})
+    with pytest.raises(AlignmentError, match=r"none of the recorded block numbers \(N7, N8, N9\)"):
+        program_lines(unknown, prog)
+
+
+def test_a_line_stream_leaving_feed_moves_out_cuts_the_program(mazak):
+    rec, prog = mazak
+    assert auto_lines(program_lines(rec, prog), prog) == (9, 20)
+    whole = Recording(streams={"line": pd.DataFrame({"t_ns": np.arange(3, dtype=np.int64),
+                                                     "line": np.array([4, 12, 20], dtype=np.int64)})})
+    assert auto_lines(whole, prog) is None        # only the first rapid (line 3) unseen: the whole program
+    part = slice_program(prog, (13, 20))
+    assert part.motion["line"].min() == 13 and part.motion["x0_mm"].iloc[0] == 0.0
+    with pytest.raises(AlignmentError, match="no motion on lines 1:2"):
+        slice_program(prog, (1, 2))
+    assert parse_lines("13:20") == (13, 20)
+    for bad in ("20:13", "0:3", "x", ""):
+        with pytest.raises(AlignmentError, match="--lines wants FIRST:LAST"):
+            parse_lines(bad)
+
+
+def test_partial_recording_aligns_automatically_and_with_lines(mazak):
+    rec, prog = mazak
+    with pytest.raises(AlignmentError, match="farther than their tolerance"):
+        align_recording(rec, prog, auto_lines=False)
+    out = align_recording(rec, prog)
+    assert out.report["lines"] == {"first": 9, "last": 20, "from": "line stream"}
+    assert out.report["match"]["matched"] >= out.report["match"]["cl_points"] - 2
+    assert out.blocks["line"].min() == 9 and out.blocks["line"].max() == 20
+    assert 9.0 < out.cycle_time_s < 12.0
+    given = align_recording(rec, prog, lines=(12, 20))
+    assert given.report["lines"]["from"] == "config" and given.blocks["line"].min() == 12
+
+
+def test_work_offset_estimate_recovers_a_g54_set_on_the_machine():
+    rng = np.random.default_rng(3)
+    program = np.array([[0, 0, 5], [0, 0, -1], [40, 0, -1], [40, 30, -1], [0, 30, -1], [0, 0, -1], [0, 0, 5]], float)
+    dense = np.concatenate([np.linspace(a, b, 50) for a, b in zip(program[:-1], program[1:])])
+    shift = np.array([-317.5, -209.55, -355.6])
+    est = estimate_work_offset(program, dense + shift + rng.normal(0, 0.002, dense.shape))
+    np.testing.assert_allclose(est.offset_mm, shift, atol=0.01)
+    assert est.residual_median_mm < 0.01
+
+
+def test_hurco_shdr_in_machine_coordinates_aligns_with_an_estimated_offset(tmp_path):
+    rec = tmp_path / "h.mcap"
+    assert main(["import", str(REAL / "hurco_shdr.txt"), "--length-unit", "in", "--feed-unit", "in/min",
+                 "--program", str(REAL / "hurco_part.nc"), "-o", str(rec)]) == 0
+    assert main(["align", str(rec), "-o", str(tmp_path / "a"), "-q"]) == 2          # machine coordinates
+    assert main(["align", str(rec), "-o", str(tmp_path / "a"), "-q", "--estimate-offset"]) == 0
+    report = json.loads((tmp_path / "a" / "h" / "report.json").read_text())
+    np.testing.assert_allclose(report["work_offset_estimate"]["offset_mm"], [-317.5, -209.55, -355.6], atol=0.05)
