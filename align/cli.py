@@ -84,4 +84,33 @@ def run(args: argparse.Namespace) -> int:
         for i in items:
             if i.ok:
                 print(f"{i.recording}: cycle time {i.cycle_time_s:.3f} s -> {i.outdir}")
+    if len(items) > 1:
+        print(summary(items), file=sys.stderr if args.json else sys.stdout)
     return min((i.exit_code for i in failed), default=0)  # 1 if any output could not be written
+
+
+# what an alignment error usually means, and what to try (first pattern found in the message wins)
+HINTS = (
+    ("never comes within", "the program does not lie on the measured path: check the program, the import units "
+                           "(--length-unit) or a work offset set on the machine (--estimate-offset)"),
+    ("farther than their tolerance", "part of the program is off the path: a partial recording (--lines A:B), "
+                                     "corner rounding beyond G64 P (--tol-mm), or another program version"),
+    ("use --overwrite", "outputs from an earlier run are there: --overwrite"),
+    ("no program given", "attach the program at import (--program) or pass --program"),
+)
+
+
+def summary(items) -> str:
+    """`116 aligned, 1 failed` and, per distinct failure, how many, one example and what to try."""
+    failed = [i for i in items if not i.ok]
+    text = f"{len(items) - len(failed)} aligned, {len(failed)} failed"
+    groups: dict[str, list] = {}
+    for item in failed:
+        reason = (item.error or "alignment failed").split(";")[0]
+        groups.setdefault(reason, []).append(item)
+    for reason, members in groups.items():
+        hint = next((h for pattern, h in HINTS if pattern in (members[0].error or "")), None)
+        text += f"\n  {len(members)} x {reason} (e.g. {members[0].recording})"
+        if hint:
+            text += f"\n    try: {hint}"
+    return text

@@ -7,9 +7,9 @@ blocks. Three sources say which, in this order:
    controller's N words, as MTConnect `LineLabel` or the UMich `M1_sequence_number` report them),
    mapped to the program line holding that N word (`program_lines`);
 3. nothing: the whole program.
-A line stream that covers every feed move of the program changes nothing (rapids before the first or
-after the last line change often go unrecorded); one that leaves feed moves out cuts the program to the
-lines it saw (`auto_lines`). `slice_program` keeps the blocks of those lines with the modal state the
+A line stream that covers the program's feed moves changes nothing (rapids and short lead-ins before the
+first line change often go unrecorded); one that leaves more than a tenth of the feed path out cuts the
+program to the lines it saw (`auto_lines`). `slice_program` keeps the blocks of those lines with the modal state the
 parse gave them (units, offsets, the start point of the first block), so CL points, features and block
 tables are computed on the part the machine ran.
 """
@@ -27,6 +27,7 @@ from feedlog.ingest.recording import Recording
 from feedlog.toolpath import Program
 from feedlog.toolpath.schema import RAPID
 
+LEFT_OUT_SHARE = 0.1   # feed path the line stream must leave out (share of the program's) to cut the program
 _RANGE = re.compile(r"^\s*(\d+)\s*[:-]\s*(\d+)\s*$")
 
 
@@ -70,9 +71,10 @@ def auto_lines(recording: Recording, program: Program, *, stream: str = "line") 
     if not len(seen):
         return None
     first, last = int(seen.min()), int(seen.max())
-    outside = motion[(motion["line"] < first) | (motion["line"] > last)]
-    feeds_left_out = outside[(outside["kind"].astype(str) != RAPID) & (outside["length_mm"].fillna(0) > 0)]
-    return (first, last) if len(feeds_left_out) else None
+    feed = (motion["kind"].astype(str) != RAPID).to_numpy()
+    length = motion["length_mm"].fillna(0.0).to_numpy()
+    left_out = (feed & ~motion["line"].between(first, last).to_numpy()) @ length
+    return (first, last) if left_out > LEFT_OUT_SHARE * (feed @ length) else None
 
 
 def slice_program(program: Program, lines: tuple[int, int]) -> Program:

@@ -86,3 +86,15 @@ def test_hurco_shdr_in_machine_coordinates_aligns_with_an_estimated_offset(tmp_p
     assert main(["align", str(rec), "-o", str(tmp_path / "a"), "-q", "--estimate-offset"]) == 0
     report = json.loads((tmp_path / "a" / "h" / "report.json").read_text())
     np.testing.assert_allclose(report["work_offset_estimate"]["offset_mm"], [-317.5, -209.55, -355.6], atol=0.05)
+
+
+def test_many_recordings_end_in_an_aligned_failed_summary_with_what_to_try():
+    from feedlog.align.batch import BatchItem
+    from feedlog.align.cli import summary
+
+    items = [BatchItem(recording=f"r{k}.mcap", outdir="o", ok=True) for k in range(116)]
+    items.append(BatchItem(recording="bad.mcap", outdir="o", ok=False,
+                           error="the measured path never comes within 0.05 mm of the program's first points; x"))
+    text = summary(items)
+    assert text.startswith("116 aligned, 1 failed\n  1 x the measured path never comes within")
+    assert "(e.g. bad.mcap)" in text and "--estimate-offset" in text
