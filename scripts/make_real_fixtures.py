@@ -164,6 +164,11 @@ def at(series: pd.DataFrame, t_s: np.ndarray) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
+def write_pair(log_name: str, log_lines: list[str], program_name: str, program: str) -> None:
+    (OUT / log_name).write_text("\n".join(log_lines) + "\n")
+    (OUT / program_name).write_text(program)
+
+
 def hurco(rng: random.Random) -> None:
     prof = machine("hurco-like", vel=200.0, acc=1200.0, rapid=12000.0, tol=0.05)
     series, program = run(HURCO, "hurco_part.nc", prof)
@@ -197,8 +202,7 @@ def hurco(rng: random.Random) -> None:
             lines.append(f"{stamp(poll)}|" + "|".join(changed))
         if k == 40:
             lines.append(f"{stamp(poll + 0.01)}|htemp|WARNING|HTEMP-1|HTEMP|1|HIGH|Oil temperature high")
-    (OUT / "hurco_shdr.txt").write_text("\n".join(lines) + "\n")
-    (OUT / "hurco_part.nc").write_text(HURCO)
+    write_pair("hurco_shdr.txt", lines, "hurco_part.nc", HURCO)
 
 
 def mazak(rng: random.Random) -> None:
@@ -261,8 +265,7 @@ def mazak(rng: random.Random) -> None:
                 parts.append("      </ComponentStream>")
         parts += ["    </DeviceStream>", "  </Streams>", "</MTConnectStreams>"]
         docs.append("\n".join(parts))
-    (OUT / "mazak_streams.xml").write_text("\n".join(docs) + "\n")
-    (OUT / "mazak_part.nc").write_text(MAZAK)
+    write_pair("mazak_streams.xml", docs, "mazak_part.nc", MAZAK)
 
 
 def umich(rng: random.Random) -> None:

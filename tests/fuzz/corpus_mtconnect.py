@@ -38,6 +38,18 @@ def _shdr_value(data: bytes, rng: random.Random, key: bytes, value: bytes) -> by
     return b"\n".join(lines)
 
 
+def _damaged(case, data: bytes, rng: random.Random, *, cuts: int, edits: int) -> list[Case]:
+    """Random damage: `cuts` truncations and bit-flip runs, `edits` inserted and deleted byte runs."""
+    out = []
+    for k in range(cuts):
+        out.append(case(f"truncated-{k}", mutate.truncate(data, rng), lenient="any"))
+        out.append(case(f"bitflip-{k}", mutate.flip_bits(data, rng, count=1 + k), lenient="any"))
+    for k in range(edits):
+        out.append(case(f"inserted-{k}", mutate.insert_bytes(data, rng), lenient="any"))
+        out.append(case(f"deleted-{k}", mutate.delete_bytes(data, rng), lenient="any"))
+    return out
+
+
 def _shdr(rng: random.Random) -> list[Case]:
     data = (REAL / "hurco_shdr.txt").read_bytes()
     f = "h.txt"
@@ -74,13 +86,7 @@ def _shdr(rng: random.Random) -> list[Case]:
         case("condition-on-mapped-key", data + b"2018-06-05T14:03:30Z|Xact|FAULT|1|2|HIGH|servo\n", "error",
              lenient="ok"),
     ]
-    for k in range(8):
-        cases.append(case(f"truncated-{k}", mutate.truncate(data, rng), lenient="any"))
-        cases.append(case(f"bitflip-{k}", mutate.flip_bits(data, rng, count=1 + k), lenient="any"))
-    for k in range(3):
-        cases.append(case(f"inserted-{k}", mutate.insert_bytes(data, rng), lenient="any"))
-        cases.append(case(f"deleted-{k}", mutate.delete_bytes(data, rng), lenient="any"))
-    return cases
+    return cases + _damaged(case, data, rng, cuts=8, edits=3)
 
 
 def _xml(rng: random.Random) -> list[Case]:
@@ -115,13 +121,7 @@ def _xml(rng: random.Random) -> list[Case]:
         case("text-before", b"HTTP/1.1 200 OK\n\n" + data, "error"),
         case("unclosed", data[:data.rindex(b"</MTConnectStreams>")], "error"),
     ]
-    for k in range(6):
-        cases.append(case(f"truncated-{k}", mutate.truncate(data, rng), lenient="any"))
-        cases.append(case(f"bitflip-{k}", mutate.flip_bits(data, rng, count=1 + k), lenient="any"))
-    for k in range(2):
-        cases.append(case(f"inserted-{k}", mutate.insert_bytes(data, rng), lenient="any"))
-        cases.append(case(f"deleted-{k}", mutate.delete_bytes(data, rng), lenient="any"))
-    return cases
+    return cases + _damaged(case, data, rng, cuts=6, edits=2)
 
 
 def build(rng: random.Random) -> list[Case]:
