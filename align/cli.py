@@ -19,6 +19,7 @@ from feedlog.align.pipeline import BOUNDARIES, FEED_SOURCES, AlignConfig
 from feedlog.align.tables import to_json
 from feedlog.cli_options import add_output, add_overwrite, add_quiet
 from feedlog.errors import FeedlogError
+from feedlog.toolpath.dialects import DIALECTS
 from feedlog.execution import add_arguments as add_execution_arguments
 
 
@@ -45,6 +46,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--work-offset", type=float, nargs=3, metavar=("X", "Y", "Z"), default=(0.0, 0.0, 0.0),
                         help="extra program origin offset in the recorded frame, mm, for a work offset set "
                              "on the machine rather than in the program (G10/G54/G92 in it are applied)")
+    parser.add_argument("--dialect", choices=DIALECTS, default="auto",
+                        help="G-code dialect: rs274ngc (LinuxCNC), fanuc/hurco, sinumerik (default: detected)")
     parser.add_argument("--estimate-offset", action="store_true",
                         help="estimate a constant work offset between program and recorded positions (machine "
                              "coordinates with a G54 set on the machine); reported in report.json")
@@ -65,7 +68,8 @@ def run(args: argparse.Namespace) -> int:
                          feed_source=args.feed_source, sync_lines=args.sync_lines,
                          smoothing=FeedSmoothing(window_s=args.feed_window_s),
                          work_offset_mm=tuple(args.work_offset), lenient=args.lenient, lines=args.lines,
-                         auto_lines=not args.whole_program, estimate_offset=args.estimate_offset)
+                         auto_lines=not args.whole_program, estimate_offset=args.estimate_offset,
+                         dialect=args.dialect)
     items = align_many(args.recordings, args.out, program=args.program, profile=args.profile, config=config,
                        jobs=args.jobs, scheduler=args.scheduler, overwrite=args.overwrite, progress=not args.quiet,
                        with_blocks=args.json)
