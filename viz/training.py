@@ -48,10 +48,12 @@ def program_table(run: RecordingRun):
 
 
 def train_models(runs: Sequence[RecordingRun], *, out_dir: Path, models: Sequence[str] | None = None,
-                 preset: str = "quick", log: Callable[[str], None] = print, runner: Any = None) -> TrainOutcome:
+                 preset: str = "quick", log: Callable[[str], None] = print, runner: Any = None,
+                 progress: bool = False) -> TrainOutcome:
     """Train on the runs that were aligned; a missing train/ or align/ stage is reported, not faked.
 
-    `runner` (feedlog.execution.TaskRunner) runs the hybrid's simulations; training runs here."""
+    `runner` (feedlog.execution.TaskRunner) runs the hybrid's simulations; training runs here. `progress`:
+    per-epoch bars on a terminal."""
     try:
         train_and_evaluate = stage_function("train_and_evaluate")
         stage_function("predict_program")
@@ -66,7 +68,7 @@ def train_models(runs: Sequence[RecordingRun], *, out_dir: Path, models: Sequenc
     try:
         tables = [program_table(r) for r in aligned]
         results = train_and_evaluate(tables, out_dir=out_dir, models=names, preset=preset, overwrite=True,
-                                     progress=False, log=log, runner=runner)
+                                     progress=progress, log=log, runner=runner)
     except FeedlogError as exc:
         return TrainOutcome(available=False, reason=f"training failed: {exc}")
     except Exception as exc:  # noqa: BLE001 - a bug in train/ must not stop the main job
