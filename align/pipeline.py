@@ -186,15 +186,18 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     lines = cfg.lines or (auto_lines(recording, prog, stream=cfg.line_stream) if cfg.auto_lines else None)
     if lines is not None:
         prog = slice_program(prog, lines)
-    axes, cols, pos = _positions(recording, cfg)
-    t = axes["t_ns"].to_numpy(dtype=np.int64)
-    xyz = pos[:, :3]
     report: dict[str, Any] = {"recording": recording.source, "program": prog.name, "config": _config_dict(cfg),
                               "warnings": [f"program: {w}" for w in prog.warnings],
                               "lines": None if lines is None else {"first": lines[0], "last": lines[1],
                                                                    "from": "config" if cfg.lines else "line stream"}}
     if "line_from" in recording.metadata:
         report["line_from"] = recording.metadata["line_from"]
+    if cfg.positions not in recording.streams:
+        from feedlog.align.line_only import align_on_lines  # noqa: PLC0415 - line_only imports this module
+        return align_on_lines(recording, prog, prof, cfg, report)
+    axes, cols, pos = _positions(recording, cfg)
+    t = axes["t_ns"].to_numpy(dtype=np.int64)
+    xyz = pos[:, :3]
     lap("inputs")
     timing = stream_timing(t, name=cfg.positions)
     report["timing"] = {cfg.positions: timing.as_dict()}

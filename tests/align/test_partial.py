@@ -98,3 +98,25 @@ def test_many_recordings_end_in_an_aligned_failed_summary_with_what_to_try():
     text = summary(items)
     assert text.startswith("116 aligned, 1 failed\n  1 x the measured path never comes within")
     assert "(e.g. bad.mcap)" in text and "--estimate-offset" in text
+
+
+def test_a_recording_without_positions_aligns_on_its_block_numbers(tmp_path):
+    from feedlog.ingest.writer import write_recording
+
+    rec = read_source(REAL / "umich_experiment.csv", ImportOptions(preset="umich-tool-wear"))
+    full = align_recording(rec, REAL / "umich_part.nc")
+    del rec.streams["axes"], rec.streams["feed"]
+    lines_only = align_recording(rec, REAL / "umich_part.nc")
+    assert lines_only.report["mode"] == "line stream only" and lines_only.report["match"]["matched"] == 0
+    inner = full.blocks["line"].between(4, 14).to_numpy()
+    np.testing.assert_allclose(lines_only.blocks["duration_s"].to_numpy()[inner],
+                               full.blocks["duration_s"].to_numpy()[inner], atol=0.1)   # 10 Hz block numbers
+    assert lines_only.cycle_time_s >= full.cycle_time_s      # the line shows before motion starts and after it ends
+    write_recording(tmp_path / "u.mcap", rec)
+    assert main(["align", str(tmp_path / "u.mcap"), "--program", str(REAL / "umich_part.nc"), "-o",
+                 str(tmp_path / "a"), "-q"]) == 0
+    points = pd.read_parquet(tmp_path / "a" / "dataset" / "points")
+    assert len(points) == lines_only.report["match"]["cl_points"] and points["feed_meas_mm_min"].isna().all()
+    del rec.streams["line"]
+    with pytest.raises(AlignmentError, match="nothing to align on"):
+        align_recording(rec, REAL / "umich_part.nc")
