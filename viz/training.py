@@ -76,7 +76,10 @@ def train_models(runs: Sequence[RecordingRun], *, out_dir: Path, models: Sequenc
                                                     f"({type(exc).__name__}: {exc})")
     summary = results.attrs.get("summary", {})
     checkpoints = {name: Path(info["checkpoint"]) for name, info in summary.items() if "checkpoint" in info}
-    notes = [f"{name}: skipped ({info['skipped']})" for name, info in summary.items() if "skipped" in info]
+    notes = [f"trained with the {preset} preset"
+             + (" (few epochs, so that the demo stays short); the README and docs/train.md quote the full preset "
+                "(`feedlog train --preset full`), so their figures differ" if preset != "full" else "")]
+    notes += [f"{name}: skipped ({info['skipped']})" for name, info in summary.items() if "skipped" in info]
     notes += [f"{name}: trained in {info['train_s']} s" for name, info in summary.items() if "train_s" in info]
     notes += [f"{rec}: not evaluated ({why})" for rec, why in results.attrs.get("not_evaluated", {}).items()]
     not_aligned = [r.entry.name for r in runs if r not in aligned]

@@ -129,6 +129,7 @@ def test_demo_trains_keeps_the_models_and_predicts_every_recording(recordings_di
     assert rows["broken"]["mlp_s"] is None
     report = (out / "report.md").read_text()
     assert "trained models: `models/mlp.pt`" in report
+    assert "trained with the quick preset" in report and "--preset full" in report
     # the block-time overlay carries the model's per-block prediction
     content = rrd_content(out / "rerun" / "square_b.rrd")
     assert content["/blocks/mlp"]["rows"] == 4
