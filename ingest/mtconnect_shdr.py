@@ -86,6 +86,9 @@ def read_shdr(path: Path, *, wanted: set[str] | None = None, timezone: str = "UT
     if not len(rows):
         raise IngestError("no SHDR data lines (TIMESTAMP|key|value...)", file=str(path), line=1)
     texts = stripped.take(pa.array(rows))
+    if not pc.any(pc.match_substring(texts, "|")).as_py():
+        raise IngestError("not an SHDR log: no line holds TIMESTAMP|key|value fields (a CSV or text export saved "
+                          "as .txt? read it as csv:FILE with --preset or --map)", file=str(path), line=int(rows[0]) + 1)
     if pc.any(pc.match_substring(texts, "\\|")).as_py():
         parts = pa.array([_ESCAPED.split(t) for t in texts.to_pylist()], pa.list_(pa.string()))
     else:

@@ -141,3 +141,11 @@ def test_import_cli_warns_when_the_feed_unit_disagrees_with_the_positions(tmp_pa
     assert "unit_check" not in capsys.readouterr().out
     assert main(["import", str(tmp_path / "none.txt"), "-o", str(tmp_path / "x.mcap")]) == 2
     assert not (tmp_path / "x.mcap").exists()
+
+
+def test_a_csv_saved_as_txt_is_not_taken_for_an_shdr_log(tmp_path):
+    path = write(tmp_path, "trace.txt", "\ufefftime,X\n0,1\n1,2\n")
+    with pytest.raises(IngestError, match=r"trace\.txt:1: not an SHDR log: .*csv:FILE"):
+        read_source(path, ImportOptions())
+    rec = read_source(f"csv:{path}", ImportOptions(mapping="t=time,x=X"))
+    assert rec.streams["axes"]["x_mm"].tolist() == [1.0, 2.0]
