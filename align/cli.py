@@ -51,6 +51,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--estimate-offset", action="store_true",
                         help="estimate a constant work offset between program and recorded positions (machine "
                              "coordinates with a G54 set on the machine); reported in report.json")
+    parser.add_argument("--no-auto-offset", action="store_true",
+                        help="do not retry with an estimated work offset when the program is nowhere on the path")
     parser.add_argument("--lines", metavar="FIRST:LAST", type=parse_lines,
                         help="the recording covers only these program lines (default: found from the recorded "
                              "line or block-number stream when it leaves feed moves out)")
@@ -69,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
                          smoothing=FeedSmoothing(window_s=args.feed_window_s),
                          work_offset_mm=tuple(args.work_offset), lenient=args.lenient, lines=args.lines,
                          auto_lines=not args.whole_program, estimate_offset=args.estimate_offset,
+                         auto_offset=not args.no_auto_offset,
                          dialect=args.dialect)
     items = align_many(args.recordings, args.out, program=args.program, profile=args.profile, config=config,
                        jobs=args.jobs, scheduler=args.scheduler, overwrite=args.overwrite, progress=not args.quiet,

@@ -45,6 +45,7 @@ from feedlog.toolpath import Program, block_features, cl_points, load_program, t
 from feedlog.toolpath.schema import RAPID
 
 BOUNDARIES = ("auto", "pass", "leave")
+NOT_ON_PATH = "never comes within"   # match's error when the program's first points are nowhere on the path
 FEED_SOURCES = ("auto", "stream", "positions")
 STRAIGHT = ("linear", RAPID)
 WORK_OFFSET = ("wx_mm", "wy_mm", "wz_mm")  # toolpath's per-block work offset columns
@@ -83,6 +84,8 @@ class AlignConfig:
     lines: tuple[int, int] | None = None  # align on program lines FIRST..LAST only (a partial recording)
     auto_lines: bool = True          # a line stream that leaves feed moves out cuts the program to its lines
     estimate_offset: bool = False    # estimate a constant work offset (added to work_offset_mm)
+    auto_offset: bool = True         # ... and retry with one when the program does not lie on the measured path
+                                     # (unless work_offset_mm was given)
 
     def __post_init__(self) -> None:
         if not self.tol_mm > 0:
@@ -179,9 +182,27 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     Keyword overrides set `AlignConfig` fields, e.g. `align_recording(rec, tol_mm=2.0)`.
     """
     cfg = replace(config or AlignConfig(), **overrides) if overrides else (config or AlignConfig())
-    lap = _Laps()
     prof = _profile(recording, profile)
     prog = _program(recording, program, cfg.lenient, cfg.dialect)
+    try:
+        return _align(recording, prog, prof, cfg)
+    except AlignmentError as exc:
+        given = any(cfg.work_offset_mm)   # a work offset the user gave is trusted, not second-guessed
+        if not cfg.auto_offset or cfg.estimate_offset or given or NOT_ON_PATH not in str(exc):
+            raise
+        try:
+            out = _align(recording, prog, prof, replace(cfg, estimate_offset=True))
+        except AlignmentError:
+            raise exc from None
+    est = out.report["work_offset_estimate"]["offset_mm"]
+    out.report["warnings"].append(f"the program did not lie on the measured path: aligned with an estimated work "
+                                  f"offset ({', '.join(f'{v:.3f}' for v in est)}) mm; give it with --work-offset, "
+                                  "or turn this off with --no-auto-offset")
+    return out
+
+
+def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg: AlignConfig) -> Alignment:
+    lap = _Laps()
     recording = program_lines(recording, prog, stream=cfg.line_stream)
     lines = cfg.lines or (auto_lines(recording, prog, stream=cfg.line_stream) if cfg.auto_lines else None)
     if lines is not None:

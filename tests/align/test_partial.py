@@ -82,10 +82,14 @@ def test_hurco_shdr_in_machine_coordinates_aligns_with_an_estimated_offset(tmp_p
     rec = tmp_path / "h.mcap"
     assert main(["import", str(REAL / "hurco_shdr.txt"), "--length-unit", "in", "--feed-unit", "in/min",
                  "--program", str(REAL / "hurco_part.nc"), "-o", str(rec)]) == 0
-    assert main(["align", str(rec), "-o", str(tmp_path / "a"), "-q"]) == 2          # machine coordinates
+    assert main(["align", str(rec), "-o", str(tmp_path / "a"), "-q", "--no-auto-offset"]) == 2  # machine coordinates
     assert main(["align", str(rec), "-o", str(tmp_path / "a"), "-q", "--estimate-offset"]) == 0
     report = json.loads((tmp_path / "a" / "h" / "report.json").read_text())
     np.testing.assert_allclose(report["work_offset_estimate"]["offset_mm"], [-317.5, -209.55, -355.6], atol=0.05)
+    assert main(["align", str(rec), "-o", str(tmp_path / "b"), "-q"]) == 0     # retried with an estimate by itself
+    report = json.loads((tmp_path / "b" / "h" / "report.json").read_text())
+    assert report["config"]["estimate_offset"] is True
+    assert any("aligned with an estimated work offset (-317.5" in w for w in report["warnings"])
 
 
 def test_many_recordings_end_in_an_aligned_failed_summary_with_what_to_try():
