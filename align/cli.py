@@ -90,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         for i in items:
             if i.ok:
-                print(f"{i.recording}: cycle time {i.cycle_time_s:.3f} s -> {i.outdir}")
+                notes = f" ({'; '.join(i.notes)})" if i.notes else ""
+                print(f"{i.recording}: cycle time {i.cycle_time_s:.3f} s -> {i.outdir}{notes}")
     if len(items) > 1:
         print(summary(items), file=sys.stderr if args.json else sys.stdout)
     return min((i.exit_code for i in failed), default=0)  # 1 if any output could not be written

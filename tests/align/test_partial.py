@@ -78,7 +78,7 @@ def test_work_offset_estimate_recovers_a_g54_set_on_the_machine():
     assert est.residual_median_mm < 0.01
 
 
-def test_hurco_shdr_in_machine_coordinates_aligns_with_an_estimated_offset(tmp_path):
+def test_hurco_shdr_in_machine_coordinates_aligns_with_an_estimated_offset(tmp_path, capsys):
     rec = tmp_path / "h.mcap"
     assert main(["import", str(REAL / "hurco_shdr.txt"), "--length-unit", "in", "--feed-unit", "in/min",
                  "--program", str(REAL / "hurco_part.nc"), "-o", str(rec)]) == 0
@@ -86,7 +86,9 @@ def test_hurco_shdr_in_machine_coordinates_aligns_with_an_estimated_offset(tmp_p
     assert main(["align", str(rec), "-o", str(tmp_path / "a"), "-q", "--estimate-offset"]) == 0
     report = json.loads((tmp_path / "a" / "h" / "report.json").read_text())
     np.testing.assert_allclose(report["work_offset_estimate"]["offset_mm"], [-317.5, -209.55, -355.6], atol=0.05)
+    capsys.readouterr()
     assert main(["align", str(rec), "-o", str(tmp_path / "b"), "-q"]) == 0     # retried with an estimate by itself
+    assert "cycle time" in (out := capsys.readouterr().out) and "(work offset estimated (-317.500, -209.550" in out
     report = json.loads((tmp_path / "b" / "h" / "report.json").read_text())
     assert report["config"]["estimate_offset"] is True
     assert any("aligned with an estimated work offset (-317.5" in w for w in report["warnings"])
