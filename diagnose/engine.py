@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +23,7 @@ import numpy as np
 
 from feedlog.diagnose import keys
 from feedlog.diagnose.cases import Case, DiagnoseError, attached_profile, check_same_machine, prepare_case
-from feedlog.diagnose.evidence import Evidence, describe, gather
+from feedlog.diagnose.evidence import Evidence, describe, gather, suggest
 from feedlog.diagnose.fit import Scorer
 from feedlog.diagnose.hypothesis import candidates
 from feedlog.diagnose.select import Judged, SelectConfig, Selection, select
@@ -232,7 +232,7 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
     laps["prepare"] = time.perf_counter() - t0
     say(f"{len(cases)} recording(s) aligned")
     ev = gather(cases, prof)
-    hyps = candidates(prof, cases, families=cfg.families)
+    hyps = [replace(h, seeds=suggest(ev, h.key, h.baseline)) for h in candidates(prof, cases, families=cfg.families)]
     selections: dict[str, Selection] = {}
     scorers: dict[str, Scorer] = {}
     for level in LEVELS:

@@ -225,6 +225,27 @@ def contradicts(ev: Evidence, key: str, profile_value: Any, fitted: Any) -> str 
     return None
 
 
+def suggest(ev: Evidence, key: str, baseline: Any) -> tuple[float, ...]:
+    """Values of `key` the data points at: an axis's or the path's speed ceiling, an axis's sustained
+    acceleration peak, the cruise ratio of long feed moves times the override in force. They join the
+    search grid of the hypothesis (a limit that binds in a narrow band between two grid points would
+    otherwise be stepped over); the loss alone still decides, the held-out judgement still applies."""
+    parts = key.split(".")
+    seen: float | None = None
+    if parts[0] == "axes" and len(parts) == 3 and parts[1] in ev.axes:
+        axis = ev.axes[parts[1]]
+        seen = {"vel_max": axis.peak_vel, "acc_max": axis.peak_acc}.get(parts[2])
+    elif key == "interpolator.path_vel_max_mm_s":
+        seen = ev.path_speed_ceiling_mm_s
+    elif key == "sim.feed_override.override" and ev.plateau_ratio is not None:
+        seen = ev.plateau_ratio * (baseline if isinstance(baseline, (int, float)) else 1.0)
+    elif parts[:2] == ["sim", "following_lag"] and len(parts) == 4:
+        seen = ev.feedback_delay_s.get(parts[3])
+    if seen is None or not np.isfinite(seen) or seen <= 0:
+        return ()
+    return (float(seen),)
+
+
 def describe(ev: Evidence, key: str, fitted: Any = None) -> str:
     """What the data itself says about `key`, in a sentence ('' when it says nothing)."""
     parts = key.split(".")

@@ -14,7 +14,7 @@ fitted on the others: the gain it reports is what the hypothesis does on data it
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -217,8 +217,9 @@ def _grid(hyp: Hypothesis, points: int = GRID_POINTS) -> list[Any]:
         pts = list(np.geomspace(hyp.lower, hyp.upper, points))
     else:
         pts = list(np.linspace(hyp.lower, hyp.upper, points))
-    if hyp.baseline is not None and np.isfinite(hyp.baseline) and hyp.lower <= hyp.baseline <= hyp.upper:
-        pts.append(int(hyp.baseline) if hyp.scale == "int" else float(hyp.baseline))
+    for v in (hyp.baseline, *hyp.seeds):
+        if v is not None and np.isfinite(v) and hyp.lower <= v <= hyp.upper:
+            pts.append(int(round(v)) if hyp.scale == "int" else float(v))
     return sorted(set(pts))
 
 
@@ -231,24 +232,43 @@ def fit(scorer: Scorer, model: Mapping[str, Any], hyp: Hypothesis, units: Sequen
 
     grid = _grid(hyp)
     losses = np.array([loss(v) for v in grid])
+    value, best_loss, extra = refine(hyp, loss, grid, losses, BRENT_ITER)
+    return Fit(value=value, loss=best_loss, evaluations=len(grid) + extra)
+
+
+def refine(hyp: Hypothesis, loss: Callable[[Any], float], grid: list[Any], losses: np.ndarray,
+           budget: int) -> tuple[Any, float, int]:
+    """The least-loss value between the neighbours of the best grid point: (value, loss, evaluations).
+    A continuous parameter gets a bounded Brent search of at most `budget` iterations; an integer one a
+    ternary then exhaustive search when `budget` is the full fit's, else the integer grid's points
+    between the neighbours (a screen's few evaluations)."""
     best = _closest_best(hyp, grid, losses)
-    n_eval = len(grid)
     value, best_loss = grid[best], float(losses[best])
-    if hyp.scale in ("log", "linear") and np.isfinite(best_loss):
+    if not np.isfinite(best_loss):
+        return value, best_loss, 0
+    if hyp.scale in ("log", "linear"):
         lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, len(grid) - 1)]
-        if hi > lo:
-            to_x = np.log if hyp.scale == "log" else (lambda v: v)
-            from_x = np.exp if hyp.scale == "log" else (lambda v: v)
-            span = float(to_x(hi)) - float(to_x(lo))
-            res = minimize_scalar(lambda x: loss(float(from_x(x))), bounds=(float(to_x(lo)), float(to_x(hi))),
-                                  method="bounded", options={"xatol": XATOL * span, "maxiter": BRENT_ITER})
-            n_eval += int(res.nfev)
-            if res.fun < best_loss:
-                value, best_loss = float(from_x(res.x)), float(res.fun)
-    elif hyp.scale == "int" and np.isfinite(best_loss):
-        value, best_loss, extra = _refine_int(loss, grid, best, losses)
-        n_eval += extra
-    return Fit(value=value, loss=best_loss, evaluations=n_eval)
+        if hi <= lo:
+            return value, best_loss, 0
+        to_x = np.log if hyp.scale == "log" else (lambda v: v)
+        from_x = np.exp if hyp.scale == "log" else (lambda v: v)
+        span = float(to_x(hi)) - float(to_x(lo))
+        res = minimize_scalar(lambda x: loss(float(from_x(x))), bounds=(float(to_x(lo)), float(to_x(hi))),
+                              method="bounded", options={"xatol": XATOL * span, "maxiter": budget})
+        if res.fun < best_loss:
+            value, best_loss = float(from_x(res.x)), float(res.fun)
+        return value, best_loss, int(res.nfev)
+    if hyp.scale == "int" and budget >= BRENT_ITER:
+        return _refine_int(loss, grid, best, losses)
+    if hyp.scale == "int":
+        lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, len(grid) - 1)]
+        more = [v for v in INT_GRID if lo < v < hi and v not in grid and hyp.lower <= v <= hyp.upper]
+        for v in more:
+            x = loss(v)
+            if x < best_loss:
+                value, best_loss = v, x
+        return value, best_loss, len(more)
+    return value, best_loss, 0
 
 
 def _closest_best(hyp: Hypothesis, grid: list[Any], losses: np.ndarray) -> int:

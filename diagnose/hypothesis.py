@@ -52,6 +52,7 @@ class Hypothesis:
     level: str = "timing"
     predicts: str = ""              # the residual pattern this cause produces
     also: dict[str, Any] = field(default_factory=dict)  # keys set together with it (e.g. a switch)
+    seeds: tuple[float, ...] = ()   # values the data points at (evidence.suggest): added to the search grid
 
     def __post_init__(self) -> None:
         keys.split(self.key)

@@ -36,13 +36,14 @@ from typing import Any
 import numpy as np
 
 from feedlog.diagnose.evidence import Evidence, contradicts
-from feedlog.diagnose.fit import HeldOut, Scorer, _closest_best, _grid, fit, held_out
+from feedlog.diagnose.fit import HeldOut, Scorer, _grid, fit, held_out, refine
 from feedlog.diagnose.hypothesis import Hypothesis
 
 PRIORITY = ("overrides", "axis_limits", "path_limits", "planner", "dwell", "feedback", "logger")
 SCREEN_KEEP = 5        # hypotheses fully cross-validated per step
 SCREEN_SHARE = 0.5     # ... among those within this share of the best screening gain
 SCREEN_POINTS = 9      # grid points per hypothesis when screening
+SCREEN_ITER = 5        # ... then Brent iterations between the best point's neighbours (a small effect falls between)
 FOLD_SHARE = 0.05      # a held-out fold must hold this share of the excess loss to count for repeatability
 SWAP_GAIN = 0.2        # a replacement must lower the held-out loss by this share
 
@@ -104,10 +105,12 @@ def screen(scorer: Scorer, model: dict[str, Any], hyps: Sequence[Hypothesis]) ->
     base = float(scorer.unit_losses(model).sum()) - floor
     scored = []
     for hyp in hyps:
-        if scorer.level == "timing":  # a coarse grid: every point is a re-simulation of every recording
+        if scorer.level == "timing":  # a coarse grid, refined a little: every point re-simulates every recording
+            def loss(v: Any, hyp: Hypothesis = hyp) -> float:
+                return float(scorer.unit_losses({**model, **hyp.values(v)}).sum())
+
             grid = _grid(hyp, SCREEN_POINTS)
-            losses = np.array([float(scorer.unit_losses({**model, **hyp.values(v)}).sum()) for v in grid])
-            best = float(losses[_closest_best(hyp, grid, losses)])
+            best = refine(hyp, loss, grid, np.array([loss(v) for v in grid]), SCREEN_ITER)[1]
         else:  # no simulation: the full fit is cheap
             best = fit(scorer, model, hyp, range(len(scorer.units))).loss
         gain = (base + floor - best) / base if base > 0 and np.isfinite(best) else 0.0
@@ -207,6 +210,15 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
         if not judged:
             break
         best = judged[0]
+        if not best.accepted and len(steps) + 2 <= cfg.max_causes:
+            pair = _pair(scorer, model, judged, remaining, cfg, error, evidence, many, progress)
+            if pair is not None:
+                model, new = pair
+                steps.extend(new)
+                current = new[-1].chosen.held.after
+                taken = {k for st in new for k in st.chosen.held.hyp.keys}
+                remaining = [h for h in remaining if not (h.keys & taken)]
+                continue
         ties = [j for j in judged[1:] if j.veto is None and
                 float(j.held.after.sum()) <= float(best.held.after.sum()) * (1 + cfg.tie) + 1e-300]
         group = sorted([best, *ties], key=lambda j: (_priority(j.held.hyp), float(j.held.after.sum())))
@@ -230,11 +242,90 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
             hyp = step.chosen.held.hyp
             others = {k: v for k, v in refit.items() if k not in hyp.keys}
             step.chosen = judge(held_out(scorer, others, hyp), scorer, cfg, error, evidence)
+        refit = _rechoose(scorer, steps, refit, cfg, error, evidence, many, progress)
         if error(scorer.unit_losses(refit), units) >= cfg.min_effect:  # something material left: try swaps
             refit = _swap(scorer, steps, refit, hyps, cfg, error, evidence, progress)
         current = scorer.unit_losses(refit)
     return Selection(level=scorer.level, model=refit, steps=steps, rejected=rejected, base_losses=base,
                      final_losses=current)
+
+
+def _pair(scorer: Scorer, model: dict[str, Any], judged: list[Judged], remaining: Sequence[Hypothesis],
+          cfg: SelectConfig, error: Callable[[np.ndarray, list[int]], float], evidence: Evidence | None,
+          many: Callable[[dict[str, Any], Sequence[Hypothesis]], list[HeldOut]],
+          progress: Callable[[str], None] | None) -> tuple[dict[str, Any], list[Step]] | None:
+    """One step of look-ahead when no single cause survives its held-out test. With two causes in the
+    data, the fit of the first on part of it can carry the second and spoil the rest (a path speed cap,
+    fitted on recordings whose rapids a Z acceleration limit slows, comes out far too low for a program
+    that reaches the cap on its feed moves). So the candidate that fits all the data best is put in
+    provisionally, the next cause is looked for given it, and the two are kept only if each then passes
+    every rule held out given the other (refitted together first). Otherwise nothing is kept."""
+    lead = sorted((j for j in judged if j.veto is None), key=lambda j: float(j.held.fit_after.sum()))
+    if not lead or error(lead[0].held.before, list(range(len(scorer.units)))) < cfg.min_effect:
+        return None
+    first = lead[0].held
+    trial = {**model, **first.hyp.values(first.value)}
+    pool = [h for h, _ in screen(scorer, trial, [h for h in remaining if not (h.keys & first.hyp.keys)])]
+    if not pool:
+        return None
+    if progress:
+        progress(f"{scorer.level}: no single cause holds out; {len(pool)} second causes tried with {first.hyp.key}")
+    second = [j for j in (judge(held, scorer, cfg, error, evidence) for held in many(trial, pool)) if j.accepted]
+    if not second:
+        return None
+    pick = min(second, key=lambda j: float(j.held.after.sum()))
+    hyps = [first.hyp, pick.held.hyp]
+    joint = _refit(scorer, hyps, {**trial, **pick.held.hyp.values(pick.held.value)}, 2)
+    steps = []
+    for hyp, considered in zip(hyps, (judged, second)):
+        others = {k: v for k, v in joint.items() if k not in hyp.keys}
+        j = judge(held_out(scorer, others, hyp), scorer, cfg, error, evidence)
+        if not j.accepted:
+            return None
+        steps.append(Step(chosen=j, alternatives=[], considered=considered))
+    return joint, steps
+
+
+def _rechoose(scorer: Scorer, steps: list[Step], model: dict[str, Any], cfg: SelectConfig,
+              error: Callable[[np.ndarray, list[int]], float], evidence: Evidence | None,
+              many: Callable[[dict[str, Any], Sequence[Hypothesis]], list[HeldOut]],
+              progress: Callable[[str], None] | None) -> dict[str, Any]:
+    """Each step's choice made again given the other causes: the candidates its step cross-validated
+    are judged with the others in the model, and the same rule picks (the least held-out loss; ties to
+    the family listed first in `PRIORITY`). A cause chosen before a second one was in the model can
+    have stood in for part of it (a path speed cap taking an acceleration limit's time on rapids next
+    to a feed override's on feed moves); with the second in place the first choice is no longer best."""
+    changed = False
+    for i, step in enumerate(steps):
+        hyp = step.chosen.held.hyp
+        taken = {k for s in steps if s is not step for k in s.chosen.held.hyp.keys}
+        pool = [j.held.hyp for j in step.considered
+                if j.veto is None and j.held.hyp.key != hyp.key and not (j.held.hyp.keys & taken)]
+        if not pool:
+            continue
+        others = {k: v for k, v in model.items() if k not in hyp.keys}
+        if progress:
+            progress(f"{scorer.level}: {len(pool)} alternative(s) to {hyp.key} judged with the other causes")
+        judged = [step.chosen, *(judge(held, scorer, cfg, error, evidence) for held in many(others, pool))]
+        ok = [j for j in judged if j.accepted]
+        if not ok:
+            continue
+        low = min(float(j.held.after.sum()) for j in ok)
+        group = [j for j in ok if float(j.held.after.sum()) <= low * (1 + cfg.tie) + 1e-300]
+        pick = min(group, key=lambda j: (_priority(j.held.hyp), float(j.held.after.sum())))
+        if pick is not step.chosen:
+            steps[i] = Step(chosen=pick, alternatives=[j for j in group if j is not pick],
+                            considered=[step.chosen, *step.considered])
+            model = {**others, **pick.held.hyp.values(pick.held.value)}
+            changed = True
+    if not changed:
+        return model
+    model = _refit(scorer, [s.chosen.held.hyp for s in steps], model, 2)
+    for step in steps:
+        hyp = step.chosen.held.hyp
+        others = {k: v for k, v in model.items() if k not in hyp.keys}
+        step.chosen = judge(held_out(scorer, others, hyp), scorer, cfg, error, evidence)
+    return model
 
 
 def _swap(scorer: Scorer, steps: list[Step], model: dict[str, Any], hyps: Sequence[Hypothesis], cfg: SelectConfig,

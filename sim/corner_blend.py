@@ -217,8 +217,11 @@ class BlendArcCorner(Mechanism):
         end_stop = np.append(hard & ~sharp & ~mode_change, True)
         half = continuous & end_stop & ~halved & (length > 0)
         a_max[half] *= 0.5
-        # an arc is sized for its segments' requested speed; it runs under the TRAJ velocity cap
-        arcs["v_run"] = np.minimum(arcs["v"], ctx.profile.interpolator.path_vel_max_mm_s)
+        # an arc is sized for its segments' requested speed; it runs at that request times the dial
+        # (LinuxCNC: the blend's reqvel is the faster neighbour's request, its maxvel the planned speed;
+        # tp.c tpGetRealTargetVel) under the TRAJ velocity cap
+        v_dial = arcs["v_req"] * feed_scale(blocks)[b1]
+        arcs["v_run"] = np.minimum(np.minimum(arcs["v"], v_dial), ctx.profile.interpolator.path_vel_max_mm_s)
         ctx.pieces = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)
         ctx.notes.update(blend_arcs=int(use_arc.sum()), tangent_junctions=int(use_kink.sum()),
                          parabolic_blends=int(overlap.sum()), consumed_lines=int((ctx.pieces.clamp_len == 0).sum()))
@@ -266,7 +269,8 @@ class BlendArcCorner(Mechanism):
         t2 = np.where(tol2 > 0, tol2, n2 * self.tolerance_ratio)
         tol = np.minimum(np.minimum(t1, t2), np.minimum(n1, n2) * self.tolerance_ratio)
         phi = math.pi - 2 * th
-        v_goal = np.maximum(v_req[:-1], v_req[1:])
+        v_ask = np.maximum(v_req[:-1], v_req[1:])
+        v_goal = v_ask
         cphi = np.cos(np.minimum(phi, math.pi * 0.49))
         vm1 = np.minimum(v_tc[:-1], v_tc[1:] / cphi)
         vm2 = np.minimum(v_tc[1:], v_tc[:-1] / cphi)
@@ -286,7 +290,7 @@ class BlendArcCorner(Mechanism):
         s_arc = r_plan * phi
         ok = ok & (r_plan > 1e-12) & (s_arc > 1e-6)
         v_arc = np.minimum(v_plan, s_arc / self.servo_period_s)
-        return {"ok": ok, "theta": th, "r": r_plan, "d": d_plan, "s": s_arc, "v": v_plan, "v_arc": v_arc,
+        return {"ok": ok, "theta": th, "r": r_plan, "d": d_plan, "s": s_arc, "v": v_plan, "v_arc": v_arc, "v_req": v_ask,
                 "a": a_plane}
 
     def _insert_arcs(self, pc: Pieces, ja, arcs, v_end, a_max, overlap, u1, u2) -> Pieces:

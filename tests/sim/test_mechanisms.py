@@ -165,3 +165,16 @@ def test_feed_override_scales_a_programmed_arcs_centripetal_speed_not_a_blend_ar
     assert all(r.notes["blend_arcs"] == 2 for r in runs)
     assert v_blend[0] < 0.8 * 50 and v_blend[1] == pytest.approx(v_blend[0], rel=1e-6)  # a cap, not scaled
     assert runs[1].series["feed_mm_min"].max() == pytest.approx(0.8 * 3000)
+
+
+def test_feed_override_scales_a_blend_arc_that_runs_at_the_requested_feed(plain, gcode):
+    # a gently curving polyline: its blend arcs are planned up to the programmed feed, and at 50 %
+    # LinuxCNC runs them at half of it (an arc's reqvel times the dial), not at their planned speed
+    pts = [(20 * np.sin(k * 0.01), 20 * (1 - np.cos(k * 0.01))) for k in range(1, 200)]
+    prog = gcode("G21 G90 G64 P0.05\nF1200\nG0 X0 Y0\n" + "\n".join(f"G1 X{x:.4f} Y{y:.4f}" for x, y in pts) + "\n")
+    full = simulate(prog, plain)
+    half = simulate(prog, plain, mechanisms={"feed_override": {"override": 0.5}})
+    assert full.notes["blend_arcs"] > 100 and half.notes["blend_arcs"] == full.notes["blend_arcs"]
+    assert full.series["feed_mm_min"].max() == pytest.approx(1200, rel=1e-3)
+    assert half.series["feed_mm_min"].max() <= 600 * 1.001
+    assert half.cycle_time_s == pytest.approx(2 * full.cycle_time_s, rel=0.02)
