@@ -43,6 +43,7 @@ class BatchItem:
     samples: int = 0
     task_s: float = 0.0
     exit_code: int = 0  # of the error: 2 bad input, 1 an output that could not be written
+    notes: list[str] | None = None  # what align decided by itself (a line range, a work offset, lines only)
 
 
 @dataclass(frozen=True)
@@ -81,19 +82,33 @@ def align_one(task: AlignTask) -> BatchItem:
                         metadata=table_metadata(alignment, table, recording_path=where))
     blocks = alignment.blocks[BLOCK_COLUMNS].to_dict(orient="records") if task.with_blocks else None
     return BatchItem(recording=task.label, outdir="", ok=True, cycle_time_s=alignment.cycle_time_s, blocks=blocks,
-                     samples=int(alignment.report["match"]["measured_samples"]))
+                     samples=int(alignment.report["match"]["measured_samples"]), notes=decisions(alignment.report))
+
+
+def decisions(report: dict[str, Any]) -> list[str]:
+    """What align chose by itself for this recording, in a few words each (for the console)."""
+    out = []
+    if report.get("lines") and report["lines"]["from"] == "line stream":
+        out.append(f"program lines {report['lines']['first']}:{report['lines']['last']} (from the line stream)")
+    if report.get("work_offset_estimate"):
+        offset = report["work_offset_estimate"]["offset_mm"]
+        out.append(f"work offset estimated ({', '.join(f'{v:.3f}' for v in offset)}) mm")
+    if report.get("mode") == "line stream only":
+        out.append("no positions: block times from the line stream")
+    return out
 
 
 def _shared_inputs(program: str | Path | None, profile: str | Path | None, config: AlignConfig):
     """The program and profile given for every recording, read here (errors stop the job before it starts)."""
     from feedlog.profile import MachineProfile, load_profile  # noqa: PLC0415
-    from feedlog.toolpath import parse_program  # noqa: PLC0415
+    from feedlog.toolpath import load_program  # noqa: PLC0415
 
     prog = prof = None
     if program is not None:
         text = str(program)
-        prog = (parse_program(storage.read_text(text), lenient=config.lenient, name=text) if storage.is_url(text)
-                else parse_program(Path(program), lenient=config.lenient))
+        source = storage.read_text(text) if storage.is_url(text) else Path(program)
+        prog = load_program(source, lenient=config.lenient, name=text if storage.is_url(text) else None,
+                            dialect=config.dialect)
     if profile is not None:
         text = str(profile)
         prof = MachineProfile.from_toml(storage.read_text(text), source=text) if storage.is_url(text) \

@@ -14,9 +14,12 @@ import sys
 
 from feedlog.align.batch import align_many
 from feedlog.align.feed import FeedSmoothing
+from feedlog.align.partial import parse_lines
 from feedlog.align.pipeline import BOUNDARIES, FEED_SOURCES, AlignConfig
 from feedlog.align.tables import to_json
+from feedlog.cli_options import add_output, add_overwrite, add_quiet
 from feedlog.errors import FeedlogError
+from feedlog.toolpath.dialects import DIALECTS
 from feedlog.execution import add_arguments as add_execution_arguments
 
 
@@ -24,7 +27,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("recordings", nargs="+", metavar="RECORDING", help="feedlog recordings (.mcap)")
     parser.add_argument("--program", "-p", help="part program (default: the recording's program.ngc attachment)")
     parser.add_argument("--profile", help="machine profile name or TOML (default: the attached profile.toml)")
-    parser.add_argument("-o", "--outdir", required=True, help="output folder; one subfolder per recording")
+    add_output(parser, required=True, metavar="OUTDIR", aliases=("--outdir",),
+               help="output folder; one subfolder per recording, and OUTDIR/dataset/")
     parser.add_argument("--json", action="store_true", help="print cycle time and block times as JSON")
     parser.add_argument("--tol-mm", type=float, default=AlignConfig.tol_mm,
                         help="allowed CL point distance on top of the block's G64 P (default %(default)s); "
@@ -42,19 +46,34 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--work-offset", type=float, nargs=3, metavar=("X", "Y", "Z"), default=(0.0, 0.0, 0.0),
                         help="extra program origin offset in the recorded frame, mm, for a work offset set "
                              "on the machine rather than in the program (G10/G54/G92 in it are applied)")
+    parser.add_argument("--dialect", choices=DIALECTS, default="auto",
+                        help="G-code dialect: rs274ngc (LinuxCNC), fanuc/hurco, sinumerik (default: detected)")
+    parser.add_argument("--estimate-offset", action="store_true",
+                        help="estimate a constant work offset between program and recorded positions (machine "
+                             "coordinates with a G54 set on the machine); reported in report.json")
+    parser.add_argument("--no-auto-offset", action="store_true",
+                        help="do not retry with an estimated work offset when the program is nowhere on the path")
+    parser.add_argument("--lines", metavar="FIRST:LAST", type=parse_lines,
+                        help="the recording covers only these program lines (default: found from the recorded "
+                             "line or block-number stream when it leaves feed moves out)")
+    parser.add_argument("--whole-program", action="store_true",
+                        help="never cut the program to the lines the line stream saw")
     parser.add_argument("--lenient", action="store_true",
                         help="skip unsupported program codes (reported in report.json) instead of failing")
     add_execution_arguments(parser)
-    parser.add_argument("--overwrite", action="store_true", help="replace existing output files")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    add_overwrite(parser, help="replace existing output files")
+    add_quiet(parser, help="no progress bar")
 
 
 def run(args: argparse.Namespace) -> int:
     config = AlignConfig(tol_mm=args.tol_mm, check_rapids=args.check_rapids, boundary=args.boundary,
                          feed_source=args.feed_source, sync_lines=args.sync_lines,
                          smoothing=FeedSmoothing(window_s=args.feed_window_s),
-                         work_offset_mm=tuple(args.work_offset), lenient=args.lenient)
-    items = align_many(args.recordings, args.outdir, program=args.program, profile=args.profile, config=config,
+                         work_offset_mm=tuple(args.work_offset), lenient=args.lenient, lines=args.lines,
+                         auto_lines=not args.whole_program, estimate_offset=args.estimate_offset,
+                         auto_offset=not args.no_auto_offset,
+                         dialect=args.dialect)
+    items = align_many(args.recordings, args.out, program=args.program, profile=args.profile, config=config,
                        jobs=args.jobs, scheduler=args.scheduler, overwrite=args.overwrite, progress=not args.quiet,
                        with_blocks=args.json)
     failed = [i for i in items if not i.ok]
@@ -71,5 +90,35 @@ def run(args: argparse.Namespace) -> int:
     else:
         for i in items:
             if i.ok:
-                print(f"{i.recording}: cycle time {i.cycle_time_s:.3f} s -> {i.outdir}")
+                notes = f" ({'; '.join(i.notes)})" if i.notes else ""
+                print(f"{i.recording}: cycle time {i.cycle_time_s:.3f} s -> {i.outdir}{notes}")
+    if len(items) > 1:
+        print(summary(items), file=sys.stderr if args.json else sys.stdout)
     return min((i.exit_code for i in failed), default=0)  # 1 if any output could not be written
+
+
+# what an alignment error usually means, and what to try (first pattern found in the message wins)
+HINTS = (
+    ("never comes within", "the program does not lie on the measured path: check the program, the import units "
+                           "(--length-unit) or a work offset set on the machine (--estimate-offset)"),
+    ("farther than their tolerance", "part of the program is off the path: a partial recording (--lines A:B), "
+                                     "corner rounding beyond G64 P (--tol-mm), or another program version"),
+    ("use --overwrite", "outputs from an earlier run are there: --overwrite"),
+    ("no program given", "attach the program at import (--program) or pass --program"),
+)
+
+
+def summary(items) -> str:
+    """`116 aligned, 1 failed` and, per distinct failure, how many, one example and what to try."""
+    failed = [i for i in items if not i.ok]
+    text = f"{len(items) - len(failed)} aligned, {len(failed)} failed"
+    groups: dict[str, list] = {}
+    for item in failed:
+        reason = (item.error or "alignment failed").split(";")[0]
+        groups.setdefault(reason, []).append(item)
+    for reason, members in groups.items():
+        hint = next((h for pattern, h in HINTS if pattern in (members[0].error or "")), None)
+        text += f"\n  {len(members)} x {reason} (e.g. {members[0].recording})"
+        if hint:
+            text += f"\n    try: {hint}"
+    return text

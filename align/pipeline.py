@@ -34,15 +34,18 @@ from feedlog.align.blocks import (NO_TIME, MotionSpan, blocks_from_geometry, blo
 from feedlog.align.clock import event_offset, shift_stream
 from feedlog.align.feed import LINEAR, ROTARY, FeedSmoothing, feed_at_checked
 from feedlog.align.match import MatchConfig, match_cl_points
+from feedlog.align.partial import auto_lines, program_lines, slice_program
 from feedlog.align.subsample import refine_span
 from feedlog.align.timing import stream_timing
+from feedlog.align.work_offset import estimate_work_offset
 from feedlog.errors import AlignmentError, FeedlogError
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import MachineProfile, load_profile
-from feedlog.toolpath import Program, block_features, cl_points, parse_program, to_machine
+from feedlog.toolpath import Program, block_features, cl_points, load_program, to_machine
 from feedlog.toolpath.schema import RAPID
 
 BOUNDARIES = ("auto", "pass", "leave")
+NOT_ON_PATH = "never comes within"   # match's error when the program's first points are nowhere on the path
 FEED_SOURCES = ("auto", "stream", "positions")
 STRAIGHT = ("linear", RAPID)
 WORK_OFFSET = ("wx_mm", "wy_mm", "wz_mm")  # toolpath's per-block work offset columns
@@ -77,6 +80,12 @@ class AlignConfig:
                                      # the measured frame (one set on the machine, not in the program;
                                      # the program's own G10/G54/G92 come from toolpath)
     lenient: bool = False            # parse the program leniently (unsupported codes skipped, reported)
+    dialect: str = "auto"            # G-code dialect of the program (toolpath.dialects)
+    lines: tuple[int, int] | None = None  # align on program lines FIRST..LAST only (a partial recording)
+    auto_lines: bool = True          # a line stream that leaves feed moves out cuts the program to its lines
+    estimate_offset: bool = False    # estimate a constant work offset (added to work_offset_mm)
+    auto_offset: bool = True         # ... and retry with one when the program does not lie on the measured path
+                                     # (unless work_offset_mm was given)
 
     def __post_init__(self) -> None:
         if not self.tol_mm > 0:
@@ -87,6 +96,8 @@ class AlignConfig:
             raise AlignmentError(f"feed_source must be one of {', '.join(FEED_SOURCES)}, got {self.feed_source!r}")
         if len(self.work_offset_mm) != 3 or not np.isfinite(self.work_offset_mm).all():
             raise AlignmentError(f"work_offset_mm needs three finite values, got {self.work_offset_mm!r}")
+        if self.lines is not None and not (len(self.lines) == 2 and 1 <= self.lines[0] <= self.lines[1]):
+            raise AlignmentError(f"lines must be (first, last) program lines, 1 <= first <= last; got {self.lines!r}")
         if not (self.on_path_mm > 0 and (self.still_mm is None or self.still_mm >= 0) and self.chord_tol_mm > 0):
             raise AlignmentError(f"need on_path_mm > 0, still_mm >= 0, chord_tol_mm > 0; got {self.on_path_mm}, "
                                  f"{self.still_mm}, {self.chord_tol_mm}")
@@ -116,16 +127,18 @@ def _profile(recording: Recording, profile: MachineProfile | str | Path | None) 
     return None
 
 
-def _program(recording: Recording, program: Program | str | Path | None, lenient: bool) -> Program:
+def _program(recording: Recording, program: Program | str | Path | None, lenient: bool,
+             dialect: str = "auto") -> Program:
     if isinstance(program, Program):
         return program
     if program is not None:
-        return parse_program(Path(program), lenient=lenient)
+        return load_program(Path(program), lenient=lenient, dialect=dialect)
     text = recording.program_text
     if text is None:
         raise AlignmentError(f"{recording.source or 'recording'}: no program given and none attached "
                              "(program.ngc); pass one with --program")
-    return parse_program(text, lenient=lenient, name=f"{Path(recording.source).stem or 'recording'}:program.ngc")
+    return load_program(text, lenient=lenient, dialect=dialect,
+                        name=f"{Path(recording.source).stem or 'recording'}:program.ngc")
 
 
 def position_quantum(pos: np.ndarray, *, samples: int = 100_000) -> float:
@@ -169,14 +182,43 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     Keyword overrides set `AlignConfig` fields, e.g. `align_recording(rec, tol_mm=2.0)`.
     """
     cfg = replace(config or AlignConfig(), **overrides) if overrides else (config or AlignConfig())
-    lap = _Laps()
     prof = _profile(recording, profile)
-    prog = _program(recording, program, cfg.lenient)
+    prog = _program(recording, program, cfg.lenient, cfg.dialect)
+    try:
+        return _align(recording, prog, prof, cfg)
+    except AlignmentError as exc:
+        given = any(cfg.work_offset_mm)   # a work offset the user gave is trusted, not second-guessed
+        if not cfg.auto_offset or cfg.estimate_offset or given or NOT_ON_PATH not in str(exc):
+            raise
+        try:
+            out = _align(recording, prog, prof, replace(cfg, estimate_offset=True))
+        except AlignmentError:
+            raise exc from None
+    est = out.report["work_offset_estimate"]["offset_mm"]
+    out.report["warnings"].append(f"the program did not lie on the measured path: aligned with an estimated work "
+                                  f"offset ({', '.join(f'{v:.3f}' for v in est)}) mm; give it with --work-offset, "
+                                  "or turn this off with --no-auto-offset")
+    return out
+
+
+def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg: AlignConfig) -> Alignment:
+    lap = _Laps()
+    recording = program_lines(recording, prog, stream=cfg.line_stream)
+    lines = cfg.lines or (auto_lines(recording, prog, stream=cfg.line_stream) if cfg.auto_lines else None)
+    if lines is not None:
+        prog = slice_program(prog, lines)
+    report: dict[str, Any] = {"recording": recording.source, "program": prog.name, "config": _config_dict(cfg),
+                              "warnings": [f"program: {w}" for w in prog.warnings],
+                              "lines": None if lines is None else {"first": lines[0], "last": lines[1],
+                                                                   "from": "config" if cfg.lines else "line stream"}}
+    if "line_from" in recording.metadata:
+        report["line_from"] = recording.metadata["line_from"]
+    if cfg.positions not in recording.streams:
+        from feedlog.align.line_only import align_on_lines  # noqa: PLC0415 - line_only imports this module
+        return align_on_lines(recording, prog, prof, cfg, report)
     axes, cols, pos = _positions(recording, cfg)
     t = axes["t_ns"].to_numpy(dtype=np.int64)
     xyz = pos[:, :3]
-    report: dict[str, Any] = {"recording": recording.source, "program": prog.name, "config": _config_dict(cfg),
-                              "warnings": [f"program: {w}" for w in prog.warnings]}
     lap("inputs")
     timing = stream_timing(t, name=cfg.positions)
     report["timing"] = {cfg.positions: timing.as_dict()}
@@ -190,7 +232,8 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     report["still_mm"] = still
     span = motion_span(t, pos, still_mm=still, acc_mm_s2=_acc_limit(prof))
     refined = None
-    if timing.period_ns > SPARSE_NS and prof is not None and cfg.model_span:
+    if timing.period_ns > SPARSE_NS and prof is not None and cfg.model_span and lines is None \
+            and not cfg.estimate_offset:  # the model runs the whole program in the program's own frame
         span, refined = _refine_with_sim(span, t, pos, cols, prog, prof, np.asarray(cfg.work_offset_mm, float),
                                          report)
     report["motion"] = {"t_start_ns": span.t_start_ns, "t_end_ns": span.t_end_ns, "cycle_time_s": span.duration_s,
@@ -205,6 +248,11 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     cl_xyz = cl[list(LINEAR)].to_numpy(dtype=np.float64) + offset
     if set(WORK_OFFSET) <= set(cl.columns):
         cl_xyz = cl_xyz + np.nan_to_num(cl[list(WORK_OFFSET)].to_numpy(dtype=np.float64))
+    if cfg.estimate_offset:
+        estimate = estimate_work_offset(cl_xyz, xyz[span.first_index:span.last_index + 1])
+        offset = offset + np.asarray(estimate.offset_mm)
+        cl_xyz = cl_xyz + np.asarray(estimate.offset_mm)
+        report["work_offset_estimate"] = estimate.as_dict()
     lap("cl_points")
     if len(cl) < 2:
         raise AlignmentError(f"{prog.name}: the program has no motion to align")
@@ -217,6 +265,8 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     kind = cl["kind"].astype(str).to_numpy()
     check = np.ones(len(cl), dtype=bool) if cfg.check_rapids else (kind != RAPID)
     check &= kind != "start"  # the parser's assumed initial position is not a programmed point
+    if lines is not None and not cfg.lines:  # found from the line stream: its first block may have been
+        check &= cl["line"].to_numpy() != lines[0]  # under way when the recording began (not checked)
     labels = _PointLabels(blk, cl["line"].to_numpy())
     mcfg = MatchConfig(tol_mm=float(tolerance.max()), window_mm=cfg.window_mm, still_mm=still)
     rapid_mm_min = prof.rapid_mm_min if prof is not None else np.nan

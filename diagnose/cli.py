@@ -14,6 +14,7 @@ import os
 import sys
 from pathlib import Path
 
+from feedlog.cli_options import add_output, add_overwrite, add_quiet
 from feedlog.errors import FeedlogError
 from feedlog.execution import add_arguments as add_execution_arguments
 
@@ -23,10 +24,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--profile", help="machine profile to diagnose: shipped name or .toml (default: the "
                                           "profile the recordings carry)")
     parser.add_argument("--program", "-p", help="part program (default: each recording's program.ngc)")
-    parser.add_argument("-o", "--out", type=Path, help="output folder (report.md, diagnose.json, profile.toml, "
-                                                       "diagnose.rrd); nothing is written without it")
+    add_output(parser, type=Path, metavar="DIR", help="output folder (report.md, diagnose.json, profile.toml, "
+                                                     "diagnose.rrd); nothing is written without it")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the text summary")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    add_overwrite(parser, help="replace an existing output folder")
     parser.add_argument("--min-effect", type=float, default=1.0, metavar="PCT",
                         help="a cause must lower the held-out timing error by this many percentage points "
                              "(default %(default)s)")
@@ -38,7 +39,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lenient", action="store_true", help="skip unsupported program codes")
     add_execution_arguments(parser, jobs_help="worker processes for the recordings and the hypothesis fits "
                                               "(default: 1, here; FEEDLOG_SCHEDULER or --scheduler: a Dask cluster)")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress messages")
+    add_quiet(parser, help="no progress messages")
 
 
 def run(args: argparse.Namespace) -> int:

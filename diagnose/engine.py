@@ -139,9 +139,9 @@ def load_cases(sources: Sequence[str | Path | Recording], profile: MachineProfil
 
         prog = program
         if prog is not None and not hasattr(prog, "blocks"):  # parsed once here, sent as data
-            from feedlog.toolpath import parse_program  # noqa: PLC0415
+            from feedlog.toolpath import load_program  # noqa: PLC0415
 
-            prog = parse_program(Path(prog), lenient=lenient)
+            prog = load_program(Path(prog), lenient=lenient)
         items = [PrepareItem(source=storage.absolute(str(s)), profile=prof, program=prog, lenient=lenient)
                  for s in sources]
         results = runner.run(prepare_task, items, desc="prepare", label=lambda i: Path(i.source).name)

@@ -5,19 +5,21 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from feedlog.cli_options import add_output, add_overwrite
 from feedlog.errors import IngestError
 from feedlog.ingest.mapping import preset_description, preset_names
 from feedlog.ingest.readers import SUFFIXES, ImportOptions, read_source
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT
 from feedlog.ingest.summary import format_summary, summarize
+from feedlog.ingest.unit_check import feed_unit_check
 from feedlog.ingest.writer import write_recording
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("source", nargs="?",
                         help=f"file to convert ({', '.join(SUFFIXES)}); prefix can: for a python-can CSV log")
-    parser.add_argument("-o", "--out", help="recording to write (.mcap)")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    add_output(parser, metavar="REC.mcap", help="recording to write (.mcap)")
+    add_overwrite(parser, help="replace an existing output file")
     parser.add_argument("--compression", choices=["none", "lz4", "zstd"], default="none",
                         help="MCAP chunk compression (default none: fastest, float positions barely "
                              "compress; zstd for small archives)")
@@ -34,8 +36,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
     units.add_argument("--feed-unit", help="e.g. mm/min, mm/s, in/min")
     units.add_argument("--timezone", help="zone of wall-clock times without an offset (default UTC)")
     units.add_argument("--time-format", help="strftime format of wall-clock times (default ISO 8601)")
-    parser.add_argument("--delimiter", default=",", help="CSV field delimiter (default ,)")
+    parser.add_argument("--delimiter", default=None, help="CSV field delimiter (default: the preset's, else ,)")
+    parser.add_argument("--rate-hz", type=float, default=None, metavar="HZ",
+                        help="a CSV without a time column, written at a fixed rate: t = row index / HZ")
     parser.add_argument("--dbc", help="DBC file for CAN logs (default: feedlog's own feedlog_axes.dbc)")
+    parser.add_argument("--device", help="MTConnect: the device to read when the file holds several")
     parser.add_argument("--lenient", action="store_true", help="skip and count bad rows instead of failing")
     parser.add_argument("--recover", action="store_true", help="keep what a cut-off feedlog recording holds")
     parser.add_argument("--program", help="part program to attach (program.ngc)")
@@ -54,14 +59,18 @@ def run(args: argparse.Namespace) -> int:
     options = ImportOptions(preset=args.preset, mapping=args.mapping, time_unit=args.time_unit,
                             length_unit=args.length_unit, angle_unit=args.angle_unit, feed_unit=args.feed_unit,
                             timezone=args.timezone, time_format=args.time_format, delimiter=args.delimiter,
+                            rate_hz=args.rate_hz, device=args.device,
                             dbc=args.dbc, strict=not args.lenient, recover=args.recover)
     recording = read_source(args.source, options)
+    check = feed_unit_check(recording)
+    if check is not None and check.warning:
+        recording.metadata["unit_check"] = check.warning
     attach_session(recording, program=args.program, profile=args.profile, machine=args.machine, notes=args.notes)
     write_recording(args.out, recording, overwrite=args.overwrite, compression=args.compression)
     recording.source = args.out
     print(format_summary(summarize(recording)))
     for key in ("bad_rows", "bad_records", "bad_frames", "unknown_ids", "short_frames", "incomplete_samples",
-                "recovered"):
+                "recovered", "unavailable", "unit_check"):
         if key in recording.metadata:
             print(f"warning: {key}: {recording.metadata[key]}")
     return 0

@@ -16,6 +16,7 @@ import signal
 import threading
 from pathlib import Path
 
+from feedlog.cli_options import add_output, add_overwrite, add_quiet
 from feedlog.errors import FeedlogError, IngestError, OutputError
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT
 
@@ -38,14 +39,16 @@ def _source_module(name: str):
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("program", nargs="?", help="part program (sim, linuxcnc; attached to the recording)")
-    parser.add_argument("--source", default="can", choices=list(SOURCES), help="where the data comes from")
+    parser.add_argument("--source", required=True, choices=list(SOURCES),
+                        help="where the data comes from: a CAN bus (can), feedlog's own simulation (sim) or a "
+                             "LinuxCNC machine (linuxcnc)")
     parser.add_argument("--profile", help="machine profile (name or TOML path), attached to the recording")
-    parser.add_argument("-o", "--out", required=True, help="recording to write (.mcap)")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    add_output(parser, required=True, metavar="REC.mcap", help="recording to write (.mcap)")
+    add_overwrite(parser, help="replace an existing output file")
     capture = parser.add_argument_group("CAN capture (can, sim)")
     capture.add_argument("--dbc", help="DBC describing the frames (default: feedlog_axes.dbc)")
     capture.add_argument("--duration-s", type=float, help="stop after this many seconds")
-    capture.add_argument("--quiet", action="store_true", help="no live progress line")
+    add_quiet(capture, help="no live progress line")
     capture.add_argument("--json", action="store_true", help="print the summary as JSON")
     for name in SOURCES:
         module = _source_module(name)

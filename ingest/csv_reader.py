@@ -8,6 +8,11 @@ row's line number: strict mode (the default) raises `IngestError` naming the fil
 and the count; lenient mode drops and counts the bad rows and lists their lines in
 `metadata["bad_rows"]`. Header names are taken without surrounding spaces (and without a UTF-8 BOM);
 lines may end in LF, CR LF or a lone CR.
+
+A fixed-rate export without a time column (`ColumnMap.rate_hz`, `--rate-hz`) gets t = data row index /
+rate: the row's place in the file, so a row dropped as bad leaves its slot empty rather than pulling the
+rows after it earlier. Only for exports written at a fixed rate (the metadata says so); a jittery stream
+needs its own time column.
 """
 
 from __future__ import annotations
@@ -54,33 +59,38 @@ class BadRows:
         return f"{len(self.lines)} bad rows at lines {shown}{more}; first: {self.reasons[self.lines[0]]}"
 
 
-def _header(path: Path, delimiter: str) -> tuple[int, list[str]]:
-    """(1-based line number of the header, column names); leading '#' comment and blank lines skipped."""
+def _header(path: Path, delimiter: str, comment: str = "#") -> tuple[int, list[str]]:
+    """(1-based line number of the header, column names); leading comment (`comment`, default '#') and
+    blank lines skipped."""
     with open(path, "rb") as f:
         if f.read(2) in (b"\xff\xfe", b"\xfe\xff"):
             raise IngestError("the file is UTF-16 text (it starts with a UTF-16 byte-order mark); save it as "
                               "UTF-8", file=str(path), line=1)
     with open(path, newline="", encoding="utf-8-sig", errors="replace") as f:
         for number, text in enumerate(f, start=1):
-            if text.strip() and not text.lstrip().startswith("#"):
+            if text.strip() and not text.lstrip().startswith(comment):
                 names = [name.strip() for name in next(csv.reader([text], delimiter=delimiter))]
                 return number, names
     raise IngestError("empty CSV file (no header row)", file=str(path), line=1)
 
 
-def read_csv(path: str | os.PathLike, cmap: ColumnMap, *, strict: bool = True, delimiter: str = ",") -> Recording:
-    """Read one CSV file into a recording using `cmap` (columns and units)."""
+def read_csv(path: str | os.PathLike, cmap: ColumnMap, *, strict: bool = True, delimiter: str | None = None) -> Recording:
+    """Read one CSV file into a recording using `cmap` (columns and units). `delimiter`: the field
+    delimiter (default: the mapping's, else ",")."""
     path = Path(path)
     if not path.is_file():
         raise IngestError("no such file", file=str(path))
-    header_line, names = _header(path, delimiter)
+    delimiter = delimiter or cmap.delimiter or ","
+    header_line, names = _header(path, delimiter, cmap.comment)
+    cmap = cmap.resolve(names, file=str(path), line=header_line)
     absent = [f"{t}={cmap.mapping[t]}" for t in cmap.required if cmap.mapping[t] not in names]
     if absent:
         raise IngestError(f"{cmap.name}: columns not in the file: {', '.join(absent)}; the file has: "
                           f"{', '.join(names[:30])}", file=str(path), line=header_line)
     used = {target: source for target, source in cmap.mapping.items() if source in names}
-    if len(used) < 2:
-        raise IngestError(f"{cmap.name}: only the time column is in the file", file=str(path), line=header_line)
+    if len(used) < (1 if cmap.rate_hz else 2):
+        raise IngestError(f"{cmap.name}: no mapped value column is in the file; the file has: "
+                          f"{', '.join(names[:30])}", file=str(path), line=header_line)
     twice = next((source for source in used.values() if names.count(source) > 1), None)
     if twice:
         raise IngestError(f"column {twice!r} appears twice in the header", file=str(path), line=header_line)
@@ -91,6 +101,8 @@ def read_csv(path: str | os.PathLike, cmap: ColumnMap, *, strict: bool = True, d
         t_ns, values, lines = _diagnostic_read(path, header_line, names, used, cmap, delimiter, bad)
     else:
         (t_ns, values), lines = columns, None
+    if cmap.rate_hz:  # t_ns holds each row's index among the data rows
+        t_ns = np.rint(t_ns.astype(np.float64) * (1e9 / cmap.rate_hz)).astype(np.int64)
     back = _backwards(t_ns)
     if len(back):
         if lines is None:
@@ -138,14 +150,16 @@ def _fast_read(path: Path, header_line: int, names: list[str], used: dict[str, s
         return "skip"
 
     types = {source: pa.float64() for source in used.values()}
-    types[used["t"]] = _time_type(cmap)
+    if "t" in used:
+        types[used["t"]] = _time_type(cmap)
     try:
         table = pacsv.read_csv(
             path,
             read_options=pacsv.ReadOptions(skip_rows=header_line, column_names=_unique(names), block_size=8 << 20),
             parse_options=pacsv.ParseOptions(delimiter=delimiter, invalid_row_handler=on_invalid),
             convert_options=pacsv.ConvertOptions(column_types=types, include_columns=list(dict.fromkeys(used.values())),
-                                                 strings_can_be_null=False, quoted_strings_can_be_null=False))
+                                                 strings_can_be_null=False, quoted_strings_can_be_null=False,
+                                                 decimal_point=cmap.decimal))
     except pa.ArrowException:
         return None
     if invalid or any(table.column(source).null_count for source in set(used.values())):
@@ -167,6 +181,9 @@ def _unique(names: list[str]) -> list[str]:
 
 
 def _columns(table: pa.Table, used: dict[str, str], cmap: ColumnMap) -> tuple[np.ndarray, dict[str, np.ndarray]] | None:
+    if "t" not in used:  # fixed rate: the row index (read_csv turns it into time)
+        values = {target: table.column(source).to_numpy() for target, source in used.items()}
+        return np.arange(table.num_rows, dtype=np.int64), values
     t_raw = table.column(used["t"])
     if cmap.time_unit == "datetime":
         t_ns, ok = _parse_datetimes(t_raw.to_numpy(zero_copy_only=False), cmap)
@@ -226,6 +243,7 @@ def _diagnostic_read(path: Path, header_line: int, names: list[str], used: dict[
     except pa.ArrowException as exc:
         raise IngestError(f"unreadable CSV: {exc}", file=str(path)) from None
     lines = _data_lines(path, header_line)
+    all_lines = lines
     # pyarrow numbers a row as skip_rows + 1 (header) + its 1-based index among non-empty data rows
     dropped = np.array([number - header_line - 1 for number, _ in wrong_width], dtype=np.int64)
     for (_, reason), index in zip(wrong_width, dropped):
@@ -240,7 +258,10 @@ def _diagnostic_read(path: Path, header_line: int, names: list[str], used: dict[
             values, ok = _parse_datetimes(text, cmap)
             kind = "timestamp"
         else:
-            values = pd.to_numeric(pd.Series(text, dtype=object).str.strip(), errors="coerce").to_numpy(np.float64)
+            cells = pd.Series(text, dtype=object).str.strip()
+            if cmap.decimal == ",":
+                cells = cells.str.replace(",", ".", regex=False)
+            values = pd.to_numeric(cells, errors="coerce").to_numpy(np.float64)
             ok = np.isfinite(values)
             kind = "finite number"
             if target == "t":
@@ -251,7 +272,10 @@ def _diagnostic_read(path: Path, header_line: int, names: list[str], used: dict[
             bad.add(lines[~ok], f"column {source!r}: {text[first]!r} is not a {kind}")
         keep &= ok
         converted[target] = values
-    t_ns = converted.pop("t")[keep]
+    if "t" in converted:
+        t_ns = converted.pop("t")[keep]
+    else:  # fixed rate: each kept row's index among all data rows
+        t_ns = np.searchsorted(all_lines, lines[keep]).astype(np.int64)
     return t_ns, {k: v[keep] for k, v in converted.items()}, lines[keep]
 
 
@@ -281,5 +305,5 @@ def _backwards(t_ns: np.ndarray) -> np.ndarray:
 
 def read_csv_source(path: Path, options) -> Recording:
     """Registry entry (`.csv`, `.tsv`, `csv:`): `options` is an `ImportOptions`."""
-    delimiter = "\t" if path.suffix.lower() == ".tsv" and options.delimiter == "," else options.delimiter
+    delimiter = options.delimiter or ("\t" if path.suffix.lower() == ".tsv" else None)
     return read_csv(path, options.column_map(), strict=options.strict, delimiter=delimiter)

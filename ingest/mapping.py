@@ -2,9 +2,13 @@
 
 A mapping is `target -> source field`, given on the command line (`--map t=time,x=X1_ActualPosition`)
 or by a named preset (`ingest/presets/<name>.toml`). Targets are short names of standard columns
-(`t`, `x` .. `c`, `feed`, `requested_feed`, `line`, `jN`, `jN_fb`, `in_position`, `motion_type`,
-`spindle`) or an explicit `stream.column` kept as is. Units are declared, never guessed: lengths,
-angles, feeds and times are converted here to mm, deg, mm/min and int64 ns.
+(`t`, `x` .. `c`, `feed`, `requested_feed`, `line`, `block_number`, `jN`, `jN_fb`, `in_position`,
+`motion_type`, `spindle`) or an explicit `stream.column` kept as is. Units are declared, never guessed:
+lengths, angles, feeds and times are converted here to mm, deg, mm/min and int64 ns.
+
+A preset may list several source names for a target (`x = ["Xact", "Xabs"]`, controllers and adapters
+spell the same signal differently): `ColumnMap.resolve(names)` takes the first one the source has and
+says which in the metadata. A preset may also fix the CSV `delimiter` and the `decimal` mark.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ TARGETS: dict[str, tuple[str, str, str]] = {
     "feed": ("feed", "feed_mm_min", "velocity"),
     "requested_feed": ("feed", "requested_feed_mm_min", "velocity"),
     "line": ("line", "line", "int"),
+    "block_number": ("line", "block_number", "int"),  # the controller's N word (align maps it to lines)
     "in_position": ("status", "in_position", "bool"),
     "motion_type": ("status", "motion_type", "int8"),
     "spindle": ("spindle", "spindle_rpm", "float"),
@@ -64,11 +69,27 @@ class ColumnMap:
     required: list[str] = field(default_factory=list)
     name: str = "--map"
     controller: str = ""
+    candidates: dict[str, list[str]] = field(default_factory=dict)  # target -> source names, first found wins
+    delimiter: str | None = None     # CSV field delimiter the source uses (None: the reader's default)
+    decimal: str = "."               # decimal mark of the source's numbers
+    comment: str = "#"               # lines before the header starting with this are comments
+    rate_hz: float | None = None     # fixed-rate source without a time column: t = row index / rate_hz
 
     def __post_init__(self) -> None:
-        if "t" not in self.mapping:
-            raise IngestError(f"mapping {self.name} has no time column: add t=<column>")
-        if len(self.mapping) < 2:
+        if self.rate_hz is not None:
+            if not (isinstance(self.rate_hz, (int, float)) and 0 < self.rate_hz <= 1e9):
+                raise IngestError(f"mapping {self.name}: rate_hz must be a number of samples per second in "
+                                  f"(0, 1e9], got {self.rate_hz!r}")
+            if "t" in self.mapping:
+                raise IngestError(f"mapping {self.name} names a time column (t={self.mapping['t']}) and a fixed "
+                                  f"rate ({self.rate_hz:g} Hz): give one of them")
+            if not self.mapping:
+                raise IngestError(f"mapping {self.name} maps no value column")
+            self.time_unit = "s"
+        elif "t" not in self.mapping:
+            raise IngestError(f"mapping {self.name} has no time column: add t=<column>, or give the sampling "
+                              "rate of a file without one (--rate-hz)")
+        elif len(self.mapping) < 2:
             raise IngestError(f"mapping {self.name} maps only the time column; map at least one value")
         if self.time_unit not in TIME_UNITS:
             raise IngestError(f"time unit {self.time_unit!r} is not one of {', '.join(TIME_UNITS)}")
@@ -89,6 +110,34 @@ class ColumnMap:
             raise IngestError(f"mapping {self.name}: required targets {missing} are not mapped")
         if not self.required:
             self.required = list(self.mapping)
+        if self.delimiter is not None and len(self.delimiter) != 1:
+            raise IngestError(f"mapping {self.name}: delimiter must be one character, got {self.delimiter!r}")
+        if not self.comment:
+            raise IngestError(f"mapping {self.name}: comment must be a non-empty prefix, got {self.comment!r}")
+        if self.decimal not in (".", ","):
+            raise IngestError(f"mapping {self.name}: decimal must be '.' or ',', got {self.decimal!r}")
+
+    def resolve(self, names, *, file: str | None = None, line: int | None = None) -> ColumnMap:
+        """The mapping for a source whose fields are `names`: each target with candidates takes the
+        first candidate present (targets none of whose candidates exist are left out, unless required:
+        then the first candidate stays, so the reader names it as missing). `file`/`line`: where the
+        names come from, for the error when no value field is left."""
+        if not self.candidates:
+            return self
+        present = set(names)
+        if not any(o in present for options in self.candidates.values() for o in options) and \
+                not any(s in present for t, s in self.mapping.items() if t != "t" and t not in self.candidates):
+            shown = ", ".join(sorted(present)[:30])
+            raise IngestError(f"{self.name}: none of the fields it maps is in the source; it has: {shown or 'none'}",
+                              file=file, line=line)
+        mapping = dict(self.mapping)
+        for target, options in self.candidates.items():
+            found = next((o for o in options if o in present), None)
+            if found is not None:
+                mapping[target] = found
+            elif target not in self.required:
+                mapping.pop(target, None)
+        return ColumnMap(**{**self.__dict__, "mapping": mapping, "candidates": {}})
 
     def with_units(self, **units: str | None) -> ColumnMap:
         """A copy with the given units replaced (None keeps the current one)."""
@@ -96,14 +145,17 @@ class ColumnMap:
         return ColumnMap(**{**self.__dict__, **changes})
 
     def metadata(self) -> dict[str, str]:
+        time = f"row index / {self.rate_hz:g} Hz (no time column)" if self.rate_hz else self.time_unit
         return {"units": f"length {self.length_unit}->mm, angle {self.angle_unit}->deg, "
-                         f"feed {self.feed_unit}->mm/min, time {self.time_unit}", "mapping": self.name}
+                         f"feed {self.feed_unit}->mm/min, time {time}", "mapping": self.name,
+                "columns": ",".join(f"{t}={s}" for t, s in self.mapping.items())}
 
 
 def parse_map(text: str) -> dict[str, str]:
-    """`t=time,x=X1_ActualPosition` -> {"t": "time", "x": "X1_ActualPosition"}."""
+    """`t=time,x=X1_ActualPosition` -> {"t": "time", "x": "X1_ActualPosition"}. Commas inside brackets
+    belong to the column name (`x=/Channel/GeometricAxis/actToolBasePos[u1,1]`)."""
     mapping: dict[str, str] = {}
-    for item in filter(None, (part.strip() for part in text.split(","))):
+    for item in filter(None, (part.strip() for part in re.split(r",(?![^\[]*\])", text))):
         target, sep, source = item.partition("=")
         if not sep or not target.strip() or not source.strip():
             raise IngestError(f"--map entry {item!r} is not TARGET=COLUMN")
@@ -123,7 +175,9 @@ def load_preset(name: str) -> ColumnMap:
     data = tomllib.loads(path.read_text(encoding="utf-8"))
     mapping = data.pop("map")
     data.pop("description", None)
-    return ColumnMap(mapping=mapping, name=f"preset {name}", **data)
+    candidates = {t: list(v) for t, v in mapping.items() if isinstance(v, list)}
+    mapping = {t: (v[0] if isinstance(v, list) else v) for t, v in mapping.items()}
+    return ColumnMap(mapping=mapping, name=f"preset {name}", candidates=candidates, **data)
 
 
 def preset_description(name: str) -> str:

@@ -22,6 +22,7 @@ READERS: dict[str, tuple[str, str]] = {
     "mcap": ("feedlog.ingest.mcap_import", "read_mcap_source"),
     "csv": ("feedlog.ingest.csv_reader", "read_csv_source"),
     "can": ("feedlog.ingest.can_log", "read_can_source"),
+    "mtconnect": ("feedlog.ingest.mtconnect", "read_mtconnect_source"),
 }
 # file suffix -> scheme (one line per format)
 SUFFIXES: dict[str, str] = {
@@ -33,6 +34,9 @@ SUFFIXES: dict[str, str] = {
     ".trc": "can",
     ".mf4": "can",
     ".log": "can",
+    ".xml": "mtconnect",
+    ".shdr": "mtconnect",
+    ".txt": "mtconnect",
 }
 _SCHEME = re.compile(r"^([a-z][a-z0-9]+):(?!//)(.+)$")
 
@@ -49,23 +53,30 @@ class ImportOptions:
     feed_unit: str | None = None
     timezone: str | None = None
     time_format: str | None = None
-    delimiter: str = ","
+    delimiter: str | None = None    # CSV field delimiter (None: the preset's, else ",")
+    rate_hz: float | None = None     # CSV without a time column, sampled at a fixed rate
     dbc: str | None = None
+    device: str | None = None        # MTConnect: the device to read when a file holds several
     strict: bool = True
     recover: bool = False
 
     def __post_init__(self) -> None:
         if self.preset and self.mapping:
             raise IngestError(f"give either a preset ({self.preset!r}) or --map, not both")
-        if len(self.delimiter) != 1:
+        if self.delimiter is not None and len(self.delimiter) != 1:
             raise IngestError(f"delimiter must be one character, got {self.delimiter!r}")
 
     def column_map(self, *, default_preset: str | None = None) -> ColumnMap:
         """The preset or --map mapping with declared unit overrides applied."""
         if self.mapping:
-            base = ColumnMap(mapping=parse_map(self.mapping), time_unit=self.time_unit or "s")
+            base = ColumnMap(mapping=parse_map(self.mapping), time_unit=self.time_unit or "s", rate_hz=self.rate_hz)
         elif self.preset or default_preset:
             base = load_preset(self.preset or default_preset)
+            if self.rate_hz is not None:  # a preset with a time column read as a fixed-rate file
+                base = ColumnMap(**{**base.__dict__, "rate_hz": self.rate_hz,
+                                    "mapping": {k: v for k, v in base.mapping.items() if k != "t"},
+                                    "candidates": {k: v for k, v in base.candidates.items() if k != "t"},
+                                    "required": [r for r in base.required if r != "t"]})
         else:
             raise IngestError("this source needs a column mapping: --preset NAME or --map t=COL,x=COL,...")
         return base.with_units(time_unit=self.time_unit, length_unit=self.length_unit, angle_unit=self.angle_unit,

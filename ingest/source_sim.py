@@ -149,9 +149,9 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
     if args.rate_hz <= 0 or args.speedup <= 0:
         raise FeedlogError(f"--rate-hz {args.rate_hz} and --speedup {args.speedup} must be > 0")
     from feedlog.sim import simulate
-    from feedlog.toolpath import parse_program
+    from feedlog.toolpath import load_program
 
-    series = simulate(parse_program(args.program), args.profile, dt_s=1.0 / args.rate_hz).series
+    series = simulate(load_program(args.program), args.profile, dt_s=1.0 / args.rate_hz).series
     # the DBC pairs axes in frames (ZA, BC): keep only the axes the simulated machine has
     unused = frozenset(f"{axis}_deg" for axis in "abc" if f"{axis}_deg" not in series)
     if series.empty:

@@ -35,6 +35,8 @@ class SimTask:
     mechanisms: Any = None
     dt_s: float | None = None
     token: str = ""
+    lenient: bool = False        # unsupported program codes skipped (listed in the summary) instead of failing
+    dialect: str = "auto"        # G-code dialect (feedlog.toolpath.dialects)
 
 
 @dataclass
@@ -50,13 +52,13 @@ class SimItem:
 def simulate_one(task: SimTask) -> dict[str, Any]:
     """Runs on a worker: parse, simulate, publish the folder and the dataset partitions; the summary."""
     from feedlog.sim.simulate import simulate  # noqa: PLC0415
-    from feedlog.toolpath import parse_program  # noqa: PLC0415
+    from feedlog.toolpath import load_program  # noqa: PLC0415
 
     name = storage.stem(task.label)
     with storage.local_input(task.program) as local:
-        program = parse_program(Path(local), name=task.label)
+        program = load_program(Path(local), name=task.label, lenient=task.lenient, dialect=task.dialect)
     result = simulate(program, task.profile, mechanisms=task.mechanisms, dt_s=task.dt_s)
-    summary = {"program": task.label, **result.summary()}
+    summary = {"program": task.label, **result.summary(), **program_notes(program)}
     with storage.publish_dir(storage.join(task.outdir, name), token=task.token) as staging:
         result.series.to_parquet(staging / FILES[0], index=False)
         result.blocks.to_parquet(staging / FILES[1], index=False)
@@ -66,9 +68,20 @@ def simulate_one(task: SimTask) -> dict[str, Any]:
     return summary
 
 
+def program_notes(program: Any) -> dict[str, Any]:
+    """What a summary says about reading the program: its dialect, the codes skipped (lenient), warnings."""
+    out: dict[str, Any] = {"dialect": program.metadata.get("dialect", "rs274ngc")}
+    if program.unsupported:
+        out["skipped"] = [{"line": u.line, "code": u.code, "reason": u.reason} for u in program.unsupported]
+    if program.warnings:
+        out["warnings"] = list(program.warnings)
+    return out
+
+
 def simulate_many(programs: list[str | Path], outdir: str | Path, *, profile: Any, mechanisms: Any = None,
                   dt_s: float | None = None, jobs: int | None = None, scheduler: str | None = None,
-                  overwrite: bool = False, progress: bool = True, log=None) -> list[SimItem]:
+                  overwrite: bool = False, progress: bool = True, log=None, lenient: bool = False,
+                  dialect: str = "auto") -> list[SimItem]:
     """Simulate every program into OUTDIR/<stem>/ and OUTDIR/dataset/; results in the input order.
 
     `profile` is a MachineProfile, a shipped name or a TOML path (read here once).
@@ -90,10 +103,11 @@ def simulate_many(programs: list[str | Path], outdir: str | Path, *, profile: An
         there = None if overwrite else existing_output(root, name, files=FILES, tables=DATASET_TABLES,
                                                        key=PARTITION_KEY)
         if there is not None:
-            items[label] = SimItem(label, shown, False, error=f"{there} exists; pass --force to overwrite", exit_code=2)
+            items[label] = SimItem(label, shown, False, error=f"{there} exists; pass --overwrite to replace it", exit_code=2)
             continue
         tasks.append(SimTask(program=storage.absolute(label), label=label, outdir=root, profile=prof,
-                             mechanisms=mechanisms, dt_s=dt_s, token=token))
+                             mechanisms=mechanisms, dt_s=dt_s, token=token, lenient=lenient,
+                             dialect=dialect))
     try:
         results = run_tasks(simulate_one, tasks, jobs=jobs, scheduler=scheduler, desc="sim",
                             label=lambda t: t.label, progress=progress, log=log)

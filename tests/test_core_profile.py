@@ -10,8 +10,15 @@ from feedlog.errors import ProfileError
 from feedlog.profile import AxisLimits, MachineProfile, load_profile, shipped_profiles
 
 
-def test_shipped_profiles_are_the_three_reference_machines():
-    assert shipped_profiles() == ["chien-ac", "linuxcnc-xyz", "linuxcnc-xyzac"]
+def test_shipped_profiles_are_the_three_reference_machines_and_a_generic_start():
+    assert shipped_profiles() == ["chien-ac", "generic-xyz", "linuxcnc-xyz", "linuxcnc-xyzac"]
+
+
+def test_generic_xyz_is_a_3_axis_starting_guess_that_says_so():
+    p = load_profile("generic-xyz")
+    assert p.axis_names == ("x", "y", "z") and p.kinematics.type == "xyz"
+    assert all(p.axes[a].vel_max == 250.0 and p.axes[a].acc_max == 2000.0 for a in "xyz")
+    assert "guess" in p.description and "diagnose" in p.description
 
 
 def test_linuxcnc_xyz_matches_the_reference_config():

@@ -8,11 +8,13 @@ import json
 from pathlib import Path
 
 from feedlog.atomic import atomic_output
+from feedlog.cli_options import add_output, add_overwrite
 from feedlog.errors import FeedlogError
 from feedlog.profile import load_profile
 from feedlog.toolpath.features import DEFAULT_PROFILE
 from feedlog.parquet_sink import ParquetSink
-from feedlog.toolpath.parser import parse_program
+from feedlog.toolpath.dialects import DIALECTS
+from feedlog.toolpath.load import load_program, stream_dialect
 from feedlog.toolpath.stream import ProgramReader
 from feedlog.toolpath.summary import Summary, format_summary, summarize
 
@@ -26,43 +28,54 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lenient", action="store_true",
                         help="list unsupported codes and skip them instead of stopping at the first")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
-    parser.add_argument("--parquet", metavar="OUT", type=Path, help="write the block table to OUT (Parquet)")
-    parser.add_argument("--overwrite", action="store_true", help="allow --parquet to replace an existing file")
+    add_output(parser, type=Path, metavar="BLOCKS.parquet", aliases=("--parquet",),
+               help="write the block table to this Parquet file")
+    add_overwrite(parser, help="allow -o to replace an existing file")
+    parser.add_argument("--dialect", choices=DIALECTS, default="auto",
+                        help="G-code dialect: rs274ngc (LinuxCNC), fanuc/hurco, sinumerik (default: detected)")
     parser.add_argument("--stream", action=argparse.BooleanOptionalAction, default=None,
-                        help="read the program in chunks, summarise and write --parquet batch by batch "
-                             f"(default: for files of {STREAM_BYTES >> 20} MiB or more)")
+                        help="read the program in chunks, summarise and write -o batch by batch "
+                             f"(RS274/NGC only; default: for such files of {STREAM_BYTES >> 20} MiB or more)")
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.parquet is not None and args.parquet.exists() and not args.overwrite:
-        raise FeedlogError(f"{args.parquet} exists; pass --overwrite to replace it")
+    if args.out is not None and args.out.exists() and not args.overwrite:
+        raise FeedlogError(f"{args.out} exists; pass --overwrite to replace it")
     profile = load_profile(args.profile)
     if _streams(args):
         summary = _summarize_stream(args, profile)
     else:
-        program = parse_program(args.file, lenient=args.lenient)
+        program = load_program(args.file, lenient=args.lenient, dialect=args.dialect)
         summary = summarize(program, profile)
-        if args.parquet is not None:
-            with atomic_output(args.parquet) as temporary:
+        if args.out is not None:
+            with atomic_output(args.out) as temporary:
                 program.blocks.to_parquet(temporary, index=False)
-    if args.parquet is not None:
-        summary["parquet"] = str(args.parquet)
+    if args.out is not None:
+        summary["parquet"] = str(args.out)
     if args.json:
         print(json.dumps(summary, allow_nan=False))
     else:
         print(format_summary(summary))
-        if args.parquet is not None:
-            print(f"  block table  {args.parquet}")
+        if args.out is not None:
+            print(f"  block table  {args.out}")
     return 0
 
 
 def _streams(args: argparse.Namespace) -> bool:
-    if args.stream is not None:
-        return args.stream
+    """--stream, or by default an RS274/NGC file of STREAM_BYTES or more (other dialects are
+    translated as a whole)."""
+    if args.stream is False:
+        return False
+    if args.stream:
+        dialect = stream_dialect(args.file, args.dialect)
+        if dialect != "rs274ngc":
+            raise FeedlogError(f"{args.file}: --stream reads RS274/NGC (LinuxCNC) programs; this one is {dialect}")
+        return True
     try:
-        return args.file.stat().st_size >= STREAM_BYTES
+        large = args.file.stat().st_size >= STREAM_BYTES
     except OSError:
-        return False      # parse_program says what is wrong with the path
+        return False      # the reader says what is wrong with the path
+    return large and stream_dialect(args.file, args.dialect) == "rs274ngc"
 
 
 def _summarize_stream(args: argparse.Namespace, profile) -> dict:
@@ -70,8 +83,8 @@ def _summarize_stream(args: argparse.Namespace, profile) -> dict:
     with contextlib.ExitStack() as stack:
         reader = stack.enter_context(ProgramReader(args.file, lenient=args.lenient))
         sink = None
-        if args.parquet is not None:
-            sink = ParquetSink(stack.enter_context(atomic_output(args.parquet)))
+        if args.out is not None:
+            sink = ParquetSink(stack.enter_context(atomic_output(args.out)))
             stack.callback(sink.close)    # closed before the rename
         summary = Summary(profile, name=reader.name)
         first = None
@@ -82,4 +95,5 @@ def _summarize_stream(args: argparse.Namespace, profile) -> dict:
             first = batch.iloc[:0] if first is None else first
         if sink is not None and first is not None:
             sink.close(first)
-        return summary.result(warnings=reader.warnings, unsupported=reader.unsupported, metadata=reader.metadata)
+        return summary.result(warnings=reader.warnings, unsupported=reader.unsupported,
+                              metadata={**reader.metadata, "dialect": "rs274ngc"})

@@ -12,6 +12,7 @@ import json
 import sys
 
 from feedlog.errors import ModelError
+from feedlog.cli_options import add_output, add_overwrite, add_quiet
 from feedlog.execution import add_arguments as add_execution_arguments
 from feedlog.execution import task_runner
 from feedlog.train.evaluate import DEFAULT_MODELS, format_results, train_and_evaluate
@@ -21,7 +22,7 @@ from feedlog.train.registry import PRESETS, model_names
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("aligned", nargs="+", metavar="ALIGNED_DIR", help="feedlog align output folder(s)")
-    parser.add_argument("-o", "--outdir", required=True, help="folder for checkpoints and results")
+    add_output(parser, required=True, metavar="OUTDIR", aliases=("--outdir",), help="folder for checkpoints and results")
     parser.add_argument("--models", default=",".join(DEFAULT_MODELS),
                         help="comma-separated model names (default: %(default)s)")
     parser.add_argument("--preset", choices=PRESETS, default="full",
@@ -33,8 +34,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--epochs", type=int, help="override every model's maximum number of epochs")
     parser.add_argument("--sim-augment", type=int, default=0, metavar="N",
                         help="add N simulated training programs per machine (feedlog.sim; not for the hybrid)")
-    parser.add_argument("--overwrite", action="store_true", help="replace existing checkpoints and results")
-    parser.add_argument("--quiet", "-q", action="store_true", help="no progress bars")
+    add_overwrite(parser, help="replace existing checkpoints and results")
+    add_quiet(parser, help="no progress bars")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
     add_execution_arguments(parser, jobs_help="local worker processes for reading the aligned folders and the "
                                               "hybrid's simulations (default: all cores); training runs here")
@@ -45,7 +46,7 @@ def _train(args: argparse.Namespace, models: list[str], tables, runner):
     print(f"{len(tables)} aligned recording(s): {n_train} for training, {len(tables) - n_train} held out",
           file=sys.stderr if args.json else sys.stdout)  # --json: stdout is one JSON document
     overrides = {m: {"epochs": args.epochs} for m in models} if args.epochs else None
-    return train_and_evaluate(tables, out_dir=args.outdir, models=models, seed=args.seed, preset=args.preset,
+    return train_and_evaluate(tables, out_dir=args.out, models=models, seed=args.seed, preset=args.preset,
                               overrides=overrides, overwrite=args.overwrite, sim_augment=args.sim_augment,
                               progress=not args.quiet, runner=runner)
 
@@ -75,5 +76,5 @@ def run(args: argparse.Namespace) -> int:
             print(f"  note: {note}")
     for name, why in results.attrs.get("not_evaluated", {}).items():
         print(f"{name}: not evaluated: {why}")
-    print(f"results: {args.outdir}/results.csv, results.md; per-block predictions in {args.outdir}/predictions/")
+    print(f"results: {args.out}/results.csv, results.md; per-block predictions in {args.out}/predictions/")
     return 0

@@ -106,7 +106,7 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
             row["sim_err_pct"] = error_pct(row["sim_s"], row["measured_s"])
     block_preds = {t.name: t.blocks[["block", "line", TARGET]].copy() for t in test}
     summary: dict[str, Any] = {}
-    for name in models:
+    for k, name in enumerate(models, start=1):
         fit_on, test_on = augmented, list(test)
         if name == "hybrid":
             # the hybrid trains on the recordings the simulation could run and predicts only those
@@ -119,10 +119,14 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
         cls = model_class(name)
         model = cls(config, target_lengths=[len(t.blocks) for t in test]) if cls is FinalBiLSTM else cls(config)
         start = time.perf_counter()
+        log(f"[{k}/{len(models)}] training {name} on {len(fit_on)} program table(s)")
         model.fit(fit_on, progress=progress)
         train_s = time.perf_counter() - start
+        log(f"[{k}/{len(models)}] {name} trained in {train_s:.1f} s")
         if fit_on[0].profile is not None:
             model.params.setdefault("profile", fit_on[0].profile.name)
+            # every machine trained on: `feedlog predict` picks the one whose axes fit a program
+            model.params.setdefault("profiles", sorted({t.profile.name for t in fit_on if t.profile is not None}))
         model.fingerprint = fingerprint(fit_on, model.required_columns + [TARGET])
         path = save_checkpoint(model, out / f"{name}.pt", overwrite=overwrite)
         notes: list[str] = []

@@ -109,9 +109,9 @@ def _attach_program_columns(blocks, text: str, name: str, profile):
     if all(c in blocks.columns for c in PROGRAM_COLUMNS):
         return blocks
     try:
-        from feedlog.toolpath import parse_program
+        from feedlog.toolpath import load_program
 
-        program = parse_program(text, name=name)
+        program = load_program(text, name=name)
     except (ImportError, FeedlogError):
         return blocks  # models then take LinuxCNC's default Q = P (features.merge_tol_eff_mm)
     return with_program_columns(blocks, program, profile)

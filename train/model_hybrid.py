@@ -74,11 +74,11 @@ def attach_sim(table: ProgramTable, *, program: Any = None) -> ProgramTable:
                          f"simulate, or a {SIM_COLUMN!r} column")
     try:
         from feedlog.sim import simulate
-        from feedlog.toolpath import parse_program
+        from feedlog.toolpath import load_program
     except ImportError as exc:
         raise ModelError(f"the hybrid model needs feedlog.sim and feedlog.toolpath: {exc}") from None
     if program is None:
-        program = parse_program(table.program_text, name=table.name)
+        program = load_program(table.program_text, name=table.name)
     result = simulate(program, table.profile)
     sim = result.blocks[["block", "duration_s"]].rename(columns={"duration_s": SIM_COLUMN})
     sim = sim.groupby("block", as_index=False)[SIM_COLUMN].sum()

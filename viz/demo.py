@@ -20,7 +20,7 @@ from feedlog.viz.overlay import save_view
 from feedlog.viz.mystery import Mystery, diagnose_mystery
 from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, run_demo
 from feedlog.viz.plots import plot_cycle_times, plot_view
-from feedlog.viz.report import (ReportSection, TableRow, cycle_time_table, table_json, table_markdown,
+from feedlog.viz.report import (ReportSection, TableRow, cycle_time_table, headline, table_json, table_markdown,
                                 write_report)
 
 DEFAULT_RECORDINGS = Path("recordings")
@@ -36,6 +36,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="recordings folder (default: the bundled recordings/)")
     parser.add_argument("--json", action="store_true", help="print the cycle-time table as JSON rows only")
     parser.add_argument("--no-train", action="store_true", help="skip training and prediction")
+    parser.add_argument("--no-rrd", action="store_true",
+                        help="write no Rerun .rrd files (about 3 MB per recording; plots and report only)")
     parser.add_argument("--models", help="comma-separated model names to train (default: the demo set)")
     parser.add_argument("--detail-plots", type=int, default=DETAIL_PLOTS, metavar="N",
                         help=f"recordings that get all four plots, the rest get the feed plot (default {DETAIL_PLOTS})")
@@ -96,7 +98,7 @@ def detail_runs(result: DemoResult, count: int) -> set[str]:
 
 
 def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PLOTS,
-                  mystery: Mystery | None = None) -> dict[str, Path]:
+                  mystery: Mystery | None = None, rrd: bool = True) -> dict[str, Path]:
     """Plots, .rrd files, JSON table and the Markdown report; returns what was written.
 
     Every recording gets its feed plot and .rrd; `detail` recordings also get the axis, path and
@@ -107,15 +109,16 @@ def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PL
     model_names = list(result.training.checkpoints) if result.training and result.training.available else []
     table = cycle_time_table(_rows(result), model_names=model_names)
     detailed = detail_runs(result, detail)
-    for run in result.runs:
+    for k, run in enumerate(result.runs, start=1):
         if run.data is None:
             continue
         kinds = None if run.entry.name in detailed else ("feed",)
         run.plots = plot_view(run.data, plots_dir, stem=run.entry.name, kinds=kinds)
-        rerun_dir.mkdir(parents=True, exist_ok=True)
-        run.rrd = rerun_dir / f"{run.entry.name}.rrd"
-        save_view(run.data, run.rrd)
-        log(f"{run.entry.name}: plots and {run.rrd.name} written")
+        if rrd:
+            rerun_dir.mkdir(parents=True, exist_ok=True)
+            run.rrd = rerun_dir / f"{run.entry.name}.rrd"
+            save_view(run.data, run.rrd)
+        log(f"[{k}/{len(result.runs)}] {run.entry.name}: plots" + (f" and {run.rrd.name}" if rrd else "") + " written")
     bars = plot_cycle_times(table, plots_dir / "cycle_times.png") if len(table) else None
     result.timings_s["plots_and_rrd"] = time.perf_counter() - started
     result.timings_s["total"] = result.timings_s.get("total", 0.0) + result.timings_s["plots_and_rrd"]
@@ -208,19 +211,21 @@ def run(args: argparse.Namespace) -> int:
     recordings = args.recordings or default_recordings()
     models = tuple(m.strip() for m in args.models.split(",") if m.strip()) if args.models else None
     config = DemoConfig(recordings=recordings, out=args.out, train=not args.no_train, models=models, log=log,
-                        jobs=args.jobs, scheduler=args.scheduler)
+                        jobs=args.jobs, scheduler=args.scheduler, progress=not args.json)
     prepare_out(args.out)
     result = run_demo(config)
     mystery = diagnose_mystery(recordings, args.out, log=log)
     if mystery is not None:
         result.timings_s["diagnose"] = mystery.seconds
-    written = write_outputs(result, args.out, log=log, detail=args.detail_plots, mystery=mystery)
+    written = write_outputs(result, args.out, log=log, detail=args.detail_plots, mystery=mystery, rrd=not args.no_rrd)
     if args.json:
         print(table_json(written["table"]))
         return 0
     rrds = [r.rrd for r in result.runs if r.rrd is not None]
     print()
     print(f"feedlog demo finished in {time.perf_counter() - started:.1f} s")
+    print("\n".join(headline(written["table"])))
+    print()
     print(f"  report (Markdown + PNG plots): {written['report']}")
     print(f"  cycle-time table (JSON):       {written['json']}")
     if result.training is not None and result.training.available:

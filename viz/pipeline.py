@@ -268,14 +268,15 @@ def _run_demo(config: DemoConfig, runner: TaskRunner) -> DemoResult:
         else:
             runs[i].errors.append(f"verify, align, simulate failed: {result.error}")
         problems = len(runs[i].errors)
-        log(f"{runs[i].entry.name}: verify, align, simulate" + (f": {problems} error(s)" if problems else ""))
+        log(f"[{i + 1}/{len(runs)}] {runs[i].entry.name}: verify, align, simulate"
+            + (f": {problems} error(s)" if problems else ""))
     timings["verify_align_simulate"] = time.perf_counter() - t0
 
     training = None
     t1 = time.perf_counter()
     if config.train:
         training = train_models(runs, out_dir=config.out / "models", models=config.models, preset=config.preset,
-                                log=log, runner=runner)
+                                log=log, runner=runner, progress=config.progress)
         for run in runs:
             if run.gathered is not None and run.gathered.program is not None:
                 for name, pred in predict_for(training, run).items():

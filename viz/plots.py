@@ -124,9 +124,15 @@ def plot_block_times(data: ViewData, path: str | Path) -> Path:
     return _save(fig, Path(path))
 
 
+MAX_BARS = 30   # more programs than this: one point per program against the first source (readable at any count)
+
+
 def plot_cycle_times(table: pd.DataFrame, path: str | Path) -> Path:
-    """Grouped bars: cycle time per program for every source present in the table (seconds)."""
+    """Grouped bars: cycle time per program for every source present in the table (seconds); with more
+    than MAX_BARS programs, every other source against the first (usually the measured time)."""
     sources = [c for c in table.columns if c.endswith("_s") and table[c].notna().any()]
+    if len(table) > MAX_BARS and len(sources) > 1:
+        return _cycle_time_scatter(table, sources, Path(path))
     fig, ax = plt.subplots(figsize=(max(6, 0.5 * len(table) + 3), 5))
     fig.subplots_adjust(left=0.08, right=0.98, top=0.93, bottom=0.3)
     x = np.arange(len(table))
@@ -141,6 +147,24 @@ def plot_cycle_times(table: pd.DataFrame, path: str | Path) -> Path:
     ax.legend(fontsize=8)
     ax.grid(axis="y", alpha=0.3)
     return _save(fig, Path(path))
+
+
+def _cycle_time_scatter(table: pd.DataFrame, sources: list[str], path: Path) -> Path:
+    ref = sources[0]
+    x = table[ref].to_numpy(dtype=np.float64)
+    fig, ax = plt.subplots(figsize=(7, 6))
+    for i, col in enumerate(sources[1:]):
+        name = col[:-2]
+        ax.scatter(x, table[col].to_numpy(dtype=np.float64), s=12, label=name, color=_c(name, i - 2), alpha=0.8)
+    finite = x[np.isfinite(x)]
+    hi = float(finite.max()) * 1.05 if len(finite) else 1.0
+    ax.plot([0, hi], [0, hi], color="0.5", lw=0.8, label=f"= {ref[:-2]}")
+    ax.set_xlabel(f"{ref[:-2]} cycle time (s)")
+    ax.set_ylabel("estimated cycle time (s)")
+    ax.set_title(f"cycle time of {len(table)} programs against {ref[:-2]}")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
 
 
 PLOTS = {"feed": plot_feed, "axes": plot_axes, "path": plot_path, "blocks": plot_block_times}

@@ -104,10 +104,28 @@ class ReportSection:
     images: list[tuple[str, Path]] = field(default_factory=list)  # (caption, path)
 
 
+def headline(table: pd.DataFrame) -> list[str]:
+    """The answer in a few lines: how far each estimate of the cycle time is from the measured one
+    (mean absolute error; held-out rows separately when there are any), best first."""
+    measured = int(np.isfinite(table["measured_s"].to_numpy(dtype=np.float64)).sum()) if len(table) else 0
+    overall = error_summary(table)
+    if not overall:
+        return [f"{len(table)} recording(s), {measured} with a measured cycle time; no estimate to compare."]
+    held_out = error_summary(table, split="test")
+    lines = [f"{len(table)} recordings, {measured} with a measured cycle time. Mean absolute cycle-time error "
+             "(lower is better):"]
+    for name, value in sorted(overall.items(), key=lambda kv: kv[1]):
+        test = f", held-out {held_out[name]:.1f} %" if name in held_out else ""
+        lines.append(f"- {name}: {value:.1f} %{test}")
+    return lines
+
+
 def write_report(path: Path, *, title: str, intro: Sequence[str], table: pd.DataFrame,
                  sections: Sequence[ReportSection]) -> Path:
-    """Markdown report next to its images (image links are relative to the report)."""
-    out = [f"# {title}", "", *intro, "", "## Cycle times", "", table_markdown(table), ""]
+    """Markdown report next to its images (image links are relative to the report); the headline
+    (`headline`) first."""
+    out = [f"# {title}", "", "## Summary", "", *headline(table), "", *intro, "", "## Cycle times", "",
+           table_markdown(table), ""]
     summary = error_summary(table)
     if summary:
         out.append("Mean absolute cycle-time error over all rows: "

@@ -17,7 +17,7 @@ from feedlog.errors import FeedlogError
 # name -> (module, attribute). One line per function viz calls in another stage.
 STAGE_FUNCTIONS: dict[str, tuple[str, str]] = {
     "read_recording": ("feedlog.ingest", "read_recording"),
-    "parse_program": ("feedlog.toolpath", "parse_program"),
+    "parse_program": ("feedlog.toolpath", "load_program"),
     "cl_points": ("feedlog.toolpath", "cl_points"),
     "block_features": ("feedlog.toolpath", "block_features"),
     "simulate": ("feedlog.sim", "simulate"),

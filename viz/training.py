@@ -33,20 +33,27 @@ DEMO_MODELS = ("mlp", "bilstm-block", "bilstm-final", "hybrid")  # bilstm-r is a
 
 
 def program_table(run: RecordingRun):
-    """train's ProgramTable for an aligned run (block features and measured block times from align)."""
+    """train's ProgramTable for an aligned run (block features and measured block times from align), with
+    the program columns `feedlog train` attaches when it reads align's output (`with_program_columns`:
+    axis times, path limits, G64 Q), so the demo trains on what `feedlog predict` later computes from the
+    program alone: the model columns of report.md and models/results.md are then the same numbers."""
     from feedlog.train import ProgramTable  # train is optional: imported only when it exists
+    from feedlog.train.features import with_program_columns
 
     g = run.gathered
-    return ProgramTable(run.entry.name, g.aligned.blocks, program=run.entry.family or run.entry.program,
+    blocks = with_program_columns(g.aligned.blocks, g.program, g.profile) if g.program is not None else g.aligned.blocks
+    return ProgramTable(run.entry.name, blocks, program=run.entry.family or run.entry.program,
                         split=run.entry.split, points=g.aligned.points, profile=g.profile,
                         program_text=run.recording.program_text if run.recording is not None else None)
 
 
 def train_models(runs: Sequence[RecordingRun], *, out_dir: Path, models: Sequence[str] | None = None,
-                 preset: str = "quick", log: Callable[[str], None] = print, runner: Any = None) -> TrainOutcome:
+                 preset: str = "quick", log: Callable[[str], None] = print, runner: Any = None,
+                 progress: bool = False) -> TrainOutcome:
     """Train on the runs that were aligned; a missing train/ or align/ stage is reported, not faked.
 
-    `runner` (feedlog.execution.TaskRunner) runs the hybrid's simulations; training runs here."""
+    `runner` (feedlog.execution.TaskRunner) runs the hybrid's simulations; training runs here. `progress`:
+    per-epoch bars on a terminal."""
     try:
         train_and_evaluate = stage_function("train_and_evaluate")
         stage_function("predict_program")
@@ -61,7 +68,7 @@ def train_models(runs: Sequence[RecordingRun], *, out_dir: Path, models: Sequenc
     try:
         tables = [program_table(r) for r in aligned]
         results = train_and_evaluate(tables, out_dir=out_dir, models=names, preset=preset, overwrite=True,
-                                     progress=False, log=log, runner=runner)
+                                     progress=progress, log=log, runner=runner)
     except FeedlogError as exc:
         return TrainOutcome(available=False, reason=f"training failed: {exc}")
     except Exception as exc:  # noqa: BLE001 - a bug in train/ must not stop the main job
@@ -69,7 +76,10 @@ def train_models(runs: Sequence[RecordingRun], *, out_dir: Path, models: Sequenc
                                                     f"({type(exc).__name__}: {exc})")
     summary = results.attrs.get("summary", {})
     checkpoints = {name: Path(info["checkpoint"]) for name, info in summary.items() if "checkpoint" in info}
-    notes = [f"{name}: skipped ({info['skipped']})" for name, info in summary.items() if "skipped" in info]
+    notes = [f"trained with the {preset} preset"
+             + (" (few epochs, so that the demo stays short); the README and docs/train.md quote the full preset "
+                "(`feedlog train --preset full`), so their figures differ" if preset != "full" else "")]
+    notes += [f"{name}: skipped ({info['skipped']})" for name, info in summary.items() if "skipped" in info]
     notes += [f"{name}: trained in {info['train_s']} s" for name, info in summary.items() if "train_s" in info]
     notes += [f"{rec}: not evaluated ({why})" for rec, why in results.attrs.get("not_evaluated", {}).items()]
     not_aligned = [r.entry.name for r in runs if r not in aligned]

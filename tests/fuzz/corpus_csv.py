@@ -70,6 +70,7 @@ def build(rng: random.Random) -> list[Case]:
             _case(f"{stem}/bad-timezone", data, preset, "error", extra=("--timezone", "Mars/Olympus_Mons"),
                   blame="--timezone"),
         ]
+    cases += _machine_exports(rng)
     servo = (FIXTURES / "servo_trace_1khz.csv").read_bytes()
     header, *rows = mutate.lines_of(servo)
     good_rows = b"\n".join(f"{k},{k * 0.001:.3f},0,0,3000".encode() for k in range(200_000))
@@ -89,4 +90,37 @@ def build(rng: random.Random) -> list[Case]:
         _case("monitoring/bad-format", (FIXTURES / "monitoring_5hz.csv").read_bytes(), "monitoring-5hz", "error",
               extra=("--time-format", "%Q"), blame="--time-format"),
     ]
+    return cases
+
+
+# real machines' exports (tests/fixtures/ingest/real): a fixed-rate file without a time column and a
+# `;`-separated trace with a comment line before its header
+MACHINE_EXPORTS = {  # file -> (preset, lines up to the header, delimiter, column of X)
+    "umich_experiment.csv": ("umich-tool-wear", 1, b",", 0),
+    "sinumerik_trace.csv": ("sinumerik-trace", 2, b";", 1),
+}
+
+
+def _machine_exports(rng: random.Random) -> list[Case]:
+    cases = []
+    for file, (preset, header, delimiter, x) in MACHINE_EXPORTS.items():
+        data = (FIXTURES / "real" / file).read_bytes()
+        stem = file.removesuffix(".csv")
+
+        def cell(value: str, **kw) -> bytes:
+            return mutate.csv_cell(data, rng, value, column=x, header_lines=header, delimiter=delimiter, **kw)
+
+        cases += [
+            _case(f"{stem}/x-one-nan", cell("nan"), preset, "error", lenient="ok"),
+            _case(f"{stem}/x-one-inf", cell("inf"), preset, "error", lenient="ok"),
+            _case(f"{stem}/x-all-1e400", cell("1e400", every_row=True), preset, "error",
+                  lenient="error"),
+            _case(f"{stem}/crlf", mutate.line_endings(data, b"\r\n"), preset, seed=data),
+            _case(f"{stem}/cr-only", mutate.line_endings(data, b"\r"), preset, seed=data),
+            _case(f"{stem}/bom", mutate.BOM + data, preset, seed=data),
+            _case(f"{stem}/utf16", mutate.reencode(data, "utf-16"), preset, "error"),
+            _case(f"{stem}/truncated", mutate.truncate(data, rng), preset, lenient="any"),
+            _case(f"{stem}/bitflip", mutate.flip_bits(data, rng, count=3), preset, lenient="any"),
+            _case(f"{stem}/header-only", b"\n".join(mutate.lines_of(data)[:header]) + b"\n", preset, "error"),
+        ]
     return cases

@@ -45,7 +45,7 @@ from pathlib import Path
 from tests.fuzz.cases import Case, Run
 
 SEED = 19
-KINDS = ("gcode", "mcap", "csv", "can", "config")
+KINDS = ("gcode", "mcap", "csv", "can", "config", "mtconnect")
 GOOD = ("ok", "clear_error")
 TIMEOUT_S = 60
 MAX_TIME_S = 1e9          # longest program or recording feedlog accepts
@@ -57,10 +57,10 @@ POSITION = re.compile(r":\d+\b|\b(line|lines|byte|frame|frames|record|message|sa
 
 def build(kind: str) -> list[Case]:
     """The corpus of one input type; the same every time (seeded)."""
-    from tests.fuzz import corpus_can, corpus_config, corpus_csv, corpus_gcode, corpus_mcap
+    from tests.fuzz import corpus_can, corpus_config, corpus_csv, corpus_gcode, corpus_mcap, corpus_mtconnect
 
     builders = {"gcode": corpus_gcode.build, "mcap": corpus_mcap.build, "csv": corpus_csv.build,
-                "can": corpus_can.build, "config": corpus_config.build}
+                "can": corpus_can.build, "config": corpus_config.build, "mtconnect": corpus_mtconnect.build}
     return builders[kind](random.Random(f"{SEED}:{kind}"))
 
 

@@ -91,9 +91,9 @@ def test_missing_column_and_bad_mapping_are_clear():
 def test_registry_picks_by_suffix_and_scheme_and_lists_supported(tmp_path):
     rec = read_source(FIX / "servo_trace_1khz.csv", ImportOptions(preset="servo-trace-1khz"))
     assert len(rec.streams["axes"]) == 200
-    txt = tmp_path / "trace.txt"
+    txt = tmp_path / "trace.dat"
     txt.write_bytes((FIX / "servo_trace_1khz.csv").read_bytes())
-    with pytest.raises(IngestError, match=r"no reader for suffix '\.txt'; supported: \.mcap, \.csv"):
+    with pytest.raises(IngestError, match=r"no reader for suffix '\.dat'; supported: \.mcap, \.csv"):
         read_source(txt, ImportOptions(preset="servo-trace-1khz"))
     assert len(read_source(f"csv:{txt}", ImportOptions(preset="servo-trace-1khz")).streams["axes"]) == 200
     with pytest.raises(IngestError, match="give either a preset"):

@@ -13,7 +13,7 @@ from feedlog.ingest import PROGRAM_ATTACHMENT, read_recording
 
 ROOT = Path(__file__).resolve().parents[2]
 RECORDINGS = ROOT / "recordings"
-SHARED = ROOT.parent / "shared" / "linuxcnc"
+SHARED = ROOT / "recordings" / "programs"  # copies of the shared LinuxCNC test programs
 sys.path.insert(0, str(ROOT / "scripts"))
 import linuxcnc_programs as progs  # noqa: E402
 import make_recordings  # noqa: E402
@@ -54,8 +54,6 @@ def test_committed_programs_are_what_the_script_generates(manifest):
 
 
 def test_shared_programs_are_regenerated_byte_for_byte():
-    if not SHARED.is_dir():
-        pytest.skip(f"{SHARED} not present")
     assert progs.shared_test("G64 P0.01") == (SHARED / "test_p001.ngc").read_text()
     assert progs.shared_test("G61") == (SHARED / "test_g61.ngc").read_text()
     assert progs.shared_dense() == (SHARED / "dense002q0.ngc").read_text()

@@ -72,10 +72,13 @@ def test_several_programs_write_one_folder_each_and_a_dataset(tmp_path, capsys):
     pd.testing.assert_frame_equal(blocks[blocks["program"] == "b"].drop(columns="program").reset_index(drop=True),
                                   pd.read_parquet(out / "b" / "blocks.parquet"), check_dtype=False)
     assert not (out / "bad").exists()
-    assert main(["sim", str(a), *opts, "-o", str(out), "-j", "1"]) == 2   # exists: --force to replace
-    assert "pass --force" in capsys.readouterr().err
-    assert main(["sim", str(a), "--profile", "linuxcnc-xyz", "-o", str(out), "--out", str(tmp_path / "s.parquet")]) == 2
-    assert "--out/--blocks-out are for one program" in capsys.readouterr().err
+    assert main(["sim", str(a), *opts, "-o", str(out), "-j", "1"]) == 2   # exists: --overwrite to replace
+    assert "pass --overwrite" in capsys.readouterr().err
+    # -o names one thing: a folder, or (one program) the series file; several programs need the folder
+    assert main(["sim", str(a), str(b), "--profile", "linuxcnc-xyz", "-o", str(tmp_path / "s.parquet")]) == 2
+    assert "need an output folder" in capsys.readouterr().err
+    assert main(["sim", str(a), "--profile", "linuxcnc-xyz", "-o", str(out), "--blocks-out", str(tmp_path / "b.parquet")]) == 2
+    assert "--blocks-out is for one program" in capsys.readouterr().err
 
 
 def _sim_tables(tmp_path, capsys, program, *extra):
@@ -144,3 +147,14 @@ def test_large_program_streams_by_default_unless_a_mechanism_cannot(tmp_path, ca
     assert len(pd.read_parquet(tmp_path / "b.parquet")) >= 2        # streamed
     assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "-q", "--enable", "jerk_filter"]) == 2
     assert "needs about" in capsys.readouterr().err                 # whole-program run, refused
+
+
+def test_stream_reads_rs274ngc_only(tmp_path, capsys):
+    """Other dialects are translated as a whole: --stream says so; by default they run at once."""
+    src = tmp_path / "part.mpf"
+    src.write_text("G710 G90\nG1 X10 F1000 ; a line\nM30\n")
+    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "--stream", "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "--stream reads RS274/NGC" in err and "sinumerik" in err and "Traceback" not in err
+    assert main(["sim", str(src), "--profile", "linuxcnc-xyz", "--json", "-q"]) == 0
+    assert json.loads(capsys.readouterr().out)["dialect"] == "sinumerik"

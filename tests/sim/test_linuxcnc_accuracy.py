@@ -12,7 +12,7 @@ from feedlog.sim import simulate
 from feedlog.toolpath import parse_program
 
 ROOT = Path(__file__).resolve().parents[2]
-SHARED = ROOT.parent / "shared" / "linuxcnc"
+SHARED = ROOT / "recordings" / "programs"  # the shared LinuxCNC programs, kept in the repo
 MANIFEST = ROOT / "recordings" / "manifest.toml"
 # program -> (profile, measured cycle time in s, first motion to end of motion)
 MEASURED = {
@@ -25,7 +25,6 @@ MEASURED = {
 }
 
 
-@pytest.mark.skipif(not SHARED.is_dir(), reason=f"reference programs not found in {SHARED}")
 @pytest.mark.parametrize("name", sorted(MEASURED))
 def test_cycle_time_within_two_percent(name):
     profile, measured = MEASURED[name]

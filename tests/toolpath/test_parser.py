@@ -13,7 +13,7 @@ from feedlog.errors import ProgramError
 from feedlog.toolpath import parse_program
 from feedlog.toolpath.schema import BLOCK_COLUMNS
 
-SHARED = Path(__file__).resolve().parents[3] / "shared" / "linuxcnc"
+SHARED = Path(__file__).resolve().parents[2] / "recordings" / "programs"  # the shared LinuxCNC programs
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
@@ -189,8 +189,6 @@ def _simple_linuxcnc_reference(path: Path) -> tuple[int, float]:
 @pytest.mark.parametrize("name", ["test_p001.ngc", "dense002q0.ngc", "5ax_g61.ngc"])
 def test_real_linuxcnc_programs(name):
     path = SHARED / name
-    if not path.exists():
-        pytest.skip(f"{path} not present")
     p = parse_program(path)
     n, length = _simple_linuxcnc_reference(path)
     assert len(p.motion) == n
@@ -201,8 +199,6 @@ def test_real_linuxcnc_programs(name):
 
 def test_linuxcnc_program_modes():
     path = SHARED / "dense002q0.ngc"
-    if not path.exists():
-        pytest.skip(f"{path} not present")
     m = parse_program(path).motion
     assert (m["tol_mm"] == 0.01).all() and (m["merge_tol_mm"] == 0).all()
     assert (m["feed_mm_min"].iloc[1:] == 3000).all()

@@ -22,7 +22,8 @@ RS274 = shutil.which("rs274")
 pytestmark = pytest.mark.skipif(RS274 is None, reason="LinuxCNC's rs274 interpreter is not installed "
                                                       "(apt-get install linuxcnc-uspace)")
 ROOT = Path(__file__).resolve().parents[2]
-SHARED = ROOT.parent / "shared" / "linuxcnc"
+SHARED = ROOT / "recordings" / "programs"  # the shared LinuxCNC programs, kept in the repo
+SHARED_PROGRAMS = ("5ax_g61.ngc", "5ax_p001.ngc", "dense002q0.ngc", "test_g61.ngc", "test_p001.ngc", "test_p01.ngc")
 _CALL = re.compile(r"(STRAIGHT_TRAVERSE|STRAIGHT_FEED|ARC_FEED|SELECT_PLANE|SET_FEED_RATE|"
                    r"SET_MOTION_CONTROL_MODE|SET_NAIVECAM_TOLERANCE|SET_G5X_OFFSET|SET_G92_OFFSET)\(([^)]*)\)")
 _MODES = {"CANON_CONTINUOUS": "continuous", "CANON_EXACT_PATH": "exact_path", "CANON_EXACT_STOP": "exact_stop"}
@@ -106,7 +107,7 @@ def assert_same_as_rs274(path: Path, tol: float = 2e-4) -> int:
 
 
 # examples/fiveaxis_cl_ijk.ngc is CL data (I J K orientation on G1), which LinuxCNC does not accept
-LINUXCNC_PROGRAMS = sorted(SHARED.glob("*.ngc")) + sorted(p for p in (ROOT / "examples").glob("*.ngc")
+LINUXCNC_PROGRAMS = sorted(SHARED / n for n in SHARED_PROGRAMS) + sorted(p for p in (ROOT / "examples").glob("*.ngc")
                                                           if "_cl_" not in p.name)
 # the recorded five-axis programs that set a work offset (G10 L2 P1 ... G54)
 OFFSET_PROGRAMS = sorted((ROOT / "recordings" / "programs").glob("*offset*.ngc"))

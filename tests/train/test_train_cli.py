@@ -90,8 +90,13 @@ def test_train_then_predict(tmp_path, capsys, examples_dir, monkeypatch):
     monkeypatch.chdir(work)
     assert main(["predict", str(program), "--model", str(out / "bilstm-block.pt"), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert (work / "pocket.bilstm-block.blocks.parquet").is_file()  # the current folder, not beside the program
-    assert not (tmp_path / "pocket.bilstm-block.blocks.parquet").exists()
+    assert doc["blocks_file"] is None and not list(work.iterdir()) and not list(tmp_path.glob("pocket.*.parquet"))
+    # twice in a row works: nothing was written (issue #21); -o writes the per-block table
+    assert main(["predict", str(program), "--model", str(out / "bilstm-block.pt"), "--json", "-o", "b.parquet"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["blocks_file"] == "b.parquet" and (work / "b.parquet").is_file()
+    assert main(["predict", str(program), "--model", str(out / "bilstm-block.pt"), "-o", "b.parquet"]) == 2
+    assert "--overwrite" in capsys.readouterr().err
     blocks = pd.read_parquet(doc["blocks_file"])
     assert doc["model"] == "bilstm-block" and doc["profile"] == "linuxcnc-xyz"
     from feedlog.toolpath import parse_program

@@ -129,6 +129,7 @@ def test_demo_trains_keeps_the_models_and_predicts_every_recording(recordings_di
     assert rows["broken"]["mlp_s"] is None
     report = (out / "report.md").read_text()
     assert "trained models: `models/mlp.pt`" in report
+    assert "trained with the quick preset" in report and "--preset full" in report
     # the block-time overlay carries the model's per-block prediction
     content = rrd_content(out / "rerun" / "square_b.rrd")
     assert content["/blocks/mlp"]["rows"] == 4
@@ -171,3 +172,17 @@ def test_demo_simulates_with_the_manifests_profile_over_an_attached_one(recordin
     slow = json.loads((out / "cycle_times.json").read_text())[0]["sim_s"]
     attached = json.loads((demo_run[1] / "cycle_times.json").read_text())[0]["sim_s"]
     assert slow > 1.3 * attached
+
+
+def test_demo_answers_first_counts_recordings_and_can_skip_rrd(recordings_dir, tmp_path, capsys):
+    out = tmp_path / "norrd"
+    assert main(["demo", "--recordings", str(recordings_dir), "--out", str(out), "--no-train", "--no-rrd",
+                 "--detail-plots", "0"]) == 0
+    printed = capsys.readouterr().out
+    assert "[1/3] square_a: verify, align, simulate" in printed and "[3/3] broken" in printed
+    assert not (out / "rerun").exists() and (out / "plots" / "square_b_feed.png").is_file()
+    finished = printed[printed.index("feedlog demo finished"):]
+    assert finished.splitlines()[1].startswith("3 recordings, 2 with a measured cycle time.")
+    assert "- cam: " in finished
+    report = (out / "report.md").read_text().splitlines()
+    assert report[2] == "## Summary" and report[4].startswith("3 recordings, 2 with a measured cycle time")

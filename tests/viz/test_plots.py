@@ -42,3 +42,15 @@ def test_cycle_time_bars(tmp_path):
                           "sim_s": [3.0, np.nan], "mlp_s": [3.2, 4.1]})
     path = plot_cycle_times(table, tmp_path / "ct.png")
     assert _is_png(path)
+
+
+def test_cycle_times_of_many_programs_stay_a_readable_size(tmp_path):
+    from PIL import Image
+
+    rng = np.random.default_rng(0)
+    measured = rng.uniform(2, 20, 117)
+    table = pd.DataFrame({"program": [f"p{k}" for k in range(117)], "measured_s": measured,
+                          "cam_s": measured * 0.8, "sim_s": measured * 1.01})
+    path = plot_cycle_times(table, tmp_path / "ct.png")
+    width, height = Image.open(path).size
+    assert width <= 1500 and height <= 1500

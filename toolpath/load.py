@@ -1,0 +1,61 @@
+"""Part programs of any supported dialect: `load_program` = `dialects.translate` + `parse_program`.
+
+    program = load_program("part.mpf")                      # Sinumerik, detected by suffix and words
+    program = load_program(text, dialect="fanuc", lenient=True)
+
+Every command that reads a part program goes through here, so a Fanuc/Hurco or Sinumerik program
+reads the same everywhere; RS274/NGC (LinuxCNC) text is parsed exactly as before (the translation
+leaves it alone). What the translation changed is at the head of `Program.warnings`, and
+`Program.metadata["dialect"]` says which dialect was read.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from feedlog.errors import ProgramError
+from feedlog.toolpath.dialects import DIALECTS, detect, translate
+from feedlog.toolpath.parser import parse_program
+from feedlog.toolpath.program import Program
+from feedlog.toolpath.source import read_source
+
+
+def load_program(source: str | Path | Program, *, lenient: bool = False, dialect: str = "auto",
+                 name: str | None = None) -> Program:
+    """Parse a program (path, G-code text, or an already parsed Program, returned as is) of `dialect`
+    (`auto`: detected from the file name and the text; see `toolpath.dialects`)."""
+    if isinstance(source, Program):
+        return source
+    if dialect not in DIALECTS:
+        raise ProgramError(f"unknown G-code dialect {dialect!r}; known: {', '.join(DIALECTS)}", file=name)
+    text, path, label = read_source(source, name)
+    translation = translate(text, dialect, name=path or label)
+    if translation.dialect == "rs274ngc" and dialect in ("auto", "rs274ngc"):
+        program = parse_program(source if path is not None else text, lenient=lenient, name=label)
+    else:
+        body = translation.text if "\n" in translation.text else translation.text + "\n"
+        program = parse_program(body, lenient=lenient, name=label)
+        program.path = path
+    program.metadata["dialect"] = translation.dialect
+    if translation.notes:
+        program.warnings[:0] = translation.notes
+        program.metadata["dialect_changes"] = translation.notes
+    return program
+
+
+STREAM_HEAD = 1 << 20   # bytes of a file that decide its dialect for a streamed read
+
+
+def stream_dialect(path: str | Path, dialect: str = "auto") -> str:
+    """The dialect a streamed read of `path` would meet: the given one, or the one its name and first
+    MiB point at. Only RS274/NGC streams (`toolpath.stream` parses it without translation)."""
+    if dialect not in DIALECTS:
+        raise ProgramError(f"unknown G-code dialect {dialect!r}; known: {', '.join(DIALECTS)}", file=str(path))
+    if dialect != "auto":
+        return "fanuc" if dialect == "hurco" else dialect
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(STREAM_HEAD).decode("utf-8", errors="replace")
+    except OSError:
+        return "rs274ngc"     # the reader says what is wrong with the path
+    return detect(head, path)
