@@ -10,6 +10,7 @@ A change is *observable* when putting its true value into the shipped profile mo
 cycle time by more than `--observable-pct` over the two programs (a lag always is: the recordings
 carry feedback). A finding is *right* when it names a changed key and its value is within 15 % of the
 true one. Printed: per machine what was changed and what was found; in all: findings right / named,
+changes named only as an equally good alternative to a wrong finding (the data cannot tell them apart),
 observable changes found, findings on unchanged machines, cycle-time error before and after.
 
     .venv/bin/python benchmarks/bench_diagnose_blind.py [--machines 12] [--seed 1] [--rate-hz 5] [--json]
@@ -135,12 +136,15 @@ def score(machine: dict, dx, observable_pct: float) -> dict:
     truth = {c[4]: c[5] for c in machine["changes"]}
     found = {f.parameter: float(f.fitted_value) for f in dx.findings}
     right = {k for k, v in found.items() if k in truth and abs(v / truth[k] - 1) <= 0.15}
+    # a changed key listed as an equally good alternative to a wrong finding (the data cannot tell them)
+    tied = {a["parameter"] for f in dx.findings if f.parameter not in right for a in f.alternatives
+            if a["parameter"] in truth and abs(float(a["fitted_value"]) / truth[a["parameter"]] - 1) <= 0.15}
     observable = {k for k, v in truth.items()
                   if k.startswith("sim.following_lag") or abs(truth_effect_pct(dx, k, v)) > observable_pct}
     cyc = dx.levels["cycle"]
     fb = dx.levels.get("feedback") or {}
     return {"base": machine["base"], "programs": machine["programs"], "truth": truth, "found": found,
-            "right": sorted(right), "observable": sorted(observable), "unexplained": len(dx.unexplained),
+            "right": sorted(right), "tied": sorted(tied - right), "observable": sorted(observable), "unexplained": len(dx.unexplained),
             "error_before_pct": cyc["error_before_pct"], "error_after_pct": cyc["error_after_pct"],
             "fb_before_um": 1e3 * fb["rms_before_mm"] if fb.get("rms_before_mm") is not None else None,
             "fb_after_um": 1e3 * fb["rms_after_mm"] if fb.get("rms_after_mm") is not None else None}
@@ -155,6 +159,7 @@ def summarise(rows: list[dict]) -> dict:
     changed = [r for r in rows if r["truth"]]
     return {"machines": len(rows), "changes": sum(len(r["truth"]) for r in rows), "observable": obs,
             "observable_found": obs_found, "named": named, "named_right": right,
+            "tied": sum(len(r["tied"]) for r in rows),
             "controls": len(controls), "controls_with_findings": sum(bool(r["found"]) for r in controls),
             "unexplained_reported": sum(r["unexplained"] > 0 for r in rows),
             "median_abs_error_before_pct": _median([abs(r["error_before_pct"]) for r in changed]),
@@ -203,6 +208,7 @@ def main() -> None:
                 print(f"{row['machine']} {row['base']:5s} {'+'.join(row['programs'])}\n"
                       f"    changed: {truth}" + (f"  (not observable here: {', '.join(hidden)})" if hidden else "") +
                       f"\n    found:   {found}" + (f"  +{row['unexplained']} unexplained" if row["unexplained"] else "") +
+                      (f"  (equally good: {', '.join(row['tied'])})" if row["tied"] else "") +
                       f"\n    cycle error {row['error_before_pct']:+.2f} % -> {row['error_after_pct']:+.2f} %"
                       + (f", feedback RMS {row['fb_before_um']:.1f} -> {row['fb_after_um']:.1f} um"
                          if row["fb_before_um"] is not None else "") + f"  ({row['diagnose_s']:.1f} s)", flush=True)
@@ -212,6 +218,7 @@ def main() -> None:
         return
     print(f"\n{total['machines']} machines (seed {args.seed}, {total['rate_hz']} Hz), recorded in {t_record:.0f} s")
     print(f"findings right / named:             {total['named_right']} / {total['named']}")
+    print(f"changes named only as an equally good alternative: {total['tied']}")
     print(f"observable changes found:           {total['observable_found']} / {total['observable']}"
           f"  ({total['changes']} changes in all)")
     print(f"unchanged machines with a finding:  {total['controls_with_findings']} / {total['controls']}")
