@@ -28,6 +28,7 @@ import numpy as np
 
 from feedlog.sim import simulate
 from feedlog.toolpath import parse_program
+from feedlog.toolpath.synthetic import tangent_arc
 
 PASS_BLOCKS = 500
 
@@ -47,11 +48,8 @@ def three_axis(n: int, seed: int = 0) -> str:
                 side = 1.0 if rng.random() < 0.5 else -1.0
                 rad = rng.uniform(1.0, 8.0)
                 sweep = np.radians(rng.uniform(30.0, 120.0)) * side
-                cx, cy = x - side * rad * np.sin(heading), y + side * rad * np.cos(heading)
-                ang = np.arctan2(y - cy, x - cx) + sweep
-                ex, ey = cx + rad * np.cos(ang), cy + rad * np.sin(ang)
-                out.append(f"{'G3' if side > 0 else 'G2'} X{ex:.4f} Y{ey:.4f} I{cx - x:.4f} J{cy - y:.4f}")
-                x, y, heading = ex, ey, heading + sweep
+                line, x, y, heading = tangent_arc(x, y, heading, rad, sweep)
+                out.append(line)
                 continue
             if r < 0.25:
                 step, turn = rng.uniform(0.02, 0.3), rng.normal(0.0, 0.05)

@@ -14,6 +14,7 @@ from feedlog.errors import SimulationError
 from feedlog.sim import simulate
 from feedlog.sim.window import WindowedSimulation, simulate_windowed
 from feedlog.toolpath import parse_program
+from feedlog.toolpath.synthetic import tangent_arc
 
 ROOT = Path(__file__).resolve().parents[2]
 MANIFEST = tomllib.loads((ROOT / "recordings" / "manifest.toml").read_text())["recording"]
@@ -81,11 +82,8 @@ def random_program(seed: int, n: int, *, five_axis: bool = False) -> str:
             side = 1.0 if rng.random() < 0.5 else -1.0
             rad = rng.uniform(0.5, 6.0)
             sweep = np.radians(rng.uniform(20.0, 150.0)) * side
-            cx, cy = x - side * rad * np.sin(heading), y + side * rad * np.cos(heading)
-            ang = np.arctan2(y - cy, x - cx) + sweep
-            ex, ey = cx + rad * np.cos(ang), cy + rad * np.sin(ang)
-            out.append(f"{'G3' if side > 0 else 'G2'} X{ex:.4f} Y{ey:.4f} I{cx - x:.4f} J{cy - y:.4f}")
-            x, y, heading = ex, ey, heading + sweep
+            line, x, y, heading = tangent_arc(x, y, heading, rad, sweep)
+            out.append(line)
         elif r < 0.12:
             k = int(rng.integers(3, 60))          # a collinear run of tiny segments (merge chains)
             step = rng.uniform(0.005, 0.05)
