@@ -15,7 +15,6 @@ message and does not stop the others; a bug (any other exception) propagates.
 
 from __future__ import annotations
 
-import uuid
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,9 +22,7 @@ from typing import Any
 from feedlog import storage
 from feedlog.align.pipeline import AlignConfig, align_recording
 from feedlog.align.tables import FILES, dataset_points, table_metadata, write_alignment
-from feedlog.dataset import existing_output, write_partition
-from feedlog.errors import FeedlogError
-from feedlog.execution import run_tasks
+from feedlog.dataset import run_per_input, write_partition
 
 DATASET_TABLES = ("blocks", "points")
 PARTITION_KEY = "recording"
@@ -125,37 +122,25 @@ def align_many(recordings: list[str | Path], outdir: str | Path, *, program: str
     `jobs`/`scheduler` choose where the tasks run (`feedlog.execution`: serial, local processes, Dask).
     """
     cfg = config or AlignConfig()
-    labels = [str(r) for r in recordings]
-    stems = [storage.stem(r) for r in labels]
-    dup = sorted({s for s in stems if stems.count(s) > 1})
-    if dup:
-        raise FeedlogError(f"recordings share the file name {dup[0]!r}: their outputs would collide in {outdir}")
-    root = storage.absolute(outdir)
     prog, prof = _shared_inputs(program, profile, cfg)
-    token = uuid.uuid4().hex[:8]
-    items: dict[str, BatchItem] = {}
-    tasks = []
-    for label, name in zip(labels, stems):
-        shown = storage.join(str(outdir), name)
-        there = None if overwrite else existing_output(root, name, files=FILES, tables=DATASET_TABLES,
-                                                         key=PARTITION_KEY)
-        if there is not None:
-            items[label] = BatchItem(recording=label, outdir=shown, ok=False, exit_code=2,
-                                     error=f"{there} exists; use --overwrite to replace it")
-            continue
-        tasks.append(AlignTask(recording=storage.absolute(label), label=label, outdir=root, program=prog,
-                               profile=prof, config=cfg, with_blocks=with_blocks, token=token))
-    try:
-        results = run_tasks(align_one, tasks, jobs=jobs, scheduler=scheduler, desc="align",
-                            label=lambda t: t.label, progress=progress, log=log)
-    finally:
-        storage.remove_partials(root, token)
-    for task, result in zip(tasks, results):
-        shown = storage.join(str(outdir), storage.stem(task.label))
-        if result.ok:
-            items[task.label] = result.value
+    labels, outcome = run_per_input(
+        recordings, outdir,
+        lambda label, root, token: AlignTask(recording=storage.absolute(label), label=label, outdir=root,
+                                             program=prog, profile=prof, config=cfg, with_blocks=with_blocks,
+                                             token=token),
+        align_one, what="recordings", files=FILES, tables=DATASET_TABLES, key=PARTITION_KEY, overwrite=overwrite,
+        desc="align", jobs=jobs, scheduler=scheduler, progress=progress, log=log)
+    items: list[BatchItem] = []
+    for label in labels:
+        shown, result = storage.join(str(outdir), storage.stem(label)), outcome[label]
+        if isinstance(result, str):
+            items.append(BatchItem(recording=label, outdir=shown, ok=False, exit_code=2,
+                                   error=f"{result} exists; use --overwrite to replace it"))
+        elif result.ok:
             result.value.outdir, result.value.task_s = shown, result.task_s
+            items.append(result.value)
         else:
-            items[task.label] = BatchItem(recording=task.label, outdir=shown, ok=False, error=result.error,
-                                          exit_code=result.exit_code)
-    return [items[label] for label in labels]
+            items.append(BatchItem(recording=label, outdir=shown, ok=False, error=result.error,
+                                   exit_code=result.exit_code))
+    return items
+

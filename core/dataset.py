@@ -16,6 +16,8 @@ file): writers conform their frames first (e.g. `feedlog.align.tables.dataset_po
 
 from __future__ import annotations
 
+import uuid
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote
@@ -24,6 +26,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from feedlog.errors import FeedlogError
 from feedlog.storage import exists, join, publish_file
 
 DATASET = "dataset"
@@ -72,3 +75,40 @@ def existing_output(outdir: str, name: str, *, files: tuple[str, ...], tables: t
 def read_dataset(outdir: str | Path, table: str, **kw: Any) -> pd.DataFrame:
     """The whole table (all partitions, the key as a column) with pandas."""
     return pd.read_parquet(join(str(outdir), DATASET, table), **kw)
+
+
+def run_per_input(inputs: Sequence[str | Path], outdir: str | Path, make_task: Callable[[str, str, str], Any],
+                  fn: Callable[[Any], Any], *, what: str, files: tuple[str, ...], tables: tuple[str, ...], key: str,
+                  overwrite: bool, desc: str, jobs: int | None, scheduler: str | None, progress: bool,
+                  log=None) -> tuple[list[str], dict[str, Any]]:
+    """One task per input, each writing OUTDIR/<stem>/ and its dataset partitions. Inputs whose file
+    names collide are refused at once; an input whose outputs exist is not run unless `overwrite`.
+    `make_task(label, root, token)` builds an input's task; `fn` runs one (`execution.run_tasks`).
+    Returns the labels in input order and per label the existing output's name (a str: not run) or the
+    task's `execution.TaskResult`. The job's partial files are removed whatever happens."""
+    from feedlog import storage  # noqa: PLC0415
+    from feedlog.execution import run_tasks  # noqa: PLC0415
+
+    labels = [str(p) for p in inputs]
+    stems = [storage.stem(p) for p in labels]
+    dup = sorted({s for s in stems if stems.count(s) > 1})
+    if dup:
+        raise FeedlogError(f"{what} share the file name {dup[0]!r}: their outputs would collide in {outdir}")
+    root = storage.absolute(str(outdir))
+    token = uuid.uuid4().hex[:8]
+    outcome: dict[str, Any] = {}
+    tasks, run = [], []
+    for label, name in zip(labels, stems):
+        there = None if overwrite else existing_output(root, name, files=files, tables=tables, key=key)
+        if there is not None:
+            outcome[label] = there
+            continue
+        tasks.append(make_task(label, root, token))
+        run.append(label)
+    try:
+        results = run_tasks(fn, tasks, jobs=jobs, scheduler=scheduler, desc=desc, label=lambda t: t.label,
+                            progress=progress, log=log)
+    finally:
+        storage.remove_partials(root, token)
+    outcome.update(zip(run, results))
+    return labels, outcome

@@ -15,13 +15,13 @@ and one line here; docs/diagnose.md shows one.
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from feedlog.diagnose import keys
 from feedlog.errors import FeedlogError
+from feedlog.lazy import load_entry
 from feedlog.profile import MachineProfile
 
 SCALES = ("log", "linear", "int", "choice")
@@ -89,12 +89,7 @@ class Hypothesis:
 
 
 def family_function(name: str):
-    try:
-        target = FAMILIES[name]
-    except KeyError:
-        raise FeedlogError(f"unknown hypothesis family {name!r}; known: {', '.join(sorted(FAMILIES))}") from None
-    module, func = target.split(":")
-    return getattr(importlib.import_module(module), func)
+    return load_entry(FAMILIES, name, what="hypothesis family")
 
 
 def candidates(profile: MachineProfile, cases: Sequence[Any], *, families: Sequence[str] | None = None,

@@ -11,15 +11,12 @@ The summary travels back. A program that fails with one of our errors is reporte
 from __future__ import annotations
 
 import json
-import uuid
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from feedlog import storage
-from feedlog.dataset import existing_output, write_partition
-from feedlog.errors import FeedlogError
-from feedlog.execution import run_tasks
+from feedlog.dataset import run_per_input, write_partition
 
 FILES = ("series.parquet", "blocks.parquet", "summary.json")
 DATASET_TABLES = ("blocks", "series")
@@ -89,32 +86,20 @@ def simulate_many(programs: list[str | Path], outdir: str | Path, *, profile: An
     from feedlog.profile import MachineProfile, load_profile  # noqa: PLC0415
 
     prof = profile if isinstance(profile, MachineProfile) else load_profile(profile)
-    labels = [str(p) for p in programs]
-    stems = [storage.stem(p) for p in labels]
-    dup = sorted({s for s in stems if stems.count(s) > 1})
-    if dup:
-        raise FeedlogError(f"programs share the file name {dup[0]!r}: their outputs would collide in {outdir}")
-    root = storage.absolute(outdir)
-    token = uuid.uuid4().hex[:8]
-    items: dict[str, SimItem] = {}
-    tasks = []
-    for label, name in zip(labels, stems):
-        shown = storage.join(str(outdir), name)
-        there = None if overwrite else existing_output(root, name, files=FILES, tables=DATASET_TABLES,
-                                                       key=PARTITION_KEY)
-        if there is not None:
-            items[label] = SimItem(label, shown, False, error=f"{there} exists; pass --overwrite to replace it", exit_code=2)
-            continue
-        tasks.append(SimTask(program=storage.absolute(label), label=label, outdir=root, profile=prof,
-                             mechanisms=mechanisms, dt_s=dt_s, token=token, lenient=lenient,
-                             dialect=dialect))
-    try:
-        results = run_tasks(simulate_one, tasks, jobs=jobs, scheduler=scheduler, desc="sim",
-                            label=lambda t: t.label, progress=progress, log=log)
-    finally:
-        storage.remove_partials(root, token)
-    for task, result in zip(tasks, results):
-        shown = storage.join(str(outdir), storage.stem(task.label))
-        items[task.label] = SimItem(task.label, shown, result.ok, summary=result.value, error=result.error,
-                                    exit_code=result.exit_code)
-    return [items[label] for label in labels]
+    labels, outcome = run_per_input(
+        programs, outdir,
+        lambda label, root, token: SimTask(program=storage.absolute(label), label=label, outdir=root, profile=prof,
+                                           mechanisms=mechanisms, dt_s=dt_s, token=token, lenient=lenient,
+                                           dialect=dialect),
+        simulate_one, what="programs", files=FILES, tables=DATASET_TABLES, key=PARTITION_KEY, overwrite=overwrite,
+        desc="sim", jobs=jobs, scheduler=scheduler, progress=progress, log=log)
+    items = []
+    for label in labels:
+        shown, result = storage.join(str(outdir), storage.stem(label)), outcome[label]
+        if isinstance(result, str):
+            items.append(SimItem(label, shown, False, error=f"{result} exists; pass --overwrite to replace it",
+                                 exit_code=2))
+        else:
+            items.append(SimItem(label, shown, result.ok, summary=result.value, error=result.error,
+                                 exit_code=result.exit_code))
+    return items

@@ -22,7 +22,6 @@ overrides the profile, which is how a fitting step sets parameters from outside.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -31,6 +30,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from feedlog.errors import ProfileError, SimulationError
+from feedlog.lazy import load_entry
 from feedlog.profile import MachineProfile
 
 KINDS = ("limits", "corner", "interpolator", "series", "feedback", "measurement")
@@ -178,12 +178,7 @@ def _checked(mechanism: str, name: str, value: Any, default: Any, *, signed: boo
 
 
 def mechanism_class(name: str) -> type[Mechanism]:
-    try:
-        target = REGISTRY[name]
-    except KeyError:
-        raise SimulationError(f"unknown sim mechanism {name!r}; known: {', '.join(sorted(REGISTRY))}") from None
-    module_name, class_name = target.split(":")
-    return getattr(importlib.import_module(module_name), class_name)
+    return load_entry(REGISTRY, name, what="sim mechanism", error=SimulationError)
 
 
 MechanismSpec = Mapping[str, Any] | Sequence[str] | None
