@@ -40,19 +40,24 @@ def synthetic_blocks(layout: DbcLayout, *, rate_hz: float, seconds: float, t0_ns
         yield sim_frames(series, layout, t0_ns=t0_ns, first_seq=start)
 
 
+def virtual_bus(frames_per_s: float, seconds: float, channel: str):
+    """A virtual CAN bus fed by a player of synthetic frames at `frames_per_s` (three frames per
+    sample) for `seconds`: (receiving bus, player, its stop event, DBC layout, frames it will send)."""
+    layout = DbcLayout()
+    t0_ns = time.time_ns() // 1_000_000 * 1_000_000
+    stop = threading.Event()
+    rx = can.Bus(interface="virtual", channel=channel, rx_queue_size=MAX_BUS_QUEUE)
+    player = Player(synthetic_blocks(layout, rate_hz=frames_per_s / 3, seconds=seconds, t0_ns=t0_ns), channel,
+                    speedup=1.0, stop=stop)
+    return rx, player, stop, layout, int(frames_per_s / 3 * seconds) * 3
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames-per-s", type=float, default=30_000)
     parser.add_argument("--seconds", type=float, default=600)
     args = parser.parse_args()
-    layout = DbcLayout()
-    rate_hz = args.frames_per_s / 3
-    t0_ns = time.time_ns() // 1_000_000 * 1_000_000
-    stop = threading.Event()
-    channel = f"bench-{t0_ns}"
-    rx = can.Bus(interface="virtual", channel=channel, rx_queue_size=MAX_BUS_QUEUE)
-    player = Player(synthetic_blocks(layout, rate_hz=rate_hz, seconds=args.seconds, t0_ns=t0_ns), channel,
-                    speedup=1.0, stop=stop)
+    rx, player, stop, layout, planned = virtual_bus(args.frames_per_s, args.seconds, f"bench-{time.time_ns()}")
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "load.mcap"
         cpu0 = time.process_time()
@@ -68,7 +73,6 @@ def main() -> None:
         rec = read_recording(out)
         samples = len(rec.streams["axes"])
         size_mb = out.stat().st_size / 1e6
-    planned = int(rate_hz * args.seconds) * 3
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"logger load: target {args.frames_per_s:.0f} frames/s for {args.seconds:g} s ({planned} frames)")
     print(f"  sent {player.sent} frames, recorded {summary['frames']} frames in {summary['wall_s']:.1f} s "

@@ -22,15 +22,13 @@ import threading
 import time
 from pathlib import Path
 
-import can
 from mcap.records import Chunk
 from mcap.stream_reader import StreamReader
 
-from bench_ingest_logger import synthetic_blocks  # same directory: run as a script
+from bench_ingest_logger import virtual_bus  # same directory: run as a script
 from feedlog.ingest import read_recording
-from feedlog.ingest.can_dbc import DbcLayout
 from feedlog.ingest.live import record_bus
-from feedlog.ingest.source_sim import MAX_BUS_QUEUE, Player
+from feedlog.ingest.source_sim import MAX_BUS_QUEUE
 
 
 class LastLine(io.TextIOBase):
@@ -56,14 +54,7 @@ def main() -> None:
     parser.add_argument("--frames-per-s", type=float, default=30_000.0)
     parser.add_argument("--report-every", type=float, default=60.0, help="seconds between progress lines")
     args = parser.parse_args()
-    layout = DbcLayout()
-    rate_hz = args.frames_per_s / 3
-    t0_ns = time.time_ns() // 1_000_000 * 1_000_000
-    stop = threading.Event()
-    channel = f"soak-{os.getpid()}"
-    rx = can.Bus(interface="virtual", channel=channel, rx_queue_size=MAX_BUS_QUEUE)
-    player = Player(synthetic_blocks(layout, rate_hz=rate_hz, seconds=args.duration, t0_ns=t0_ns), channel,
-                    speedup=1.0, stop=stop)
+    rx, player, stop, _, planned = virtual_bus(args.frames_per_s, args.duration, f"soak-{os.getpid()}")
     progress = LastLine()
     backlog = [0, 0.0]  # largest bus backlog (frames) and when (s)
     rss_peak = [0.0]    # largest resident memory while recording (MB)
@@ -104,7 +95,6 @@ def main() -> None:
         chunk_mb = max((r.uncompressed_size for r in StreamReader(str(out), emit_chunks=True).records
                         if isinstance(r, Chunk)), default=0) / 2**20
         size_mb = out.stat().st_size / 1e6
-    planned = int(rate_hz * args.duration) * 3
     print(f"frames: planned {planned}, sent {player.sent}, recorded {summary['frames']} in {summary['wall_s']:.1f} s "
           f"= {summary['frames_per_s']:.0f} frames/s")
     print(f"dropped_frames {summary['dropped_frames']} (of them late {summary['late_frames']}, missing from the seq "
