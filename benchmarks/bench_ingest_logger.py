@@ -52,6 +52,21 @@ def virtual_bus(frames_per_s: float, seconds: float, channel: str):
     return rx, player, stop, layout, int(frames_per_s / 3 * seconds) * 3
 
 
+def record_played(rx, player, stop: threading.Event, out: Path, *, progress=None) -> tuple[dict, float]:
+    """Start the player, log the bus to `out` until the player is done and the bus drained, shut down:
+    (the logger's summary, CPU seconds of this process meanwhile)."""
+    cpu0 = time.process_time()
+    player.start()
+    try:
+        summary = record_bus(rx, out, stop=stop, progress=progress,
+                             finished=lambda: player.done.is_set() and rx.queue.empty())
+    finally:
+        stop.set()
+        player.join(timeout=10)
+        rx.shutdown()
+    return summary, time.process_time() - cpu0
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames-per-s", type=float, default=30_000)
@@ -60,16 +75,7 @@ def main() -> None:
     rx, player, stop, layout, planned = virtual_bus(args.frames_per_s, args.seconds, f"bench-{time.time_ns()}")
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "load.mcap"
-        cpu0 = time.process_time()
-        player.start()
-        try:
-            summary = record_bus(rx, out, stop=stop, progress=None,
-                                 finished=lambda: player.done.is_set() and rx.queue.empty())
-        finally:
-            stop.set()
-            player.join(timeout=10)
-            rx.shutdown()
-        cpu_s = time.process_time() - cpu0
+        summary, cpu_s = record_played(rx, player, stop, out)
         rec = read_recording(out)
         samples = len(rec.streams["axes"])
         size_mb = out.stat().st_size / 1e6

@@ -25,9 +25,8 @@ from pathlib import Path
 from mcap.records import Chunk
 from mcap.stream_reader import StreamReader
 
-from bench_ingest_logger import virtual_bus  # same directory: run as a script
+from bench_ingest_logger import record_played, virtual_bus  # same directory: run as a script
 from feedlog.ingest import read_recording
-from feedlog.ingest.live import record_bus
 from feedlog.ingest.source_sim import MAX_BUS_QUEUE
 
 
@@ -78,18 +77,12 @@ def main() -> None:
 
         monitor = threading.Thread(target=report, daemon=True)
         print(f"logger soak: {args.frames_per_s:.0f} frames/s for {args.duration:g} s on the virtual bus", flush=True)
-        cpu0 = time.process_time()
-        player.start()
         monitor.start()
         try:
-            summary = record_bus(rx, out, stop=stop, progress=progress,
-                                 finished=lambda: player.done.is_set() and rx.queue.empty())
+            summary, cpu_s = record_played(rx, player, stop, out, progress=progress)
         finally:
-            stop.set()
-            player.join(timeout=10)
-            rx.shutdown()
+            stop.set()            # the monitor stops with the recording, also on an error
             monitor.join(timeout=5)
-        cpu_s = time.process_time() - cpu0
         rec = read_recording(out)  # strict: the logger finished the file
         samples = len(rec.streams["axes"])
         chunk_mb = max((r.uncompressed_size for r in StreamReader(str(out), emit_chunks=True).records
