@@ -92,6 +92,10 @@ def decisions(report: dict[str, Any]) -> list[str]:
         out.append(f"work offset estimated ({', '.join(f'{v:.3f}' for v in offset)}) mm")
     if report.get("mode") == "line stream only":
         out.append("no positions: block times from the line stream")
+    rounding = report.get("unstated_tolerance")
+    if rounding and rounding["dist_max_mm"] > report["config"]["tol_mm"]:
+        out.append(f"the machine rounds corners the program gives no tolerance for by up to "
+                   f"{rounding['dist_max_mm']:.3f} mm (measured)")
     return out
 
 

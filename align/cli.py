@@ -33,6 +33,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tol-mm", type=float, default=AlignConfig.tol_mm,
                         help="allowed CL point distance on top of the block's G64 P (default %(default)s); "
                              "sparse data add half the distance travelled per sample automatically")
+    parser.add_argument("--unstated-tol-mm", type=float, default=AlignConfig.unstated_tol_mm,
+                        help="allowed CL point distance where the program states no blending tolerance (G64 "
+                             "without P; Sinumerik G641-G645, whose tolerance is machine data): the distance "
+                             "really found there is reported (default %(default)s)")
     parser.add_argument("--check-rapids", action="store_true", help="apply the tolerance to rapid moves too")
     parser.add_argument("--boundary", choices=BOUNDARIES, default="auto",
                         help="geometric block end: closest approach to the end point (pass), start of the "
@@ -66,7 +70,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    config = AlignConfig(tol_mm=args.tol_mm, check_rapids=args.check_rapids, boundary=args.boundary,
+    config = AlignConfig(tol_mm=args.tol_mm, unstated_tol_mm=args.unstated_tol_mm, check_rapids=args.check_rapids, boundary=args.boundary,
                          feed_source=args.feed_source, sync_lines=args.sync_lines,
                          smoothing=FeedSmoothing(window_s=args.feed_window_s),
                          work_offset_mm=tuple(args.work_offset), lenient=args.lenient, lines=args.lines,

@@ -42,7 +42,7 @@ from feedlog.errors import AlignmentError, FeedlogError
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import MachineProfile, load_profile
 from feedlog.toolpath import Program, block_features, cl_points, load_program, to_machine
-from feedlog.toolpath.schema import RAPID
+from feedlog.toolpath.schema import CONTINUOUS, RAPID
 
 BOUNDARIES = ("auto", "pass", "leave")
 NOT_ON_PATH = "never comes within"   # match's error when the program's first points are nowhere on the path
@@ -58,6 +58,10 @@ class AlignConfig:
     """How to align. Distances in mm, times in s."""
 
     tol_mm: float = 0.05             # allowed CL-point distance on top of the block's G64 P tolerance
+    unstated_tol_mm: float = 1.0     # allowed distance where the program states no blending tolerance
+                                     # (continuous mode without P: LinuxCNC's G64 alone, a dialect's
+                                     # smoothing such as Sinumerik G642 whose tolerance is machine data);
+                                     # what the path really did there is measured and reported
     check_rapids: bool = False       # rapids may dog-leg on some machines: only reported by default
     chord_tol_mm: float = 0.001      # arcs -> CL points (toolpath.cl_points)
     positions: str = "axes"          # stream with x_mm, y_mm, z_mm (+ a_deg, ...)
@@ -90,6 +94,8 @@ class AlignConfig:
     def __post_init__(self) -> None:
         if not self.tol_mm > 0:
             raise AlignmentError(f"tol_mm must be > 0, got {self.tol_mm}")
+        if not self.unstated_tol_mm > 0:
+            raise AlignmentError(f"unstated_tol_mm must be > 0, got {self.unstated_tol_mm}")
         if self.boundary not in BOUNDARIES:
             raise AlignmentError(f"boundary must be one of {', '.join(BOUNDARIES)}, got {self.boundary!r}")
         if self.feed_source not in FEED_SOURCES:
@@ -201,6 +207,22 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     return out
 
 
+def _unstated_rounding(dist: np.ndarray, where: np.ndarray, cfg: AlignConfig, warnings: list[str]) -> dict | None:
+    """How far the path left the program's points where the program states no blending tolerance (the
+    machine's own rounding, measured), with a warning when that is beyond `tol_mm`."""
+    d = dist[where & np.isfinite(dist)]
+    if not len(d):
+        return None
+    out = {"points": int(len(d)), "allowed_mm": max(cfg.tol_mm, cfg.unstated_tol_mm),
+           "dist_max_mm": float(d.max()), "dist_p95_mm": float(np.percentile(d, 95))}
+    if out["dist_max_mm"] > cfg.tol_mm:
+        warnings.append(f"the program states no blending tolerance on {len(d)} point(s) (G64 without P, or a "
+                        f"controller's smoothing set in machine data): the path leaves them by up to "
+                        f"{out['dist_max_mm']:.3f} mm (95 % within {out['dist_p95_mm']:.3f} mm); allowed up to "
+                        f"{out['allowed_mm']:g} mm (--unstated-tol-mm)")
+    return out
+
+
 def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg: AlignConfig) -> Alignment:
     lap = _Laps()
     recording = program_lines(recording, prog, stream=cfg.line_stream)
@@ -262,6 +284,9 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
     q_tol = blocks_tab["merge_tol_mm"].reindex(blk).to_numpy(dtype=np.float64)
     q_tol = np.where(np.isnan(q_tol), p_tol, q_tol)  # LinuxCNC: Q defaults to P
     tolerance = cfg.tol_mm + np.nan_to_num(p_tol, nan=0.0) + np.nan_to_num(q_tol, nan=0.0)
+    # continuous mode with no P: the program does not bound how far the machine rounds its corners
+    unstated = np.isnan(p_tol) & (blocks_tab["path_mode"].astype(str).reindex(blk).to_numpy() == CONTINUOUS)
+    tolerance = np.where(unstated, max(cfg.tol_mm, cfg.unstated_tol_mm), tolerance)
     kind = cl["kind"].astype(str).to_numpy()
     check = np.ones(len(cl), dtype=bool) if cfg.check_rapids else (kind != RAPID)
     check &= kind != "start"  # the parser's assumed initial position is not a programmed point
@@ -281,6 +306,7 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
                        "dist_max_mm": float(d.max()) if len(d) else None,
                        "rapid_dist_max_mm": float(np.nanmax(np.where(kind == RAPID, match.dist_mm, np.nan)))
                        if (kind == RAPID).any() and np.isfinite(match.dist_mm[kind == RAPID]).any() else None}
+    report["unstated_tolerance"] = _unstated_rounding(match.dist_mm, unstated & check, cfg, report["warnings"])
 
     # --- feeds (at the matched times only) ---------------------------------------------------------------
     ok = match.matched
