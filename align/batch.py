@@ -95,7 +95,7 @@ def decisions(report: dict[str, Any]) -> list[str]:
     rounding = report.get("unstated_tolerance")
     if rounding and rounding["dist_max_mm"] > report["config"]["tol_mm"]:
         out.append(f"the machine rounds corners the program gives no tolerance for by up to "
-                   f"{rounding['dist_max_mm']:.3f} mm (measured)")
+                   f"{rounding['dist_max_mm']:.3f} mm (measured, beyond what the sampling cuts off)")
     return out
 
 

@@ -108,6 +108,7 @@ class Match:
     s_meas_mm: np.ndarray  # measured path length at the match
     nearest: np.ndarray    # nearest measured sample index (int64, -1: unmatched)
     t_depart_ns: np.ndarray  # when the tool left the point again (> t_ns after a stop or dwell)
+    chord_mm: np.ndarray | None = None  # what the sampled chord may cut off at the point (in its tolerance)
 
     @property
     def matched(self) -> np.ndarray:
@@ -489,6 +490,8 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
             sp = np.nan_to_num(np.asarray(speed_mm_s, dtype=np.float64)[m], nan=0.0)
             reach = np.maximum(reach, sp * dt)
         tol[m] += cfg.chord_allowance * reach
+        result.chord_mm = np.zeros(k_all)
+        result.chord_mm[m] = cfg.chord_allowance * reach
     bad = checked & ~(dist <= tol)
     if bad.any():
         raise AlignmentError(violation_message(np.flatnonzero(bad), dist, cl, tol, labels))

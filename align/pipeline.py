@@ -208,16 +208,18 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
 
 
 def _unstated_rounding(dist: np.ndarray, where: np.ndarray, cfg: AlignConfig, warnings: list[str]) -> dict | None:
-    """How far the path left the program's points where the program states no blending tolerance (the
-    machine's own rounding, measured), with a warning when that is beyond `tol_mm`."""
-    d = dist[where & np.isfinite(dist)]
+    """How far the path left the program's points where the program states no blending tolerance, beyond
+    what a sampled chord cuts off (the machine's own rounding, measured), with a warning when that is
+    beyond `tol_mm`."""
+    d = np.maximum(dist[where & np.isfinite(dist)], 0.0)
     if not len(d):
         return None
     out = {"points": int(len(d)), "allowed_mm": max(cfg.tol_mm, cfg.unstated_tol_mm),
            "dist_max_mm": float(d.max()), "dist_p95_mm": float(np.percentile(d, 95))}
     if out["dist_max_mm"] > cfg.tol_mm:
         warnings.append(f"the program states no blending tolerance on {len(d)} point(s) (G64 without P, or a "
-                        f"controller's smoothing set in machine data): the path leaves them by up to "
+                        f"controller's smoothing set in machine data): beyond what the sampled chords cut off, "
+                        f"the path leaves them by up to "
                         f"{out['dist_max_mm']:.3f} mm (95 % within {out['dist_p95_mm']:.3f} mm); allowed up to "
                         f"{out['allowed_mm']:g} mm (--unstated-tol-mm)")
     return out
@@ -306,7 +308,8 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
                        "dist_max_mm": float(d.max()) if len(d) else None,
                        "rapid_dist_max_mm": float(np.nanmax(np.where(kind == RAPID, match.dist_mm, np.nan)))
                        if (kind == RAPID).any() and np.isfinite(match.dist_mm[kind == RAPID]).any() else None}
-    report["unstated_tolerance"] = _unstated_rounding(match.dist_mm, unstated & check, cfg, report["warnings"])
+    beyond_chord = match.dist_mm - (match.chord_mm if match.chord_mm is not None else 0.0)
+    report["unstated_tolerance"] = _unstated_rounding(beyond_chord, unstated & check, cfg, report["warnings"])
 
     # --- feeds (at the matched times only) ---------------------------------------------------------------
     ok = match.matched

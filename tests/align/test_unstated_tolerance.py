@@ -35,21 +35,21 @@ def test_sinumerik_trace_aligns_with_one_command_and_reports_its_rounding(tmp_pa
                  "--program", str(REAL / "sinumerik_part.mpf"), "-o", str(rec)]) == 0
     capsys.readouterr()
     assert main(["align", str(rec), "-o", str(tmp_path / "a"), "-q"]) == 0
-    assert "rounds corners the program gives no tolerance for by up to 0.44" in capsys.readouterr().out
+    assert "rounds corners the program gives no tolerance for by up to 0.114 mm" in capsys.readouterr().out
     report = json.loads((tmp_path / "a" / "s" / "report.json").read_text())
     rounding = report["unstated_tolerance"]
-    assert 0.4 < rounding["dist_max_mm"] < 0.5 and rounding["dist_p95_mm"] < 0.05
+    assert 0.1 < rounding["dist_max_mm"] < 0.13 and rounding["dist_p95_mm"] < 0.05
     assert report["match"]["matched"] == report["match"]["cl_points"]
     assert any("states no blending tolerance" in w for w in report["warnings"])
     # a bound below what the machine did refuses, naming the corners
-    assert main(["align", str(rec), "-o", str(tmp_path / "b"), "-q", "--unstated-tol-mm", "0.1"]) == 2
+    assert main(["align", str(rec), "-o", str(tmp_path / "b"), "-q", "--unstated-tol-mm", "0.06"]) == 2
     assert "farther than their tolerance" in capsys.readouterr().err
 
 
 def test_a_stated_tolerance_stays_strict_on_the_same_motion(sinumerik):
     """Bare G64 (no P) lets the corners be measured; G64 P0.01 states a bound they break."""
     bare = align_recording(sinumerik, _same_part_in_rs274("G64"))
-    assert bare.report["unstated_tolerance"]["dist_max_mm"] == pytest.approx(0.447, abs=0.01)
+    assert bare.report["unstated_tolerance"]["dist_max_mm"] == pytest.approx(0.114, abs=0.01)  # beyond the chords
     assert bare.cycle_time_s == pytest.approx(align_recording(sinumerik, REAL / "sinumerik_part.mpf").cycle_time_s)
     with pytest.raises(AlignmentError, match=r"farther than their tolerance.*block \d+ \(line 1[14]\)"):
         align_recording(sinumerik, _same_part_in_rs274("G64 P0.01"))
