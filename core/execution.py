@@ -128,11 +128,11 @@ class _Serial:
     def __init__(self, **_: Any) -> None:
         pass
 
-    def map(self, fn, items, labels, bar, desc) -> list[TaskResult]:
+    def map(self, fn, items, labels, done, desc) -> list[TaskResult]:
         out = []
-        for item, label in zip(items, labels):
+        for i, (item, label) in enumerate(zip(items, labels)):
             out.append(_result(label, _call(fn, item)))
-            bar.update()
+            done(i, out[-1])
         return out
 
     def close(self) -> None:
@@ -154,7 +154,7 @@ class _Processes:
         self.jobs = jobs or os.cpu_count() or 1
         self.retries = retries
 
-    def map(self, fn, items, labels, bar, desc) -> list[TaskResult]:
+    def map(self, fn, items, labels, done, desc) -> list[TaskResult]:
         results: dict[int, TaskResult] = {}
         suspects: set[int] = set()              # had started in a pool that broke
         deaths = dict.fromkeys(range(len(items)), 0)   # its process died while it ran alone
@@ -162,9 +162,9 @@ class _Processes:
         with tempfile.TemporaryDirectory(prefix="feedlog-tasks-") as marks:
             while pending:
                 broken = self._pool(fn, items, [i for i in pending if i not in suspects], self.jobs, marks,
-                                    labels, results, bar)
+                                    labels, results, done)
                 for i in (i for i in pending if i in suspects):
-                    for j, started in self._pool(fn, items, [i], 1, marks, labels, results, bar):
+                    for j, started in self._pool(fn, items, [i], 1, marks, labels, results, done):
                         deaths[j] += started
                         broken.append((j, False))
                 pending = []
@@ -174,13 +174,13 @@ class _Processes:
                     if deaths[i] > self.retries:
                         results[i] = TaskResult(labels[i], False, exit_code=1, error=f"worker process died {deaths[i]} times while "
                                                                         "running it alone (killed? out of memory?)")
-                        bar.update()
+                        done(i, results[i])
                     else:
                         pending.append(i)
         return [results[i] for i in range(len(items))]
 
     @staticmethod
-    def _pool(fn, items, indices, jobs, marks, labels, results, bar) -> list[tuple[int, bool]]:
+    def _pool(fn, items, indices, jobs, marks, labels, results, done) -> list[tuple[int, bool]]:
         """Run `indices` in one pool; (index, had started) of those lost to a broken pool."""
         if not indices:
             return []
@@ -195,7 +195,7 @@ class _Processes:
                     i = futures[fut]
                     try:
                         results[i] = _result(labels[i], fut.result())
-                        bar.update()
+                        done(i, results[i])
                     except BrokenProcessPool:
                         broken.append((i, os.path.exists(mark[i])))
             except BaseException:
@@ -260,7 +260,7 @@ class _Dask:
             raise FeedlogError(f"Dask worker {worker} {what}, this client has {ours}: install the same feedlog on "
                                f"every worker ({len(bad)} of {len(theirs)} differ)")
 
-    def map(self, fn, items, labels, bar, desc) -> list[TaskResult]:
+    def map(self, fn, items, labels, done, desc) -> list[TaskResult]:
         from distributed import as_completed as completed  # noqa: PLC0415
         from distributed import KilledWorker  # noqa: PLC0415
 
@@ -280,7 +280,7 @@ class _Dask:
                     why = (f"its worker was lost too often ({exc})" if exc is not None
                            else f"task {fut.status} (scheduler restarted or connection lost?)")
                     results[i] = TaskResult(labels[i], False, error=why, exit_code=1)
-                bar.update()
+                done(i, results[i])
         finally:
             self.client.cancel([f for f in futures if not f.done()])
         return [results[i] for i in range(len(items))]
@@ -314,8 +314,10 @@ class TaskRunner:
         return self._backend
 
     def run(self, fn: Callable[[T], R], items: Sequence[T], *, desc: str = "tasks",
-            label: Callable[[T], str] = str) -> list[TaskResult[R]]:
-        """`fn(item)` for every item; results in input order (see the module docstring for failures)."""
+            label: Callable[[T], str] = str,
+            on_done: Callable[[int, int, TaskResult[R]], None] | None = None) -> list[TaskResult[R]]:
+        """`fn(item)` for every item; results in input order (see the module docstring for failures).
+        `on_done(k, index, result)` is called as each task ends, the k-th to end (1-based), in this process."""
         from tqdm import tqdm  # noqa: PLC0415
 
         items = list(items)
@@ -325,7 +327,16 @@ class TaskRunner:
         backend = self._open(len(items))
         # disable=None: no bar when not a terminal
         with tqdm(total=len(items), desc=desc, unit="task", disable=None if self.progress else True) as bar:
-            return backend.map(fn, items, labels, bar, desc)
+            ended = 0
+
+            def done(i: int, result: TaskResult) -> None:
+                nonlocal ended
+                ended += 1
+                bar.update()
+                if on_done is not None:
+                    on_done(ended, i, result)
+
+            return backend.map(fn, items, labels, done, desc)
 
     def close(self) -> None:
         if self._backend is not None:

@@ -260,16 +260,20 @@ def _run_demo(config: DemoConfig, runner: TaskRunner) -> DemoResult:
     runs = [RecordingRun(entry=e) for e in entries]
 
     log(f"verify, align, simulate: {len(runs)} recording(s)")
-    results = runner.run(prepare_run, [_sendable(r) for r in runs], desc="prepare", label=lambda r: r.entry.name)
+
+    def ended(k: int, i: int, result) -> None:  # as each recording finishes, on any backend
+        problems = (len(result.value.errors) if result.ok else 1)
+        log(f"[{k}/{len(runs)}] {runs[i].entry.name}: verify, align, simulate"
+            + (f": {problems} error(s)" if problems else ""))
+
+    results = runner.run(prepare_run, [_sendable(r) for r in runs], desc="prepare", label=lambda r: r.entry.name,
+                         on_done=ended)
     for i, result in enumerate(results):
         if result.ok:
             result.value.entry = runs[i].entry  # paths as the user gave them, for the report
             runs[i] = result.value
         else:
             runs[i].errors.append(f"verify, align, simulate failed: {result.error}")
-        problems = len(runs[i].errors)
-        log(f"[{i + 1}/{len(runs)}] {runs[i].entry.name}: verify, align, simulate"
-            + (f": {problems} error(s)" if problems else ""))
     timings["verify_align_simulate"] = time.perf_counter() - t0
 
     training = None

@@ -76,3 +76,23 @@ def test_local_dask_cluster_same_contract(tmp_path):
     assert len(logged) == 1
     assert [r.ok for r in died] == [True, False, True] and "worker was lost" in died[1].error
     assert died[0].value == 0 and died[2].value == 30
+
+
+def test_each_task_is_reported_as_it_ends_not_when_the_batch_does():
+    """`on_done` runs in this process as each task ends: the quick task's call comes while the slow one runs."""
+    import time
+
+    calls = []
+    with TaskRunner(jobs=2, progress=False) as runner:
+        results = runner.run(time.sleep, [1.5, 0.0], on_done=lambda k, i, r: calls.append((k, i, r.ok, time.monotonic())))
+        returned = time.monotonic()
+    assert [r.ok for r in results] == [True, True]
+    assert [(k, i, ok) for k, i, ok, _ in calls] == [(1, 1, True), (2, 0, True)]
+    assert calls[0][3] < returned - 1.0
+
+
+def test_serial_runs_report_each_task_in_order():
+    seen = []
+    with TaskRunner(jobs=1, progress=False) as runner:
+        runner.run(tasks.square, [2, -1, 3], on_done=lambda k, i, r: seen.append((k, i, r.value)))
+    assert seen == [(1, 0, 4), (2, 1, None), (3, 2, 9)]
