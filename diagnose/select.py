@@ -20,6 +20,9 @@ is accepted only if all of these hold:
 - **not contradicted** by the evidence the data gives without any simulation
   (`evidence.contradicts`).
 
+The best is the one with the least held-out loss; among accepted candidates of its family whose
+held-out losses lie closer than noise alone moves them (`noise_spread`), the one that fits all the data
+best (`rank`).
 Hypotheses whose held-out loss is within `tie` of the best are reported as equally good
 alternatives (a program that moves Z only in rapids cannot tell a Z velocity limit from a rapid
 override); the primary is the one of the family listed first in `PRIORITY` (the machine's own limits
@@ -96,6 +99,32 @@ class Selection:
 
 def _priority(hyp: Hypothesis) -> int:
     return PRIORITY.index(hyp.family) if hyp.family in PRIORITY else len(PRIORITY)
+
+
+def noise_spread(scorer: Scorer) -> float:
+    """How much a level's summed loss varies from measurement noise alone: a perfect model's loss is a sum
+    of n squared errors of variance v (the floor, n v), whose standard deviation is sqrt(2 n) v."""
+    n = float(sum(w.sum() for w in scorer.weights)) if scorer.level == "timing" else float(
+        sum(u.hi - u.lo for u in scorer.units))
+    floor = float(scorer.floor.sum())
+    return floor * np.sqrt(2.0 / n) if n > 0 and np.isfinite(floor) else 0.0
+
+
+def rank(judged: list[Judged], spread: float) -> list[Judged]:
+    """Candidates best first: the least held-out loss, without a veto. Within one family (the same
+    limit on different axes: one form, one parameter each) held-out losses closer than the noise
+    `spread` do not tell the candidates apart (each recording held out fits a value from the few
+    others, and noise moves that); there the one that fits all the data best goes first, the
+    lower-variance criterion for causes of one form. Across families the held-out loss stays the judge:
+    a different form generalises differently (an X acceleration limit fitted to what all axes do)."""
+    out = sorted(judged, key=lambda j: (j.veto is not None, float(j.held.after.sum())))
+    if not out or out[0].veto is not None or not out[0].accepted or spread <= 0:
+        return out
+    low, family = float(out[0].held.after.sum()), out[0].held.hyp.family
+    near = [j for j in out if j.veto is None and j.accepted and j.held.hyp.family == family
+            and float(j.held.after.sum()) <= low + spread]
+    lead = min(near, key=lambda j: float(j.held.fit_after.sum()))
+    return [lead, *(j for j in out if j is not lead)]
 
 
 def screen(scorer: Scorer, model: dict[str, Any], hyps: Sequence[Hypothesis]) -> list[tuple[Hypothesis, float]]:
@@ -205,8 +234,7 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
         pool = [h for h, _ in screen(scorer, model, remaining)]
         if progress:
             progress(f"{scorer.level}: step {len(steps) + 1}, {len(pool)} of {len(remaining)} hypotheses cross-validated")
-        judged = [judge(held, scorer, cfg, error, evidence) for held in many(model, pool)]
-        judged.sort(key=lambda j: (j.veto is not None, float(j.held.after.sum())))
+        judged = rank([judge(held, scorer, cfg, error, evidence) for held in many(model, pool)], noise_spread(scorer))
         if not judged:
             break
         best = judged[0]
@@ -221,7 +249,7 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
                 continue
         ties = [j for j in judged[1:] if j.veto is None and
                 float(j.held.after.sum()) <= float(best.held.after.sum()) * (1 + cfg.tie) + 1e-300]
-        group = sorted([best, *ties], key=lambda j: (_priority(j.held.hyp), float(j.held.after.sum())))
+        group = sorted([best, *ties], key=lambda j: (_priority(j.held.hyp), judged.index(j)))
         chosen = group[0]
         if not best.accepted:
             rejected = judged
@@ -304,12 +332,12 @@ def _rechoose(scorer: Scorer, steps: list[Step], model: dict[str, Any], cfg: Sel
         if progress:
             progress(f"{scorer.level}: {len(pool)} alternative(s) to {hyp.key} judged with the other causes")
         judged = [step.chosen, *(judge(held, scorer, cfg, error, evidence) for held in many(others, pool))]
-        ok = [j for j in judged if j.accepted]
+        ok = rank([j for j in judged if j.accepted], noise_spread(scorer))
         if not ok:
             continue
-        low = min(float(j.held.after.sum()) for j in ok)
-        group = [j for j in ok if float(j.held.after.sum()) <= low * (1 + cfg.tie) + 1e-300]
-        pick = min(group, key=lambda j: (_priority(j.held.hyp), float(j.held.after.sum())))
+        top = float(ok[0].held.after.sum())
+        group = [j for j in ok if float(j.held.after.sum()) <= top * (1 + cfg.tie) + 1e-300]
+        pick = min(group, key=lambda j: (_priority(j.held.hyp), ok.index(j)))
         if pick is not step.chosen:
             steps[i] = Step(chosen=pick, alternatives=[j for j in group if j is not pick],
                             considered=[step.chosen, *step.considered])

@@ -73,3 +73,31 @@ def test_integer_parameters_are_searched_as_integers():
 
     hyp = Hypothesis(key="interpolator.lookahead_blocks", family="planner", lower=1, upper=400, scale="int", baseline=50)
     assert fit(IntScorer([1, 1], [1, 1], [0, 1]), {}, hyp, range(2)).value == 7
+
+
+def _judged(key: str, family: str, held_after: float, fit_after: float):
+    from feedlog.diagnose.fit import HeldOut
+    from feedlog.diagnose.select import Judged
+
+    hyp = Hypothesis(key=key, family=family, lower=1.0, upper=1000.0, baseline=500.0)
+    held = HeldOut(hyp=hyp, value=100.0, fold_values=[100.0], before=np.array([1.0]), after=np.array([held_after]),
+                   fit_after=np.array([fit_after]))
+    return Judged(held=held, error_before=5.0, error_after=0.5)
+
+
+def test_within_noise_one_family_is_ranked_by_its_fit_on_all_data_others_by_held_out_loss():
+    from feedlog.diagnose.select import rank
+
+    y = _judged("axes.y.acc_max", "axis_limits", 0.027, 0.0263)
+    x = _judged("axes.x.acc_max", "axis_limits", 0.040, 0.0257)
+    path = _judged("interpolator.path_acc_max_mm_s2", "path_limits", 0.035, 0.020)
+    # the X limit's held-out loss is within the noise of Y's and it fits all the data better: it leads;
+    # the path limit fits better still but is another form, judged on held-out loss
+    assert [j.key for j in rank([y, x, path], spread=0.03)] == ["axes.x.acc_max", "axes.y.acc_max",
+                                                                "interpolator.path_acc_max_mm_s2"]
+    # beyond the noise the held-out loss decides alone
+    assert [j.key for j in rank([y, x, path], spread=0.005)] == ["axes.y.acc_max", "interpolator.path_acc_max_mm_s2",
+                                                                 "axes.x.acc_max"]
+    # a candidate that failed its held-out test never leads by its fit
+    x.reasons.append("does not help every held-out part")
+    assert rank([y, x, path], spread=0.03)[0].key == "axes.y.acc_max"
