@@ -129,6 +129,7 @@ def where_text(table: pd.DataFrame, residual: np.ndarray, *, top: int = 2) -> st
     negative = ct["value"].str.startswith(("no ", "not ")) | (ct["value"] == "continuous")
     useful = ct[(ct["share"] >= 0.5) & (ct["lift"] > 1.15) & ~negative].sort_values(["lift", "share"],
                                                                                         ascending=False)
+    useful = useful.drop_duplicates("value")  # two classes may name the same blocks alike ("rapid" move, F)
     what = "lost time" if lost else "excess time"
     if not len(useful):
         return f"the {what} is spread over the program (no block class carries half of it)"

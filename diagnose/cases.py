@@ -102,6 +102,9 @@ class Case:
     notes: list[str] = field(default_factory=list)
     _arrays: Any = field(default=None, repr=False)
     span_acc_mm_s2: float = float("inf")  # acceleration align assumed leaving / reaching rest
+    span_samples: tuple[tuple[float, float] | None, tuple[float, float] | None] | None = None
+                                         # sparse data: (time from motion start, distance from the rest
+                                         # position) of the first and of the last moving sample (`moving_samples`)
 
     @property
     def sparse(self) -> bool:
@@ -243,6 +246,9 @@ def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, pro
                      f"aligned with {WIDE_TOL_MM} mm")
     except FeedlogError as exc:
         raise DiagnoseError(f"{name}: cannot align the recording with its program: {exc}") from None
+    if alignment.report.get("lines"):  # part of the program: the simulation runs that part, as the machine did
+        alignment, prog, note = partial_case(alignment, prog)
+        notes.append(note)
     t = axes["t_ns"].to_numpy(np.int64)
     period = float(np.median(np.diff(t))) / 1e9
     t0 = int(alignment.report["motion"]["t_start_ns"])
@@ -270,7 +276,54 @@ def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, pro
                 machine=machine_identity(rec), still_mm=float(alignment.report.get("still_mm", 1e-6)),
                 on_path_mm=_on_path(alignment, axes),
                 sample_offsets_s=(t - t0) / 1e9 if period > SPARSE_S else None, cl=cl, notes=notes,
-                span_acc_mm_s2=span_acceleration(profile))
+                span_acc_mm_s2=span_acceleration(profile),
+                span_samples=moving_samples(axes, t0, float(alignment.cycle_time_s)) if period > SPARSE_S else None)
+
+
+def moving_samples(axes: pd.DataFrame, t0_ns: int, cycle_s: float):
+    """The first and the last sample that show the tool moving, each as (time from motion start, distance
+    from the rest position before / after it), or None where the recording has no sample at rest on that
+    side (it began or ended in motion): on sparse data the facts about motion start and end no model placed."""
+    rel = (axes["t_ns"].to_numpy(np.int64) - t0_ns) / 1e9
+    pos = axes[[c for c in ("x_mm", "y_mm", "z_mm") if c in axes.columns]].to_numpy(np.float64)
+    first = int(np.searchsorted(rel, 0.0, side="right"))        # first sample after motion start
+    last = int(np.searchsorted(rel, cycle_s, side="left")) - 1  # last sample before motion end
+    if not first <= last:
+        return None
+    start = end = None
+    if first >= 1 and rel[first - 1] < 0:
+        d = float(np.linalg.norm(pos[first] - pos[first - 1]))
+        start = (float(rel[first]), d) if d > 0 else None
+    if last + 1 < len(rel) and rel[last + 1] > cycle_s:       # a sample at the final rest
+        d = float(np.linalg.norm(pos[last] - pos[last + 1]))
+        end = (float(rel[last]), d) if d > 0 else None
+    return start, end
+
+
+def partial_case(alignment: Any, prog: Any) -> tuple[Any, Any, str]:
+    """A recording of some program lines: the program cut to them. Lines found from the line stream start
+    with one that may have been under way when the recording began (align leaves it unchecked): the case
+    then starts where that line ends, in the recording and in the program."""
+    from dataclasses import replace  # noqa: PLC0415
+
+    from feedlog.align.partial import slice_program  # noqa: PLC0415
+
+    lines = alignment.report["lines"]
+    first, last = int(lines["first"]), int(lines["last"])
+    blocks = alignment.blocks
+    under = blocks["line"].to_numpy() == first
+    note = f"the recording covers program lines {first}:{last} (from the {lines['from']}): only those are simulated"
+    cut = int(blocks.loc[under, "t_end_ns"].max()) if under.any() else NO_TIME
+    motion = alignment.report["motion"]
+    if lines["from"] == "config" or under.all() or cut == NO_TIME or not motion["t_start_ns"] < cut < motion["t_end_ns"]:
+        return alignment, slice_program(prog, (first, last)), note
+    report = {**alignment.report, "motion": {**motion, "t_start_ns": cut,
+                                             "cycle_time_s": (motion["t_end_ns"] - cut) / 1e9}}
+    trimmed = replace(alignment, blocks=blocks[~under].reset_index(drop=True),
+                      points=alignment.points[alignment.points["line"].to_numpy() > first].reset_index(drop=True),
+                      cycle_time_s=(motion["t_end_ns"] - cut) / 1e9, report=report)
+    note += f"; line {first} was under way when it began, so the comparison starts where it ends"
+    return trimmed, slice_program(prog, (first + 1, last)), note
 
 
 def _on_path(alignment: Any, axes: pd.DataFrame) -> float:

@@ -10,8 +10,11 @@ cycle-time residual. Segments are fixed once per recording (from the measured bl
 profile's simulation), so every hypothesis is judged on the same pieces. The simulation is measured
 as the recording was: its motion span by align's rest rule (`sim_span`), and on sparse data its block
 ends where a logger sampling at the recording's instants would have seen the tool pass them
-(`mirrored_ends`); there the first and last segment, whose ends align placed with a model of the
-diagnosed profile, carry no weight in the loss.
+(`mirrored_ends`). There motion start and end were placed inside their sampling interval by a model
+of the diagnosed profile, so the first segment starts, on both sides, where the first moving sample
+shows the tool (the simulation: when it is as far from its start), and the last ends at the last
+moving sample likewise (`moving_samples`, `sample_bounds`): no model's placement is judged, and a slow
+approach or retract rapid (often a large share of a monitored cycle) is seen.
 
 **Feedback.** The recording's own commanded joint positions through the profile's feedback
 mechanisms (`feedlog.sim.feedback`) against its feedback positions: the feedback model is judged
@@ -99,11 +102,22 @@ def make_segments(case: Case, sim, *, min_segment_s: float | None = None) -> Seg
     times.append(case.cycle_s)
     end = np.asarray(times)
     weight = np.ones(len(end))
+    measured_s = np.diff(end, prepend=0.0)
     if case.sparse and len(end) > 2:
-        # at 5 Hz motion start and end are placed inside their sampling interval by a model of the profile
-        # under diagnosis; the segments holding them would judge that model, not the machine
-        weight[0] = weight[-1] = 0.0
-    return Segments(anchors=np.asarray(anchors, dtype=np.int64), measured_s=np.diff(end, prepend=0.0), end_s=end,
+        # motion start and end were placed inside their sampling interval by a model of the profile under
+        # diagnosis: the first segment starts at the first moving sample and the last ends at the last one
+        # (the simulation is cut alike: simulated_segments); without a sample at rest on that side the
+        # segment would judge that model, and carries no weight
+        start, stop = case.span_samples or (None, None)
+        if start is None:
+            weight[0] = 0.0
+        else:
+            measured_s[0] = end[0] - start[0]
+        if stop is None:
+            weight[-1] = 0.0
+        else:
+            measured_s[-1] = stop[0] - end[-2]
+    return Segments(anchors=np.asarray(anchors, dtype=np.int64), measured_s=measured_s, end_s=end,
                     weight=weight)
 
 
@@ -118,7 +132,35 @@ def simulated_segments(case: Case, segments: Segments, sim) -> np.ndarray:
     if case.sparse and case.sample_offsets_s is not None and len(anchors):
         t = mirrored_ends(case, sim, anchors, t)
     t = np.minimum(np.append(t, cycle), cycle)
-    return np.diff(np.maximum.accumulate(t), prepend=0.0)
+    out = np.diff(np.maximum.accumulate(t), prepend=0.0)
+    if case.sparse and case.span_samples is not None and len(out) > 2:
+        first_s, last_s = sample_bounds(case, sim)
+        out[0] -= first_s
+        out[-1] -= cycle - last_s
+    return out
+
+
+def sample_bounds(case: Case, sim) -> tuple[float, float]:
+    """When the simulated tool is as far from its start as the recording's first moving sample was from
+    its rest, and last as far from its end as the last moving sample was (s from motion start; motion
+    start and end where the recording has no such sample)."""
+    traj = sim.trajectory
+    start, end = sim_span(case, sim)
+    pos = traj.pos[:, :min(3, traj.pos.shape[1])]
+    first, last = case.span_samples
+    t_first, t_last = start, end
+    if first is not None:
+        away = np.linalg.norm(pos - pos[0], axis=1)
+        i = int(np.argmax(away >= first[1])) if (away >= first[1]).any() else len(pos) - 1
+        t_first = float(np.interp(first[1], [away[i - 1], away[i]], traj.t_s[i - 1:i + 1])) \
+            if i > 0 and away[i] > away[i - 1] else float(traj.t_s[i])
+    if last is not None:
+        left = np.linalg.norm(pos - pos[-1], axis=1)
+        j = int(len(pos) - 1 - np.argmax(left[::-1] >= last[1])) if (left >= last[1]).any() else 0
+        k = min(j + 1, len(pos) - 1)
+        t_last = float(np.interp(-last[1], [-left[j], -left[k]], [traj.t_s[j], traj.t_s[k]])) \
+            if left[j] > left[k] else float(traj.t_s[j])
+    return t_first - start, t_last - start
 
 
 def mirrored_ends(case: Case, sim, anchors: np.ndarray, approx: np.ndarray) -> np.ndarray:
