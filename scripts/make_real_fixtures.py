@@ -129,6 +129,46 @@ N150 M30
 """
 
 
+UMICH_FAST = """(UMICH WAX S-SHAPE - ONE LAYER, FAST, APPROACH AXIS BY AXIS)
+N10 G21 G90 G17 G94
+N20 G0 X140
+N30 G0 Y60 Z5
+N40 G1 Z-1 F300
+N50 G64 P0.05
+N60 X150 Y70 F1800
+N70 X160 Y70
+N80 G2 X170 Y80 R10
+N90 G1 Y90
+N100 G3 X160 Y100 R10
+N110 G1 X150
+N120 G2 X140 Y110 R10
+N130 G1 Y120
+N140 X165
+N150 G0 Z5
+N160 G0 X0 Y0
+N170 M30
+"""
+
+UMICH_FACING = """(UMICH WAX FACING - ZIG-ZAG)
+N10 G21 G90 G17 G94
+N20 G0 X10 Y10 Z5
+N30 G1 Z-0.5 F300
+N40 G64 P0.05
+N50 X110 F4800
+N60 Y20
+N70 X10
+N80 Y30
+N90 X110
+N100 Y40
+N110 X10
+N120 Y50
+N130 X110
+N140 G0 Z5
+N150 G0 X10 Y10
+N160 M30
+"""
+
+
 def machine(name: str, *, vel: float, acc: float, rapid: float, tol: float = 0.01):
     """The machine each log is made on: generic-xyz with other limits (what diagnose should find)."""
     from feedlog.profile import load_profile
@@ -269,8 +309,16 @@ def mazak(rng: random.Random) -> None:
 
 
 def umich(rng: random.Random) -> None:
+    """The UMich set holds many experiments of one machine; three here, on programs that tell its limits apart."""
     prof = machine("umich-mill", vel=150.0, acc=800.0, rapid=6000.0)
-    series, program = run(UMICH, "umich_part.nc", prof)
+    umich_experiment(rng, prof, UMICH, "umich_part.nc", "umich_experiment.csv")
+    for k, text in ((2, UMICH_FAST), (3, UMICH_FACING)):
+        umich_experiment(random.Random(f"fixtures:umich:{k}"), prof, text, f"umich_part_{k:02d}.nc",
+                         f"umich_experiment_{k:02d}.csv")
+
+
+def umich_experiment(rng: random.Random, prof, text: str, program_name: str, csv_name: str) -> None:
+    series, program = run(text, program_name, prof)
     n_word = program.blocks.set_index("line")["n_word"]
     duration = (series["t_ns"].iloc[-1] - series["t_ns"].iloc[0]) / 1e9
     t = np.arange(-0.8, duration + 0.8, 0.1)
@@ -293,8 +341,8 @@ def umich(rng: random.Random) -> None:
         rec["M1_CURRENT_FEEDRATE"] = round(float(row.feed_mm_min), 2)
         rec["Machining_Process"] = "Prep" if row.t_s <= 0 else ("Layer 1 Up" if row.t_s < duration else "End")
         rows.append(rec)
-    pd.DataFrame(rows).to_csv(OUT / "umich_experiment.csv", index=False)
-    (OUT / "umich_part.nc").write_text(UMICH)
+    pd.DataFrame(rows).to_csv(OUT / csv_name, index=False)
+    (OUT / program_name).write_text(text)
 
 
 def sinumerik(rng: random.Random) -> None:
