@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from feedlog.cli_options import add_output, add_overwrite
+from feedlog.cli_options import add_output, add_overwrite, add_quiet
 from feedlog.errors import IngestError
 from feedlog.ingest.mapping import preset_description, preset_names
 from feedlog.ingest.readers import SUFFIXES, ImportOptions, read_source
@@ -47,6 +47,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--profile", help="machine profile to attach (name or TOML path)")
     parser.add_argument("--machine", help="machine name for the session metadata")
     parser.add_argument("--notes", help="free text for the session metadata")
+    add_quiet(parser, help="print only warnings, not the recording's summary")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -68,7 +69,8 @@ def run(args: argparse.Namespace) -> int:
     attach_session(recording, program=args.program, profile=args.profile, machine=args.machine, notes=args.notes)
     write_recording(args.out, recording, overwrite=args.overwrite, compression=args.compression)
     recording.source = args.out
-    print(format_summary(summarize(recording)))
+    if not args.quiet:
+        print(format_summary(summarize(recording)))
     for key in ("bad_rows", "bad_records", "bad_frames", "unknown_ids", "short_frames", "incomplete_samples",
                 "recovered", "unavailable", "unit_check"):
         if key in recording.metadata:

@@ -139,6 +139,12 @@ def test_import_cli_warns_when_the_feed_unit_disagrees_with_the_positions(tmp_pa
     assert main(["import", str(REAL / "hurco_shdr.txt"), "--length-unit", "in", "--feed-unit", "in/min", "-o",
                  str(out), "--overwrite"]) == 0
     assert "unit_check" not in capsys.readouterr().out
+    # -q: the warning still, the summary not
+    assert main(["import", str(REAL / "hurco_shdr.txt"), "--length-unit", "in", "-o", str(out), "--overwrite",
+                 "-q"]) == 0
+    printed = capsys.readouterr().out
+    assert "warning: unit_check: the feed column reads" in printed
+    assert all(line.startswith("warning: ") for line in printed.splitlines())
     assert main(["import", str(tmp_path / "none.txt"), "-o", str(tmp_path / "x.mcap")]) == 2
     assert not (tmp_path / "x.mcap").exists()
 
