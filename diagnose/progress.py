@@ -22,15 +22,20 @@ WINDOW = 2  # CL segments searched either side of the bracketing one
 def sample_progress(t: np.ndarray, pos: np.ndarray, cl_xyz: np.ndarray, cl_s: np.ndarray,
                     cl_t: np.ndarray) -> np.ndarray:
     """Arc length along the CL polyline of each sample (n,) at times `t`, positions `pos` (n, 3).
-    `cl_t` (ascending, finite) say roughly when each CL point was passed."""
-    m = len(cl_xyz)
-    if m < 2 or len(t) == 0:
-        return np.zeros(len(t))
+    `cl_t` (ascending, finite) say roughly when each CL point was passed: each sample is searched on the
+    CL segments passed within a sampling period of it (CL times matched to sparse samples are those
+    samples' times, so a short block's points all carry one of them), and `WINDOW` segments either side."""
+    m, n = len(cl_xyz), len(t)
+    if m < 2 or n == 0:
+        return np.zeros(n)
+    period = float(np.median(np.diff(t))) if n > 1 else 0.0
     k = np.clip(np.searchsorted(cl_t, t) - 1, 0, m - 2)
-    best_s = np.zeros(len(t))
-    best_d = np.full(len(t), np.inf)
-    for off in range(-WINDOW, WINDOW + 1):
-        kk = np.clip(k + off, 0, m - 2)
+    lo = np.clip(np.minimum(k - WINDOW, np.searchsorted(cl_t, t - period, side="left") - 1), 0, m - 2)
+    hi = np.clip(np.maximum(k + WINDOW, np.searchsorted(cl_t, t + period, side="right")), 0, m - 2)
+    best_s = np.zeros(n)
+    best_d = np.full(n, np.inf)
+    for off in range(int((hi - lo).max()) + 1):
+        kk = np.minimum(lo + off, hi)
         a, b = cl_xyz[kk], cl_xyz[kk + 1]
         ab = b - a
         den = np.einsum("ij,ij->i", ab, ab)

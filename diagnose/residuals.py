@@ -180,9 +180,14 @@ def mirrored_ends(case: Case, sim, anchors: np.ndarray, approx: np.ndarray) -> n
     ok = np.isfinite(target) & np.isfinite(approx)
     if ok.sum() < 1:
         return approx
-    # when the simulation passed each CL point, roughly: its block ends, linearly in arc length
-    s_anchor = np.concatenate([[0.0], target[ok]])
-    t_anchor = np.concatenate([[0.0], approx[ok]])
+    # when the simulation passed each CL point, roughly: every simulated block's end (not the anchors
+    # alone: a prior that is off by a fraction of a block sends the search to the wrong CL points),
+    # linearly in arc length between them, and the program's end at motion end
+    ids, ends, cycle = sim_block_ends(case, sim)
+    s_end = block_end_progress(cl.block, cl.s, ids)
+    known = np.isfinite(s_end)
+    s_anchor = np.concatenate([[0.0], s_end[known], [float(cl.s[-1])]])
+    t_anchor = np.concatenate([[0.0], ends[known], [cycle]])
     order = np.argsort(s_anchor, kind="stable")
     cl_t = np.maximum.accumulate(np.interp(cl.s, s_anchor[order], t_anchor[order]))
     s = sample_progress(grid, q, cl.xyz, cl.s, cl_t)
