@@ -71,7 +71,7 @@ def test_the_unchanged_machine_gives_no_finding(hidden):
     assert dx.diff == []
 
 
-@pytest.mark.parametrize(("name", "values", "key", "truth"), [SINGLE[0], SINGLE[1]], ids=["xacc", "override"])
+@pytest.mark.parametrize(("name", "values", "key", "truth"), SINGLE, ids=[s[0] for s in SINGLE])
 def test_at_5_hz_a_hidden_change_is_still_named(hidden, name, values, key, truth):
     dx = diagnose(hidden(f"{name}_5hz", values=values, rate_hz=5.0), "linuxcnc-xyz", config=FAST)
     assert [f.parameter for f in dx.findings] == [key]
