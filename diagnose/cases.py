@@ -31,6 +31,7 @@ ROTARY_COLUMNS = {"a": "a_deg", "b": "b_deg", "c": "c_deg"}
 MOVE_MM = 1e-3  # an axis that moves less than this (mm or deg) over a recording does not move
 SPARSE_S = 0.005  # sampling periods above this are monitoring data (5 Hz), not a servo trace
 WIDE_TOL_MM = 1.0  # alignment tolerance for a path that leaves the program's corners (smoothing controllers)
+MIN_SIGMA_S = 1e-3  # sparse timing resolution at least this: the simulation's own time step (one servo period)
 
 
 class DiagnoseError(FeedlogError):
@@ -102,6 +103,7 @@ class Case:
     notes: list[str] = field(default_factory=list)
     _arrays: Any = field(default=None, repr=False)
     span_acc_mm_s2: float = float("inf")  # acceleration align assumed leaving / reaching rest
+    sparse_sigma_s: float | None = None  # sparse data: timing resolution of a mirrored block end (`sampled_sigma`)
     span_samples: tuple[tuple[float, float] | None, tuple[float, float] | None] | None = None
                                          # sparse data: (time from motion start, distance from the rest
                                          # position) of the first and of the last moving sample (`moving_samples`)
@@ -123,6 +125,17 @@ class Case:
     def boundary_sigma_s(self) -> float:
         """Timing resolution of one measured block boundary: a uniform error over one sampling period."""
         return self.period_s / np.sqrt(12.0)
+
+    @property
+    def segment_sigma_s(self) -> float:
+        """Timing resolution of one segment boundary as the timing level compares it. Dense data: the
+        boundary's own (`boundary_sigma_s`). Sparse data: the simulation is sampled at the recording's own
+        instants and its block ends found from those samples as the recording's were
+        (`residuals.mirrored_ends`), so the sampling period cancels; what does not is the timestamps'
+        jitter and the position noise over the speed (`sparse_sigma_s`)."""
+        if self.sparse and self.sparse_sigma_s is not None:
+            return self.sparse_sigma_s
+        return self.boundary_sigma_s
 
 
 def _program(rec: Recording, program: Any, lenient: bool):
@@ -277,26 +290,57 @@ def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, pro
                 on_path_mm=_on_path(alignment, axes),
                 sample_offsets_s=(t - t0) / 1e9 if period > SPARSE_S else None, cl=cl, notes=notes,
                 span_acc_mm_s2=span_acceleration(profile),
-                span_samples=moving_samples(axes, t0, float(alignment.cycle_time_s)) if period > SPARSE_S else None)
+                sparse_sigma_s=sampled_sigma(axes, t0, float(alignment.cycle_time_s),
+                                             float(alignment.report.get("still_mm", 1e-3))) if cl is not None else None,
+                span_samples=None if cl is None else moving_samples(axes, t0, float(alignment.cycle_time_s),
+                                                                    cl.machine_xyz[0], cl.machine_xyz[-1]))
 
 
-def moving_samples(axes: pd.DataFrame, t0_ns: int, cycle_s: float):
+def sampled_sigma(axes: pd.DataFrame, t0_ns: int, cycle_s: float, still_mm: float) -> float:
+    """How well a sparse recording times the tool passing a point, once the sampling instants are shared
+    with the simulation: the timestamps' jitter (robust spread of the sampling intervals) and the
+    position noise (align's still threshold) over the median moving speed; at least `MIN_SIGMA_S`."""
+    t = axes["t_ns"].to_numpy(np.int64)
+    dt = np.diff(t) / 1e9
+    if len(dt) < 2:
+        return MIN_SIGMA_S
+    jitter = 1.4826 * float(np.median(np.abs(dt - np.median(dt)))) / np.sqrt(2.0)
+    pos = axes[[c for c in ("x_mm", "y_mm", "z_mm") if c in axes.columns]].to_numpy(np.float64)
+    rel = (t[1:] - t0_ns) / 1e9
+    step = np.linalg.norm(np.diff(pos, axis=0), axis=1)
+    moving = (rel > 0) & (rel <= cycle_s) & (dt > 0) & np.isfinite(step) & (step > still_mm)
+    speed = float(np.median(step[moving] / dt[moving])) if moving.any() else 0.0
+    noise = still_mm / speed if speed > 0 else 0.0
+    return max(float(np.hypot(jitter, noise)), MIN_SIGMA_S)
+
+
+def moving_samples(axes: pd.DataFrame, t0_ns: int, cycle_s: float, start_xyz: np.ndarray | None = None,
+                   end_xyz: np.ndarray | None = None):
     """The first and the last sample that show the tool moving, each as (time from motion start, distance
-    from the rest position before / after it), or None where the recording has no sample at rest on that
-    side (it began or ended in motion): on sparse data the facts about motion start and end no model placed."""
+    from where the motion began / ends): on sparse data the facts about motion start and end no model
+    placed. The distance is from the sample at rest before / after it; where the recording has none (it
+    began or ended in motion, or a logger stopped with the program) from the program's first / last
+    point in the machine frame (`start_xyz`, `end_xyz`); None where neither is known."""
     rel = (axes["t_ns"].to_numpy(np.int64) - t0_ns) / 1e9
     pos = axes[[c for c in ("x_mm", "y_mm", "z_mm") if c in axes.columns]].to_numpy(np.float64)
     first = int(np.searchsorted(rel, 0.0, side="right"))        # first sample after motion start
     last = int(np.searchsorted(rel, cycle_s, side="left")) - 1  # last sample before motion end
     if not first <= last:
         return None
-    start = end = None
-    if first >= 1 and rel[first - 1] < 0:
-        d = float(np.linalg.norm(pos[first] - pos[first - 1]))
-        start = (float(rel[first]), d) if d > 0 else None
-    if last + 1 < len(rel) and rel[last + 1] > cycle_s:       # a sample at the final rest
-        d = float(np.linalg.norm(pos[last] - pos[last + 1]))
-        end = (float(rel[last]), d) if d > 0 else None
+
+    def away(i: int, rest: int, point: np.ndarray | None) -> float | None:
+        if 0 <= rest < len(rel) and (rel[rest] < 0 if rest < i else rel[rest] > cycle_s):
+            ref = pos[rest]                                        # a sample at rest on that side
+        elif point is not None and len(point) == pos.shape[1] and np.isfinite(point).all():
+            ref = point
+        else:
+            return None
+        d = float(np.linalg.norm(pos[i] - ref))
+        return d if np.isfinite(d) else None
+
+    d0, d1 = away(first, first - 1, start_xyz), away(last, last + 1, end_xyz)
+    start = (float(rel[first]), d0) if d0 is not None and d0 > 0 else None
+    end = (float(rel[last]), d1) if d1 is not None and d1 > 0 else None
     return start, end
 
 

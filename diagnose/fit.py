@@ -81,11 +81,12 @@ class Scorer:
 
     def _floor(self, u: Unit) -> float:
         """The loss a perfect model leaves on a unit: the measurement's own resolution. Timing: each
-        segment's two boundaries are uncertain by a sampling period / sqrt(12); feedback: the noise of
-        the feedback positions at rest."""
+        segment's two boundaries are uncertain by `Case.segment_sigma_s` (a sampling period / sqrt(12);
+        on sparse data, whose sampling the simulation shares, the timestamps' jitter and the position
+        noise); line: a sampling period / sqrt(12); feedback: the noise of the feedback positions at rest."""
         case = self.cases[u.case]
         if self.level == "timing":
-            return float(self.weights[u.case][u.lo:u.hi].sum()) * 2.0 * case.boundary_sigma_s ** 2
+            return float(self.weights[u.case][u.lo:u.hi].sum()) * 2.0 * case.segment_sigma_s ** 2
         if self.level == "line":  # two events on each side, each good to a sampling period
             return (u.hi - u.lo) * 4.0 * case.boundary_sigma_s ** 2
         from feedlog.align.blocks import rest_noise  # noqa: PLC0415

@@ -1,7 +1,8 @@
 """Before and after, at every level the data supports.
 
 - **cycle**: measured vs simulated cycle time per recording (the simulation's motion span taken as
-  the recording's was, `residuals.sim_span`);
+  the recording's was, `residuals.sim_span`; on sparse data from the first to the last moving sample,
+  `sampled_cycle`);
 - **timing**: the segment residuals (`residuals`), as an RMS in ms and as misplaced time (%);
 - **samples**: per axis, positions, velocities and (dense data) accelerations over time since motion
   start, measured against simulated; and the path speed along the program (`progress_curves`:
@@ -23,7 +24,8 @@ import pandas as pd
 from feedlog.diagnose.attribution import class_table, segment_table, top_segments, where_text
 from feedlog.diagnose.cases import Case, position_columns
 from feedlog.diagnose.evidence import _derivatives
-from feedlog.diagnose.residuals import feedback_residual, rms, sim_span, simulated_segments, timing_residual
+from feedlog.diagnose.residuals import (feedback_residual, rms, sample_bounds, sim_span, simulated_segments,
+                                        timing_residual)
 from feedlog.profile import LINEAR_AXES, MachineProfile
 from feedlog.toolpath.schema import AXIS_UNITS
 
@@ -77,6 +79,18 @@ def measured_cycle(case: Case, profile: MachineProfile) -> float:
         return float(align_recording(case.recording, case.program, profile=profile).cycle_time_s)
     except FeedlogError:
         return case.cycle_s
+
+
+def sampled_cycle(case: Case, before, after) -> tuple[float, float, float] | None:
+    """Sparse data: (measured, simulated before, simulated after) time from the first to the last sample
+    that shows the tool moving, the simulations cut alike (`residuals.sample_bounds`). Motion start and
+    end fall between samples, where only a model could place them; this span no model placed, and the
+    timing segments add up to it. None on dense data or where a side is not known."""
+    span = case.span_samples if case.sparse else None
+    if span is None or span[0] is None or span[1] is None or not span[1][0] > span[0][0]:
+        return None
+    (fb, lb), (fa, la) = sample_bounds(case, before), sample_bounds(case, after)
+    return span[1][0] - span[0][0], lb - fb, la - fa
 
 
 def sample_residuals(case: Case, profile: MachineProfile, sim) -> dict[str, dict[str, float | None]]:
@@ -159,11 +173,15 @@ def measure_levels(dx) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
     after = simulate_all(cases, ext)
     cyc = []
     for c, b, a in zip(cases, before, after):
-        sb, eb = sim_span(c, b)
-        sa, ea = sim_span(c, a)
-        meas = measured_cycle(c, ext) if dx.diff else c.cycle_s
-        cyc.append({"name": c.name, "measured_s": meas, "simulated_before_s": eb - sb, "simulated_after_s": ea - sa,
-                    "error_before_pct": 100 * ((eb - sb) / meas - 1), "error_after_pct": 100 * ((ea - sa) / meas - 1)})
+        bounded = sampled_cycle(c, b, a)
+        if bounded is not None:
+            meas, dur_b, dur_a = bounded
+        else:
+            (sb, eb), (sa, ea) = sim_span(c, b), sim_span(c, a)
+            meas, dur_b, dur_a = (measured_cycle(c, ext) if dx.diff else c.cycle_s), eb - sb, ea - sa
+        cyc.append({"name": c.name, "measured_s": meas, "simulated_before_s": dur_b, "simulated_after_s": dur_a,
+                    "error_before_pct": 100 * (dur_b / meas - 1), "error_after_pct": 100 * (dur_a / meas - 1),
+                    "span": "motion" if bounded is None else "moving samples"})
     meas = sum(r["measured_s"] for r in cyc)
     levels: dict[str, Any] = {"cycle": {
         "recordings": cyc, "measured_s": meas, "simulated_before_s": sum(r["simulated_before_s"] for r in cyc),

@@ -14,7 +14,8 @@ ends where a logger sampling at the recording's instants would have seen the too
 of the diagnosed profile, so the first segment starts, on both sides, where the first moving sample
 shows the tool (the simulation: when it is as far from its start), and the last ends at the last
 moving sample likewise (`moving_samples`, `sample_bounds`): no model's placement is judged, and a slow
-approach or retract rapid (often a large share of a monitored cycle) is seen.
+approach or retract rapid (often a large share of a monitored cycle) is seen. For the same reason the
+simulation is sampled at the recording's instants phased on the first moving sample.
 
 **Feedback.** The recording's own commanded joint positions through the profile's feedback
 mechanisms (`feedlog.sim.feedback`) against its feedback positions: the feedback model is judged
@@ -172,7 +173,13 @@ def mirrored_ends(case: Case, sim, anchors: np.ndarray, approx: np.ndarray) -> n
     slow-down between two of them) is missed by both. `approx` are the simulation's exact end times."""
     traj = sim.trajectory
     start, _ = sim_span(case, sim)
+    # the recording's instants, phased on its first moving sample (when the simulation is as far from
+    # its start): align placed motion start inside a sampling interval with a model of the profile under
+    # diagnosis, and a phase off by that model would move every interpolated block end
     grid = case.sample_offsets_s
+    first = case.span_samples[0] if case.span_samples is not None else None
+    if first is not None:
+        grid = grid + (sample_bounds(case, sim)[0] - first[0])
     lin = list(range(min(3, traj.pos.shape[1])))
     q = np.column_stack([np.interp(grid + start, traj.t_s, traj.pos[:, i]) for i in lin])
     cl = case.cl

@@ -113,7 +113,11 @@ def test_diagnose_names_it_at_5_hz_too(recorded, name):
     dx = diagnose([_at_5_hz(p) for p in recorded[name]], PROFILE[base], config=CONFIG)
     found = {f.parameter: f.fitted_value for f in dx.findings}
     assert set(found) == set(expected)
-    for key, value in expected.items():
-        assert found[key] == pytest.approx(value, rel=0.15)
+    for key, value in expected.items():     # measured as the samples show it: 300.02, 29.999, 0.79999
+        assert found[key] == pytest.approx(value, rel=0.03)
+    cycle = dx.levels["cycle"]
     if not expected:
-        assert dx.unexplained == []
+        assert dx.unexplained == [] and abs(cycle["error_before_pct"]) < 0.3   # was +1.82 %: the logger
+        # stops 50 ms after the last move, so no 5 Hz sample shows the final rest
+    else:
+        assert abs(cycle["error_after_pct"]) <= 0.05 * abs(cycle["error_before_pct"])
