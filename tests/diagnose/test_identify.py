@@ -75,8 +75,9 @@ def test_the_unchanged_machine_gives_no_finding(hidden):
 def test_at_5_hz_a_hidden_change_is_still_named(hidden, name, values, key, truth):
     dx = diagnose(hidden(f"{name}_5hz", values=values, rate_hz=5.0), "linuxcnc-xyz", config=FAST)
     assert [f.parameter for f in dx.findings] == [key]
-    assert dx.findings[0].fitted_value == pytest.approx(truth, rel=0.15)
-    assert _cycle_error_removed(dx) >= 0.8
+    # compared as the samples show it, the fit is as good as at 1 kHz (300.01, 0.7999, 29.999, 0.020)
+    assert dx.findings[0].fitted_value == pytest.approx(truth, rel=0.03)
+    assert _cycle_error_removed(dx) >= 0.95
 
 
 def test_the_unchanged_machine_at_5_hz_gives_no_finding(hidden):
