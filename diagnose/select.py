@@ -10,8 +10,9 @@ is accepted only if all of these hold:
   resolution (a period / sqrt(12)) and every feedback position by its noise at rest;
 - **material**: the level's held-out error drops by at least `min_effect` (timing: 1 percentage
   point of the time the recordings take; feedback: 1 um or twice the noise of the feedback at rest,
-  whichever is larger): below that the profile already explains the data within the simulation's
-  own accuracy, and a faithful recording gives no finding;
+  whichever is larger), or a held-out error of at least that is halved: below that the profile
+  already explains the data within the simulation's own accuracy, and a faithful recording gives no
+  finding;
 - **repeatable**: it helps every held-out unit whose error is material (two or three units), or its
   mean relative gain stands two standard errors above zero (four or more): a gain that does not
   repeat across recordings (or stretches of one) is noise;
@@ -49,6 +50,7 @@ SCREEN_POINTS = 9      # grid points per hypothesis when screening
 SCREEN_ITER = 5        # ... then Brent iterations between the best point's neighbours (a small effect falls between)
 FOLD_SHARE = 0.05      # a held-out fold must hold this share of the excess loss to count for repeatability
 SWAP_GAIN = 0.2        # a replacement must lower the held-out loss by this share
+HALVES = 0.5           # ... or a material error brought down to this share of itself counts as material too
 
 
 @dataclass(frozen=True)
@@ -161,7 +163,8 @@ def judge(held: HeldOut, scorer: Scorer, cfg: SelectConfig, error: Callable[[np.
             j.reasons.append(f"contradicted by the data: {j.veto}")
     if held.gain < cfg.min_gain:
         j.reasons.append(f"removes {100 * held.gain:.1f} % of the held-out loss (needs {100 * cfg.min_gain:.0f} %)")
-    if j.error_before - j.error_after < cfg.min_effect:
+    if j.error_before - j.error_after < cfg.min_effect and not (
+            j.error_before >= cfg.min_effect and j.error_after <= HALVES * j.error_before):
         j.reasons.append(f"held-out error {j.error_before:.4g} -> {j.error_after:.4g}: less than the "
                          f"{cfg.min_effect:g} that counts")
     why = _repeatability(held, units, cfg, error)

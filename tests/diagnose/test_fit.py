@@ -101,3 +101,24 @@ def test_within_noise_one_family_is_ranked_by_its_fit_on_all_data_others_by_held
     # a candidate that failed its held-out test never leads by its fit
     x.reasons.append("does not help every held-out part")
     assert rank([y, x, path], spread=0.03)[0].key == "axes.y.acc_max"
+
+
+def test_a_material_error_halved_counts_though_it_drops_by_less_than_one_point():
+    from types import SimpleNamespace
+
+    from feedlog.diagnose.fit import HeldOut
+    from feedlog.diagnose.select import SelectConfig, judge
+
+    scorer = SimpleNamespace(units=[0], groups=[[0]], cases=[SimpleNamespace(name="r")])
+    hyp = Hypothesis(key="interpolator.lookahead_blocks", family="planner", lower=1, upper=400, scale="int",
+                     baseline=48)
+
+    def judged(before: float, after: float):
+        held = HeldOut(hyp=hyp, value=8, fold_values=[8], before=np.array([before]), after=np.array([after]),
+                       fit_after=np.array([after]), floor=np.zeros(1))
+        return judge(held, scorer, SelectConfig(), lambda losses, units: float(losses[units].sum()), None)
+
+    assert judged(1.6, 0.6).accepted               # 1.6 -> 0.6 points: not one point, but halved
+    assert not judged(3.0, 2.2).accepted           # 0.8 of 3: neither
+    assert not judged(0.9, 0.0).accepted           # nothing material to explain
+    assert judged(3.0, 1.9).accepted               # one point and more
