@@ -105,8 +105,8 @@ class Case:
     span_acc_mm_s2: float = float("inf")  # acceleration align assumed leaving / reaching rest
     sparse_sigma_s: float | None = None  # sparse data: timing resolution of a mirrored block end (`sampled_sigma`)
     span_samples: tuple[tuple[float, float] | None, tuple[float, float] | None] | None = None
-                                         # sparse data: (time from motion start, distance from the rest
-                                         # position) of the first and of the last moving sample (`moving_samples`)
+                                         # sparse data: (time from motion start, distance from where the
+                                         # motion began / ends) of the first and last moving sample (`moving_samples`)
 
     @property
     def sparse(self) -> bool:
