@@ -107,8 +107,8 @@ def make_segments(case: Case, sim, *, min_segment_s: float | None = None) -> Seg
     if case.sparse and len(end) > 2:
         # motion start and end were placed inside their sampling interval by a model of the profile under
         # diagnosis: the first segment starts at the first moving sample and the last ends at the last one
-        # (the simulation is cut alike: simulated_segments); without a sample at rest on that side the
-        # segment would judge that model, and carries no weight
+        # (the simulation is cut alike: simulated_segments); where that sample's distance is not known
+        # (no sample at rest, no program point) the segment would judge that model, and carries no weight
         start, stop = case.span_samples or (None, None)
         if start is None:
             weight[0] = 0.0
@@ -130,21 +130,21 @@ def simulated_segments(case: Case, segments: Segments, sim) -> np.ndarray:
     anchors = segments.anchors[:-1]
     at = np.searchsorted(ids, anchors, side="right") - 1
     t = np.where(at >= 0, ends[np.clip(at, 0, None)], 0.0) if len(ids) else np.zeros(len(anchors))
+    bounds = sample_bounds(case, sim) if case.sparse and case.span_samples is not None else None
     if case.sparse and case.sample_offsets_s is not None and len(anchors):
-        t = mirrored_ends(case, sim, anchors, t)
+        t = mirrored_ends(case, sim, anchors, t, bounds)
     t = np.minimum(np.append(t, cycle), cycle)
     out = np.diff(np.maximum.accumulate(t), prepend=0.0)
-    if case.sparse and case.span_samples is not None and len(out) > 2:
-        first_s, last_s = sample_bounds(case, sim)
-        out[0] -= first_s
-        out[-1] -= cycle - last_s
+    if bounds is not None and len(out) > 2:
+        out[0] -= bounds[0]
+        out[-1] -= cycle - bounds[1]
     return out
 
 
 def sample_bounds(case: Case, sim) -> tuple[float, float]:
     """When the simulated tool is as far from its start as the recording's first moving sample was from
-    its rest, and last as far from its end as the last moving sample was (s from motion start; motion
-    start and end where the recording has no such sample)."""
+    where motion began, and last as far from its end as the last moving sample was from where it ended
+    (s from motion start; motion start and end where the recording has no such sample)."""
     traj = sim.trajectory
     start, end = sim_span(case, sim)
     pos = traj.pos[:, :min(3, traj.pos.shape[1])]
@@ -164,13 +164,15 @@ def sample_bounds(case: Case, sim) -> tuple[float, float]:
     return t_first - start, t_last - start
 
 
-def mirrored_ends(case: Case, sim, anchors: np.ndarray, approx: np.ndarray) -> np.ndarray:
+def mirrored_ends(case: Case, sim, anchors: np.ndarray, approx: np.ndarray,
+                  bounds: tuple[float, float] | None = None) -> np.ndarray:
     """When a sparse logger would have seen the simulated tool reach each anchor block's end.
 
     The simulation is sampled at the recording's own instants (from motion start), each sample's
     progress along the program found as the recording's was (`progress.sample_progress`) and the
     anchors' times interpolated between samples alike: what the samples do not show (a corner's
-    slow-down between two of them) is missed by both. `approx` are the simulation's exact end times."""
+    slow-down between two of them) is missed by both. `approx` are the simulation's exact end times;
+    `bounds` its `sample_bounds` when the caller has them."""
     traj = sim.trajectory
     start, _ = sim_span(case, sim)
     # the recording's instants, phased on its first moving sample (when the simulation is as far from
@@ -179,7 +181,7 @@ def mirrored_ends(case: Case, sim, anchors: np.ndarray, approx: np.ndarray) -> n
     grid = case.sample_offsets_s
     first = case.span_samples[0] if case.span_samples is not None else None
     if first is not None:
-        grid = grid + (sample_bounds(case, sim)[0] - first[0])
+        grid = grid + ((bounds or sample_bounds(case, sim))[0] - first[0])
     lin = list(range(min(3, traj.pos.shape[1])))
     q = np.column_stack([np.interp(grid + start, traj.t_s, traj.pos[:, i]) for i in lin])
     cl = case.cl
