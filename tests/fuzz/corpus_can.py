@@ -128,7 +128,7 @@ def canlog_csv_cases(rng: random.Random) -> list[Case]:
 
 def dbc_cases(rng: random.Random) -> list[Case]:
     asc = (FIXTURES / "axes.asc").read_bytes()
-    dbc = (ROOT / "ingest" / "feedlog_axes.dbc").read_bytes()
+    dbc = (ROOT / "src" / "feedlog" / "ingest" / "feedlog_axes.dbc").read_bytes()
 
     def with_dbc(name: str, content: bytes, expect: str = "any") -> Case:
         return _case(f"dbc/{name}", {"a.asc": asc, "x.dbc": content}, "a.asc", expect, extra=("--dbc", "x.dbc"),

@@ -10,7 +10,7 @@ import zipfile
 from tests.fuzz import mutate
 from tests.fuzz.cases import EXAMPLES, ROOT, Case, Run
 
-PROFILE = ROOT / "core" / "profiles" / "linuxcnc-xyz.toml"
+PROFILE = ROOT / "src" / "feedlog" / "profiles" / "linuxcnc-xyz.toml"
 
 
 def profile_cases(rng: random.Random) -> list[Case]:
