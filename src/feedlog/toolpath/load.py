@@ -15,22 +15,32 @@ from pathlib import Path
 
 from feedlog.errors import ProgramError
 from feedlog.toolpath.dialects import DIALECTS, detect, translate
+from feedlog.toolpath.interp import InterpOptions, interpret, needs_interpreter
 from feedlog.toolpath.parser import parse_program
 from feedlog.toolpath.program import Program
 from feedlog.toolpath.source import read_source
 
 
 def load_program(source: str | Path | Program, *, lenient: bool = False, dialect: str = "auto",
-                 name: str | None = None) -> Program:
+                 name: str | None = None, interp: InterpOptions | None = None) -> Program:
     """Parse a program (path, G-code text, or an already parsed Program, returned as is) of `dialect`
-    (`auto`: detected from the file name and the text; see `toolpath.dialects`)."""
+    (`auto`: detected from the file name and the text; see `toolpath.dialects`). Programs with
+    parameters, expressions, O-words, canned cycles, polar coordinates or tool offsets go through the
+    interpreter (toolpath.interp, LinuxCNC semantics; `interp` says where it finds subroutine files, the
+    tool table and the parameter file); plain ones through the vectorised parser (the same table)."""
     if isinstance(source, Program):
         return source
     if dialect not in DIALECTS:
         raise ProgramError(f"unknown G-code dialect {dialect!r}; known: {', '.join(DIALECTS)}", file=name)
     text, path, label = read_source(source, name)
     translation = translate(text, dialect, name=path or label)
-    if translation.dialect == "rs274ngc" and dialect in ("auto", "rs274ngc"):
+    native = translation.dialect == "rs274ngc" and dialect in ("auto", "rs274ngc")
+    body = text if native else (translation.text if "\n" in translation.text else translation.text + "\n")
+    if needs_interpreter(body):
+        program = interpret(source if native and path is not None else body, name=label, options=interp,
+                            base_dir=path.parent if path is not None and not native else None)
+        program.path = path
+    elif native:
         program = parse_program(source if path is not None else text, lenient=lenient, name=label)
     else:
         body = translation.text if "\n" in translation.text else translation.text + "\n"

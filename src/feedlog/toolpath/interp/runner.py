@@ -1,0 +1,522 @@
+"""The interpreter loop: reads lines as LinuxCNC does (file by file, line by line, O-words steering
+where the next line comes from), evaluates them and runs them on the machine model.
+
+Control flow follows LinuxCNC's own rules, including their corners: an O-word skips forward to a line
+with its label (`if` false, `while` false, `break`), jumps back to where a label was seen (`endwhile`,
+`endrepeat`, `continue`), labels inside a subroutine belong to it; `o<name> call` jumps to a
+subroutine defined earlier in the program or opens `name.ngc` along the search path (the program's
+folder, then the given folders); arguments land in #1-#30 and `return`/`endsub [value]` sets
+`#<_value>`. A line is parsed once and cached, so loops and subroutines run compiled lines.
+
+Limits: at most MAX_CALL_LEVEL nested calls (LinuxCNC's 10 levels) and `max_blocks` executed blocks (a
+runaway loop stops with an error naming the line, never hangs).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from feedlog.errors import ProgramError
+from feedlog.toolpath.interp.block import build, enhance, refuse
+from feedlog.toolpath.interp.canon import Canon, Source
+from feedlog.toolpath.interp.errors import InterpError
+from feedlog.toolpath.interp.machine import MM_PER_INCH, Machine
+from feedlog.toolpath.interp.params import Parameters
+from feedlog.toolpath.interp.syntax import parse_line
+from feedlog.toolpath.interp.tools import ToolTable
+from feedlog.toolpath.source import read_source
+from feedlog.toolpath.words import STOP_M
+
+MAX_CALL_LEVEL = 10          # LinuxCNC: INTERP_SUB_ROUTINE_LEVELS
+MAX_BLOCKS = 50_000_000      # executed lines before a program counts as a runaway loop
+BATCH_ROWS = 1 << 16         # rows per block-table batch when streaming
+SUFFIXES = (".ngc", ".nc")
+
+
+class SourceFile:
+    """A program file's lines, parsed on first use."""
+
+    def __init__(self, name: str, text: str, path: Path | None) -> None:
+        self.name = name
+        self.path = path
+        self.lines = text.split("\n")
+        if self.lines and self.lines[-1] == "":
+            self.lines.pop()
+        self.parsed: list = [None] * len(self.lines)
+        self.percent = False
+        self.first = 0
+        for i, raw in enumerate(self.lines):   # LinuxCNC: the first non-blank line may be a lone '%'
+            if raw.strip():
+                if raw.strip() == "%":
+                    self.percent, self.first = True, i + 1
+                break
+
+
+@dataclass
+class Label:
+    kind: str
+    file: SourceFile
+    index: int                 # 0-based index of the O-word's line
+    repeat: int = -1
+
+
+@dataclass
+class Frame:
+    name: str = ""
+    ret_file: SourceFile | None = None
+    ret_index: int = 0
+    call_line: int = 0
+    saved: list = field(default_factory=list)
+
+
+class Interpreter:
+    """Run a part program; `batches()` yields block-table batches, `metadata`/`warnings` after."""
+
+    def __init__(self, source: str | Path, *, name: str | None = None, search_path: list[str | Path] = (),
+                 tool_table: ToolTable | str | Path | None = None, parameter_file: str | Path | None = None,
+                 max_blocks: int = MAX_BLOCKS, arc_tolerance_mm: float | None = None,
+                 arc_tolerance_inch: float | None = None) -> None:
+        text, path, label = read_source(source, name)
+        self.main = SourceFile(label, text, path)
+        self.search = ([path.parent] if path is not None else []) + [Path(p) for p in search_path]
+        self.tools = tool_table if isinstance(tool_table, ToolTable) else (
+            ToolTable.read(tool_table) if tool_table is not None else ToolTable())
+        self.params = Parameters(self._predefined)
+        if parameter_file is not None:
+            self.params.load_var(parameter_file)
+        self.canon = Canon()
+        kw = {}
+        if arc_tolerance_mm is not None:
+            kw["arc_tolerance_mm"] = arc_tolerance_mm
+        if arc_tolerance_inch is not None:
+            kw["arc_tolerance_inch"] = arc_tolerance_inch
+        self.m = Machine(self.params, self.canon, self.tools, **kw)
+        self.max_blocks = max_blocks
+        self.labels: dict[str, Label] = {}
+        self.frames: list[Frame] = [Frame()]
+        self.files: dict[Path, SourceFile] = {}
+        self.skipping: str | None = None
+        self.skipping_to_sub: str | None = None
+        self.defining_sub = False
+        self.sub_name: str | None = None
+        self.executed_if = False
+        self.doing_break = False
+        self.doing_continue = False
+        self.return_value = 0.0
+        self.value_returned = 0.0
+        self.file = self.main
+        self.index = self.main.first
+        self.seq = 0
+        self.blocks = 0
+        self.warnings: list[str] = []
+        self.metadata: dict = {"file": label, "lines": len(self.main.lines), "percent_lines": []}
+        self.finished = False
+        self._stack_key = -1
+        self._stack_str = ""
+
+    # -- predefined named parameters ------------------------------------------------------------------
+    def _predefined(self, name: str) -> float | None:
+        m = self.m
+        pos = m.pos
+        simple = {
+            "_x": 0, "_y": 1, "_z": 2, "_a": 3, "_b": 4, "_c": 5,
+        }
+        if name in simple:
+            return pos[simple[name]]
+        if name.startswith("_abs_") and name[5:] in "xyzabc" and len(name) == 6:
+            return m._machine_position()["xyzabc".index(name[5])]
+        table = {
+            "_vmajor": 2.9, "_vminor": 0.0, "_task": 0.0, "_line": float(self.seq),
+            "_motion_mode": float(max(m.motion_mode, 0)), "_plane": float(m.plane), "_ccomp": 400.0,
+            "_metric": 0.0 if m.inch else 1.0, "_imperial": 1.0 if m.inch else 0.0,
+            "_absolute": 0.0 if m.incremental else 1.0, "_incremental": 1.0 if m.incremental else 0.0,
+            "_inverse_time": 1.0 if m.feed_mode == 930 else 0.0,
+            "_units_per_minute": 1.0 if m.feed_mode == 940 else 0.0,
+            "_units_per_rev": 1.0 if m.feed_mode == 950 else 0.0,
+            "_coord_system": float({1: 540, 2: 550, 3: 560, 4: 570, 5: 580, 6: 590, 7: 591, 8: 592,
+                                    9: 593}[m.origin_index]),
+            "_tool_offset": 1.0 if m.tlo_on else 0.0,
+            "_retract_r_plane": 0.0 if m.retract_r_plane else 1.0,
+            "_retract_old_z": 1.0 if m.retract_r_plane else 0.0,
+            "_spindle_rpm_mode": 1.0, "_spindle_css_mode": 0.0,
+            "_ijk_absolute_mode": 1.0 if m.ijk_absolute else 0.0,
+            "_lathe_diameter_mode": 0.0, "_lathe_radius_mode": 0.0,
+            "_spindle_on": 1.0 if m.spindle in (3, 4) else 0.0, "_spindle_cw": 1.0 if m.spindle == 3 else 0.0,
+            "_mist": 0.0, "_flood": 0.0, "_speed_override": 1.0, "_feed_override": 1.0, "_adaptive_feed": 0.0,
+            "_feed_hold": 0.0, "_feed": m.feed, "_rpm": m.speed,
+            "_current_tool": float(m.current_tool), "_current_pocket": float(m.current_tool),
+            "_selected_tool": float(m.selected_tool), "_selected_pocket": float(m.selected_tool),
+            "_value": self.return_value, "_value_returned": self.value_returned,
+            "_call_level": float(len(self.frames) - 1), "_remap_level": 0.0, "_metric_machine": 1.0,
+        }
+        return table.get(name)
+
+    # -- files ------------------------------------------------------------------------------------------
+    def _find_sub_file(self, name: str) -> SourceFile | None:
+        for folder in self.search:
+            for suffix in SUFFIXES:
+                candidate = folder / f"{name}{suffix}"
+                if candidate.is_file():
+                    key = candidate.resolve()
+                    if key not in self.files:
+                        text, path, label = read_source(candidate, None)
+                        self.files[key] = SourceFile(str(candidate), text, path)
+                    return self.files[key]
+        return None
+
+    # -- errors and places ----------------------------------------------------------------------------
+    def _stack(self) -> str:
+        key = len(self.frames)
+        if self._stack_key == key:
+            return self._stack_str
+        self._stack_key = key
+        self._stack_str = " > ".join(f"{Path(f.ret_file.name).name}:{f.call_line}" for f in self.frames[1:]
+                          if f.ret_file is not None)
+        return self._stack_str
+
+    def _error(self, message: str, raw: str | None = None) -> ProgramError:
+        stack = self._stack()
+        if stack:
+            message = f"{message} (called from {stack})"
+        return ProgramError(message, file=self.file.name, line=self.seq, code=(raw or "").strip()[:40] or None)
+
+    # -- the loop ---------------------------------------------------------------------------------------
+    def batches(self, batch_rows: int = BATCH_ROWS) -> Iterator:
+        """Block-table batches (DataFrames) as the program runs."""
+        start = (0.0,) * 6
+        while not self.finished:
+            self._run(batch_rows)
+            if self.canon.rows or self.finished:
+                first_end = self.canon.rows[-1][3:9] if self.canon.rows else None
+                table = self.canon.table(start)
+                if first_end is not None:
+                    start = tuple(first_end)
+                if len(table) or self.finished:
+                    yield table
+
+    def _run(self, until_rows: int) -> None:
+        canon_rows = self.canon.rows
+        while len(canon_rows) < until_rows:
+            f = self.file
+            if self.index >= len(f.lines):
+                self._end_of_file()
+                return
+            raw = f.lines[self.index]
+            self.index += 1
+            self.seq = self.index
+            if f.percent and raw.strip() == "%" and self.index - 1 >= f.first:
+                self.metadata["percent_lines"].append(self.index)
+                self._finish()
+                return
+            line = f.parsed[self.index - 1]
+            if line is None:
+                try:
+                    line = f.parsed[self.index - 1] = parse_line(raw, self.index)
+                except InterpError as exc:
+                    if (self.skipping is not None or self.skipping_to_sub is not None) and not _o_line(raw):
+                        continue   # LinuxCNC does not read the words of lines it skips
+                    raise self._error(str(exc), raw) from None
+            try:
+                if line.oword is not None:
+                    self._control(line)
+                    continue
+                if self.skipping is not None or self.skipping_to_sub is not None:
+                    continue
+                if line.empty:
+                    if line.comment:
+                        self._record(line, ())
+                        self.m.emit_none()
+                    continue
+                self.blocks += 1
+                if self.blocks > self.max_blocks:
+                    raise InterpError(f"more than {self.max_blocks} blocks executed: a runaway loop? "
+                                      "(the limit is interpreter option max_blocks)")
+                if self._execute(line):
+                    self._finish()
+                    return
+            except InterpError as exc:
+                raise self._error(str(exc), raw) from None
+
+    def _record(self, line, m_list) -> None:
+        mcodes = " ".join(f"M{c}" for c in m_list)
+        stop = any(c in STOP_M for c in m_list)
+        n_word = int(line.n) if line.n is not None else -1
+        self.m.line_src = self.canon.source(Source(self.file.name, self.seq, self._stack(), mcodes,
+                                                   line.comment, n_word, stop))
+
+    def _execute(self, line) -> bool:
+        m = self.m
+        P = self.params
+        if not line.static:
+            p = P.p
+            pos = m.pos
+            p[5420], p[5421], p[5422], p[5423], p[5424], p[5425] = pos
+        b = build(line.words, P)
+        refuse(b)
+        values = []
+        for target, raw in line.assigns:
+            value = raw(P) if callable(raw) else raw
+            if isinstance(target, str):
+                values.append((target, value))
+            else:
+                values.append((target(P) if callable(target) else target, value))
+        for target, value in values:
+            if not isinstance(target, str):
+                P.set_numbered(target, value)
+        for target, value in values:
+            if isinstance(target, str):
+                P.set_named(target, value)
+        if not b.g and not b.m and not b.v:
+            if line.comment:
+                self._record(line, ())
+                m.emit_none()
+            return False
+        enhance(b, m.motion_mode, m.plane)
+        self._record(line, b.m_list)
+        end = m.execute(b)
+        if end:
+            self.metadata.setdefault("end_line", self.seq)
+        if b.m.get("stop") == 60 or b.m.get("stop") == 0:
+            pass
+        return end
+
+    def _finish(self) -> None:
+        self.finished = True
+
+    def _end_of_file(self) -> None:
+        if self.skipping_to_sub is not None:
+            raise self._error(f"end of file seeking o-word o<{self.skipping_to_sub}> sub")
+        if self.skipping is not None and self.defining_sub:
+            raise self._error(f"end of file inside the definition of o<{self.sub_name}>: no endsub")
+        if self.file.percent:
+            raise self._error("file ended with no percent sign")
+        raise self._error("file ended with no percent sign or program end (M2/M30)")
+
+    # -- O-words ------------------------------------------------------------------------------------
+    def _scoped(self, ow) -> str:
+        if ow.kind in ("sub", "endsub", "call", "return", ""):
+            return ow.name
+        if len(self.frames) > 1:
+            return f"{self.frames[-1].name}#{ow.name}"
+        if self.defining_sub:
+            return f"{self.sub_name}#{ow.name}"
+        return f"#{ow.name}"
+
+    def _save_label(self, name: str, kind: str) -> None:
+        old = self.labels.get(name)
+        here = (self.file, self.index - 1)
+        if old is not None:
+            if (old.file, old.index) == here:
+                return
+            raise InterpError(f"o-word label o<{name.split('#')[-1]}> already defined in "
+                              f"{Path(old.file.name).name}:{old.index + 1}")
+        self.labels[name] = Label(kind=kind, file=self.file, index=self.index - 1)
+
+    def _label(self, name: str) -> Label | None:
+        return self.labels.get(name)
+
+    def _back_to(self, label: Label) -> None:
+        self.file = label.file
+        self.index = label.index
+
+    def _control(self, line) -> None:
+        ow = line.oword
+        kind = ow.kind
+        name = self._scoped(ow)
+        P = self.params
+        # values are read at read time, and not at all while skipping past them
+        if kind in ("endsub", "return"):
+            if self.skipping is not None and self.skipping != name:
+                return
+            if ow.test is not None:
+                self.return_value = ow.test(P) if callable(ow.test) else ow.test
+                self.value_returned = 1.0
+            else:
+                self.return_value, self.value_returned = 0.0, 0.0
+        elif self.defining_sub and kind not in ("sub", ""):
+            return
+        elif kind == "call":
+            if self.skipping is not None:
+                return
+            args = [a(P) if callable(a) else a for a in ow.args]
+        test = None
+        if kind in ("while", "repeat", "if", "elseif"):
+            if self.skipping is not None and self.skipping != name:
+                return
+            test = ow.test(P) if callable(ow.test) else ow.test
+        if self.skipping is not None and self.skipping != name:
+            return
+        if self.skipping_to_sub is not None and kind not in ("sub", ""):
+            return
+        if kind in ("sub", ""):
+            if self.skipping is not None:
+                self._save_label(name, kind)
+                self.skipping = None
+            self.skipping_to_sub = None
+            if kind == "":
+                self.metadata.setdefault("program_number", int(name) if name.isdigit() else name)
+                return
+            if len(self.frames) > 1:
+                return   # the sub line of a call
+            if self.defining_sub:
+                raise InterpError("nested subroutine definition")
+            self._save_label(name, kind)
+            self.skipping = name
+            self.defining_sub = True
+            self.sub_name = name
+        elif kind in ("endsub", "return"):
+            if len(self.frames) == 1:
+                if self.sub_name is None:
+                    raise InterpError(f"not in a subroutine definition: o<{ow.name}> {kind}")
+                if kind == "endsub":
+                    if not self.defining_sub:
+                        raise InterpError("not in a subroutine definition")
+                    self.skipping = None
+                    self.defining_sub = False
+                    self.sub_name = None
+                return
+            if self.skipping is not None and kind == "endsub":
+                self.skipping = None
+            frame = self.frames.pop()
+            self._stack_key = -1
+            P.pop(frame.saved)
+            self.file = frame.ret_file
+            self.index = frame.ret_index
+            self.seq = frame.call_line
+        elif kind == "call":
+            if len(self.frames) >= MAX_CALL_LEVEL:
+                raise InterpError(f"too many nested subroutine calls (LinuxCNC allows {MAX_CALL_LEVEL - 1})")
+            self.value_returned = 0.0
+            frame = Frame(name=name, ret_file=self.file, ret_index=self.index, call_line=self.seq)
+            frame.saved = P.push(args)
+            self.frames.append(frame)
+            self._stack_key = -1
+            P.frames[-1]["n_args"] = float(len(args))
+            label = self._label(name)
+            if label is not None:
+                self._back_to(label)
+                return
+            sub = self._find_sub_file(name)
+            if sub is None:
+                self.frames.pop()
+                self._stack_key = -1
+                P.pop(frame.saved)
+                raise InterpError(f"unable to open file for subroutine o<{name}> (looked for {name}.ngc in "
+                                  + ", ".join(str(s) for s in self.search) + ")" if self.search else
+                                  f"subroutine o<{name}> is not defined and there is no search path")
+            self.file = sub
+            self.index = 0
+            self.skipping = name
+            self.skipping_to_sub = name
+        elif kind == "do":
+            self.skipping = None
+            if self._label(name) is None:
+                self._save_label(name, kind)
+        elif kind == "repeat":
+            label = self._label(name)
+            if label is not None and (label.file, label.index) != (self.file, self.index - 1):
+                raise InterpError(f"duplicate O-word label o{ow.name}")
+            if label is None:
+                self._save_label(name, kind)
+                label = self._label(name)
+            self.skipping = None
+            if label.repeat == -1:
+                label.repeat = int(test + (0.5 if test >= 0 else -0.5))
+            if label.repeat > 0:
+                label.repeat -= 1
+            else:
+                self.skipping = name
+                label.repeat = -1
+        elif kind == "while":
+            label = self._label(name)
+            if label is not None and label.kind != "do" and (label.file, label.index) != (self.file, self.index - 1):
+                raise InterpError(f"duplicate O-word label o{ow.name}")
+            if label is None:
+                self._save_label(name, kind)
+                label = self._label(name)
+            self.skipping = None
+            if label.kind == "while":
+                if test == 0.0:
+                    self.skipping = name
+            else:   # the end of a do loop
+                if test != 0.0 and not self.doing_break:
+                    self._back_to(label)
+                else:
+                    self.doing_break = False
+        elif kind == "if":
+            label = self._label(name)
+            if label is not None and (label.file, label.index) != (self.file, self.index - 1):
+                raise InterpError(f"duplicate O-word label o{ow.name}")
+            if label is None:
+                self._save_label(name, kind)
+            if test != 0.0:
+                self.skipping = None
+                self.executed_if = True
+            else:
+                self.skipping = name
+                self.executed_if = False
+        elif kind == "elseif":
+            self._expect(name, ("if",), ow)
+            if self.executed_if:
+                self.skipping = name
+                return
+            if test != 0.0:
+                self.skipping = None
+                self.executed_if = True
+        elif kind == "else":
+            self._expect(name, ("if",), ow)
+            if self.executed_if:
+                self.skipping = name
+                return
+            if self.skipping == name:
+                self.executed_if = True
+                self.skipping = None
+        elif kind == "endif":
+            self._expect(name, ("if",), ow)
+            self.skipping = None
+            self.executed_if = True
+        elif kind == "break":
+            self._expect(name, ("while", "do"), ow)
+            self.skipping = name
+            self.doing_break = True
+        elif kind == "continue":
+            self._expect(name, ("while", "do"), ow)
+            if self.skipping == name:
+                return
+            self.skipping = name
+            self.doing_continue = True
+        elif kind in ("endwhile", "endrepeat"):
+            self._expect(name, ("while",) if kind == "endwhile" else ("repeat",), ow)
+            if self.skipping == name:
+                self.skipping = None
+                if self.doing_continue:
+                    self.doing_continue = False
+                    self._back_to(self._label(name))
+                else:
+                    self.doing_break = False
+                return
+            self._back_to(self._label(name))
+
+    def _expect(self, name: str, kinds: tuple, ow) -> None:
+        label = self._label(name)
+        if label is None:
+            raise InterpError(f"undefined O-word label o{ow.name} ({ow.kind} without its opening line)")
+        if label.kind not in kinds:
+            raise InterpError(f"no matching {'/'.join(kinds)} for o{ow.name} {ow.kind} (found {label.kind} at "
+                              f"line {label.index + 1})")
+
+    @property
+    def position_mm(self) -> tuple:
+        f = MM_PER_INCH if self.m.inch else 1.0
+        return tuple(self.m.pos[k] * (f if k < 3 else 1.0) for k in range(6))
+
+
+def _o_line(raw: str) -> bool:
+    """Whether a line is an O-word line (after an optional '/' and N number), without parsing it."""
+    code = "".join(raw.split("(")[0].split(";")[0].split()).lower()
+    code = code.lstrip("/")
+    if code.startswith("n"):
+        code = code[1:].lstrip("0123456789.")
+    return code.startswith("o")

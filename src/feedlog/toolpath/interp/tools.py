@@ -1,0 +1,56 @@
+"""LinuxCNC's tool table (`.tbl`): `T<n> P<pocket> X.. Y.. Z.. A.. B.. C.. D<diameter> ;comment` per line,
+values in machine units (mm here). G43 reads a tool's offsets, M6/M61 the tool in the spindle."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from feedlog.errors import ProgramError
+
+_FIELDS = "XYZABC"
+
+
+@dataclass(frozen=True)
+class Tool:
+    number: int
+    pocket: int
+    offset: tuple          # (6,) X Y Z A B C offsets, mm / deg
+    diameter: float
+
+
+class ToolTable:
+    def __init__(self, tools: dict[int, Tool] | None = None) -> None:
+        self.tools = dict(tools or {})
+
+    def get(self, number: int) -> Tool | None:
+        return self.tools.get(number)
+
+    @classmethod
+    def read(cls, path: str | Path) -> ToolTable:
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8", errors="replace")
+        except OSError as exc:
+            raise ProgramError(f"cannot read tool table: {exc.strerror or exc}", file=str(path)) from None
+        tools: dict[int, Tool] = {}
+        for number, raw in enumerate(text.splitlines(), start=1):
+            code = raw.split(";", 1)[0].strip()
+            if not code:
+                continue
+            words: dict[str, float] = {}
+            for token in code.split():
+                letter, value = token[0].upper(), token[1:]
+                try:
+                    words[letter] = float(value)
+                except ValueError:
+                    raise ProgramError(f"bad tool table word {token!r}", file=str(path), line=number) from None
+                if not math.isfinite(words[letter]):
+                    raise ProgramError(f"non-finite tool table value {token!r}", file=str(path), line=number)
+            if "T" not in words:
+                raise ProgramError("tool table line without a T word", file=str(path), line=number)
+            t = int(words["T"])
+            tools[t] = Tool(number=t, pocket=int(words.get("P", t)),
+                            offset=tuple(words.get(a, 0.0) for a in _FIELDS), diameter=words.get("D", 0.0))
+        return cls(tools)
