@@ -185,7 +185,7 @@ def compare(blocks, ref: Reference, *, tol: float = 1e-6) -> list[str]:
         if mv["line"] >= 0 and int(lines[k]) != int(mv["line"]):
             problems.append(f"{where}: on line {lines[k]} vs LinuxCNC line {mv['line']}")
         end = np.array(mv["end"])
-        if not np.allclose(ends[k], end, atol=tol, rtol=0):
+        if not np.allclose(ends[k], end, atol=tol, rtol=1e-12):
             problems.append(f"{where}: end {ends[k].round(7).tolist()} vs {end.round(7).tolist()}")
         # machine position: R(p + g92) + g5x + tool, from LinuxCNC's offsets vs feedlog's columns
         g92, g5x, t = np.array(mv["g92"]), np.array(mv["g5x"]), np.array(mv["tool"])
@@ -193,13 +193,13 @@ def compare(blocks, ref: Reference, *, tol: float = 1e-6) -> list[str]:
         ref_machine = np.r_[px, py, end[2:] + g92[2:]] + g5x + t
         ox, oy = rotate(ends[k][0], ends[k][1], rot[k])
         our_machine = np.r_[ox, oy, ends[k][2:]] + work[k] + tool[k]
-        if not np.allclose(our_machine, ref_machine, atol=tol, rtol=0):
+        if not np.allclose(our_machine, ref_machine, atol=tol, rtol=1e-12):
             problems.append(f"{where}: machine position {our_machine.round(7).tolist()} vs "
                             f"{ref_machine.round(7).tolist()}")
         if kind == "arc":
             c = np.array([np.nan if v is None else v for v in mv["centre"]])
             known = ~np.isnan(c)
-            if not np.allclose(centres[k][known], c[known], atol=tol, rtol=0):
+            if not np.allclose(centres[k][known], c[known], atol=tol, rtol=1e-12):
                 problems.append(f"{where}: centre {centres[k].round(7).tolist()} vs {c.round(7).tolist()}")
             sign = 1 if kinds[k] == "arc_ccw" else -1
             if sign * int(turns[k]) != int(mv["rotation"]):
