@@ -37,7 +37,8 @@ def test_modal_state_units_and_feed_on_the_same_line():
     m = motion("G20 G91 G1 X1 F10\nY2\nG21 X1\n")
     assert m["x_mm"].tolist() == pytest.approx([25.4, 25.4, 26.4])
     assert m["y_mm"].tolist() == pytest.approx([0, 50.8, 50.8])
-    assert m["feed_mm_min"].tolist() == pytest.approx([254.0, 254.0, 254.0])  # F stays 254 mm/min
+    # F is read before the line's G20 (LinuxCNC's order; its interpreter gives 10 mm/min): F10 is mm/min
+    assert m["feed_mm_min"].tolist() == pytest.approx([10.0, 10.0, 10.0])
     assert m["units"].tolist() == ["in", "in", "mm"]
     assert m["kind"].tolist() == ["linear"] * 3
 

@@ -36,16 +36,26 @@ def load_program(source: str | Path | Program, *, lenient: bool = False, dialect
     translation = translate(text, dialect, name=path or label)
     native = translation.dialect == "rs274ngc" and dialect in ("auto", "rs274ngc")
     body = text if native else (translation.text if "\n" in translation.text else translation.text + "\n")
+    program = None
     if needs_interpreter(body):
-        program = interpret(source if native and path is not None else body, name=label, options=interp,
-                            base_dir=path.parent if path is not None and not native else None)
-        program.path = path
+        try:
+            program = interpret(source if native and path is not None else body, name=label, options=interp,
+                                base_dir=path.parent if path is not None and not native else None)
+            program.path = path
+        except ProgramError as exc:
+            if not lenient:
+                raise
+            refused = f"the interpreter refused it ({exc}); read leniently, skipping what it cannot read"
+    if program is not None:
+        pass
     elif native:
         program = parse_program(source if path is not None else text, lenient=lenient, name=label)
     else:
         body = translation.text if "\n" in translation.text else translation.text + "\n"
         program = parse_program(body, lenient=lenient, name=label)
         program.path = path
+    if program.metadata.get("interpreter") is None and needs_interpreter(body):
+        program.warnings.insert(0, refused)
     program.metadata["dialect"] = translation.dialect
     if translation.notes:
         program.warnings[:0] = translation.notes

@@ -8,7 +8,8 @@ arcs are resolved for all rows at once (toolpath.arcwords). toolpath.stream read
 chunk; `parse_program` is that stream gathered into one table.
 
 Order of execution within a line follows RS274/NGC: feed mode and F, S, M codes, dwell, plane, units,
-path control, distance modes, then motion; so `G20 G91 G1 X1 F10` moves 25.4 mm at 254 mm/min.
+path control, distance modes, then motion; so `G20 G91 G1 X1 F10` moves 25.4 mm at 10 mm/min when
+the program was in mm before that line (F is read before G20 takes effect), as LinuxCNC does.
 
 Tool orientation vectors: on a line in linear or rapid mode (G0/G1), I J K are the tool orientation
 vector of five-axis CL data (normalised; modal once given); in arc mode (G2/G3) they are the arc
@@ -180,7 +181,9 @@ def parse_chunk(text: str, state: ParseState, *, file: str, lenient: bool = Fals
     f_here = has[S["F"]]
     first(f_here & (W[S["F"]] < 0), "negative feed rate", "F")
     inverse_time = modal["feed_mode"] == 930
-    f_mm = W[S["F"]] * unit
+    # F is set before the line's G20/G21 (LinuxCNC's order of execution): it is in the units in force before
+    units_before = np.r_[state.modal["units"], modal["units"][:-1]] if n else modal["units"]
+    f_mm = W[S["F"]] * np.where(units_before == 200, MM_PER_INCH, 1.0)
     # LinuxCNC forgets the feed when the feed mode changes: G93 -> G94 needs a new F
     mode_change = np.zeros(n, dtype=bool)
     if n:

@@ -70,6 +70,7 @@ class Machine:
         self.cycle = {"r": 0.0, "cc": 0.0, "p": 0.0, "q": 0.0, "i": 0.0, "j": 0.0, "k": 0.0, "l": 1}
         self.cycle_il: float | None = None
         self.line_src = 0
+        self.unknown_systems: set[int] = set()   # selected systems whose offsets no parameter file gave
         self._ctx_key = None
         self._ctx = 0
         self.retract_r_plane = True           # LinuxCNC starts retracting to the R plane (G99)
@@ -298,6 +299,8 @@ class Machine:
         if origin == self.origin_index:
             return
         p = self.P.p
+        if not self.P.loaded and not any(p[5201 + origin * 20 + k] for k in range(6)):
+            self.unknown_systems.add(origin)
         self.pos = self._current_in_system(origin)
         self.origin_index = origin
         p[5220] = float(origin)

@@ -32,6 +32,7 @@ class Parameters:
         self.p = [0.0] * MAX_PARAMETERS
         self.frames: list[dict[str, float]] = [{}]   # level 0 holds globals and the main program's locals
         self.lookup = lookup
+        self.loaded = False        # a parameter file gave the work offsets
 
     # -- reading (the compiled expressions call these) -------------------------------------------
     def numbered(self, index: float) -> float:
@@ -106,6 +107,7 @@ class Parameters:
                 raise ProgramError("parameter file out of order", file=str(path), line=number)
             last = index
             self.p[index] = value
+        self.loaded = True
 
 
 def _index(index: float) -> int:

@@ -82,7 +82,7 @@ class Interpreter:
         self.main = SourceFile(label, text, path)
         self.search = ([path.parent] if path is not None else []) + [Path(p) for p in search_path]
         self.tools = tool_table if isinstance(tool_table, ToolTable) else (
-            ToolTable.read(tool_table) if tool_table is not None else ToolTable())
+            ToolTable.read(tool_table) if tool_table is not None else ToolTable(assumed=True))
         self.params = Parameters(self._predefined)
         if parameter_file is not None:
             self.params.load_var(parameter_file)
@@ -284,6 +284,16 @@ class Interpreter:
 
     def _finish(self) -> None:
         self.finished = True
+        if self.m.unknown_systems:
+            names = ", ".join(("G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")[s - 1]
+                              for s in sorted(self.m.unknown_systems))
+            self.warnings.append(f"{names} selected but no parameter file gives its offsets: taken as 0, so the "
+                                 "program's coordinates are machine coordinates there; pass the machine's .var "
+                                 "file (or its INI) for the real offsets")
+        if self.tools.assumed_tools:
+            used = ", ".join(f"T{t}" for t in self.tools.assumed_tools)
+            self.warnings.append(f"no tool table given: {used} taken with zero length and diameter "
+                                 "(G43 offsets 0); pass the machine's tool table to use theirs")
 
     def _end_of_file(self) -> None:
         if self.skipping_to_sub is not None:

@@ -90,6 +90,8 @@ def parse_line(raw: str, number: int) -> Line:
     """Parse one line (1-based `number`); raises InterpError with a message (the caller adds the place)."""
     if len(raw) > MAX_LINE:
         raise InterpError(f"line longer than {MAX_LINE} characters")
+    if "\x00" in raw:
+        raise InterpError("bad character '\\000' used")
     code, comments = prepare(raw)
     line = Line(number=number, raw=raw.strip())
     if comments:

@@ -21,11 +21,21 @@ class Tool:
 
 
 class ToolTable:
-    def __init__(self, tools: dict[int, Tool] | None = None) -> None:
+    """Tools by number. Without a table (`assumed=True`) every tool exists with zero length and diameter,
+    and the tools so assumed are listed in `assumed_tools` (the program's motion does not depend on them
+    unless it uses G43 or cutter compensation, which the interpreter then reports)."""
+
+    def __init__(self, tools: dict[int, Tool] | None = None, *, assumed: bool = False) -> None:
         self.tools = dict(tools or {})
+        self.assumed = assumed
+        self.assumed_tools: list[int] = []
 
     def get(self, number: int) -> Tool | None:
-        return self.tools.get(number)
+        tool = self.tools.get(number)
+        if tool is None and self.assumed:
+            tool = self.tools[number] = Tool(number=number, pocket=number, offset=(0.0,) * 6, diameter=0.0)
+            self.assumed_tools.append(number)
+        return tool
 
     @classmethod
     def read(cls, path: str | Path) -> ToolTable:
