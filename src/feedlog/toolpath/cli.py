@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+from dataclasses import replace
 from pathlib import Path
 
 from feedlog.atomic import atomic_output
@@ -14,6 +15,7 @@ from feedlog.profile import load_profile
 from feedlog.toolpath.features import DEFAULT_PROFILE
 from feedlog.parquet_sink import ParquetSink
 from feedlog.toolpath.dialects import DIALECTS
+from feedlog.toolpath.interp import InterpOptions
 from feedlog.toolpath.load import load_program, stream_dialect
 from feedlog.toolpath.stream import ProgramReader
 from feedlog.toolpath.summary import Summary, format_summary, summarize
@@ -33,9 +35,38 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_overwrite(parser, help="allow -o to replace an existing file")
     parser.add_argument("--dialect", choices=DIALECTS, default="auto",
                         help="G-code dialect: rs274ngc (LinuxCNC), fanuc/hurco, sinumerik (default: detected)")
+    add_interpreter_arguments(parser)
     parser.add_argument("--stream", action=argparse.BooleanOptionalAction, default=None,
                         help="read the program in chunks, summarise and write -o batch by batch "
                              f"(RS274/NGC only; default: for such files of {STREAM_BYTES >> 20} MiB or more)")
+
+
+def add_interpreter_arguments(parser: argparse.ArgumentParser) -> None:
+    """What the interpreter reads besides the program (programs with subroutines, tools, offsets)."""
+    parser.add_argument("--ini", type=Path, help="LinuxCNC INI file: its [RS274NGC] SUBROUTINE_PATH, PARAMETER_FILE, "
+                                                 "CENTER_ARC_RADIUS_TOLERANCE_* and [EMCIO] TOOL_TABLE")
+    parser.add_argument("--subroutine-path", action="append", default=[], type=Path, metavar="DIR",
+                        help="folder searched for `o<name> call` files after the program's own (repeatable)")
+    parser.add_argument("--tool-table", type=Path, metavar="TOOLS.tbl",
+                        help="LinuxCNC tool table (mm): tool lengths for G43 (default: tools taken as zero length)")
+    parser.add_argument("--parameter-file", type=Path, metavar="PARAMS.var",
+                        help="LinuxCNC parameter file (mm): work offsets G54-G59.3, G28/G30 homes")
+    parser.add_argument("--arc-tolerance", type=float, metavar="MM",
+                        help="largest start/end radius difference of a centre-format arc (LinuxCNC's "
+                             "CENTER_ARC_RADIUS_TOLERANCE_MM; default 0.0283 mm, inch programs 0.00283 in)")
+
+
+def interp_options(args: argparse.Namespace) -> InterpOptions:
+    over = dict(tool_table=args.tool_table, parameter_file=args.parameter_file, arc_tolerance_mm=args.arc_tolerance)
+    if args.arc_tolerance is not None:
+        over["arc_tolerance_inch"] = args.arc_tolerance / 25.4
+    if args.ini is not None:
+        options = InterpOptions.from_ini(args.ini, **over)
+    else:
+        options = InterpOptions(**{k: v for k, v in over.items() if v is not None})
+    if args.subroutine_path:
+        options = replace(options, search_path=tuple(args.subroutine_path) + tuple(options.search_path))
+    return options
 
 
 def run(args: argparse.Namespace) -> int:
@@ -45,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     if _streams(args):
         summary = _summarize_stream(args, profile)
     else:
-        program = load_program(args.file, lenient=args.lenient, dialect=args.dialect)
+        program = load_program(args.file, lenient=args.lenient, dialect=args.dialect, interp=interp_options(args))
         summary = summarize(program, profile)
         if args.out is not None:
             with atomic_output(args.out) as temporary:

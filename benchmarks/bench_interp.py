@@ -1,0 +1,64 @@
+"""Interpreter throughput and bounds: programs whose moves come from loops and subroutines.
+
+    .venv/bin/python benchmarks/bench_interp.py [--moves 1000000] [--repeat 1]
+
+The program: a subroutine that cuts one zig-zag row (a `while` loop of G1 moves whose end points are
+expressions of parameters) called from an outer `repeat` loop, so every move is interpreted (expressions
+evaluated, control flow taken, modal state updated) and none is a copied line. Prints executed blocks/s
+and moves/s, and the peak RSS. Target (issue 27): >= 200k blocks/s. A second figure, the runaway-loop
+limit, checks that `while [1]` stops with its line named after max_blocks blocks.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import time
+
+from feedlog.errors import ProgramError
+from feedlog.toolpath.interp import interpret
+
+
+def program(moves: int, per_row: int = 1000) -> str:
+    rows = max(1, moves // per_row)
+    return "\n".join([
+        "G21 G90 G17 G94 G64 P0.01 F3000",
+        "o<row> sub",
+        "  #<i> = 0",
+        "  o10 while [#<i> LT #2]",
+        "    G1 X[#<i> * 0.05] Y[#1 * 0.5 + [#<i> MOD 2] * 0.1]",
+        "    #<i> = [#<i> + 1]",
+        "  o10 endwhile",
+        "o<row> endsub",
+        "#1 = 0",
+        f"o20 repeat [{rows}]",
+        f"  o<row> call [#1] [{per_row}]",
+        "  #1 = [#1 + 1]",
+        "o20 endrepeat",
+        "M2", ""])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--moves", type=int, default=1_000_000)
+    ap.add_argument("--repeat", type=int, default=1)
+    args = ap.parse_args()
+    text = program(args.moves)
+    for _ in range(args.repeat):
+        t0 = time.perf_counter()
+        prog = interpret(text, name="bench.ngc")
+        dt = time.perf_counter() - t0
+        blocks = prog.metadata["blocks_executed"]
+        moves = len(prog.motion)
+        print(f"interpreted {blocks} blocks ({moves} moves) in {dt:.2f} s: {blocks / dt:,.0f} blocks/s, "
+              f"{moves / dt:,.0f} moves/s")
+    print(f"peak RSS {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")
+    t0 = time.perf_counter()
+    try:
+        interpret("o1 while [1]\nG0 X1\no1 endwhile\nM2\n", name="runaway.ngc", max_blocks=200_000)
+    except ProgramError as exc:
+        print(f"runaway loop stopped after {time.perf_counter() - t0:.2f} s: {exc}")
+
+
+if __name__ == "__main__":
+    main()
