@@ -103,7 +103,7 @@ def test_subroutine_files_along_the_search_path(tmp_path):
     ("o1 if [1]\nG0 X1\n", 2, "file ended"),
     ("G1 F100 X1 X2\nM2\n", 1, "multiple X"),
     ("G38.2 Z-1 F100\nM2\n", 1, "probing"),
-    ("G41 D1\nM2\n", 1, "cutter radius compensation"),
+    ("G41 D1 G18\nG41 D1\nM2\n", 2, "cannot turn cutter radius compensation on when it is on"),
 ])
 def test_errors_name_file_and_line(text, line, message):
     with pytest.raises(ProgramError) as info:

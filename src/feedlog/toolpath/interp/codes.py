@@ -59,10 +59,6 @@ REFUSED_G = {
     950: "G95 feed per revolution depends on the spindle speed; not simulated",
     171: "planes G17.1/G18.1/G19.1 (UVW) are not supported", 181: "planes G17.1/G18.1/G19.1 are not supported",
     191: "planes G17.1/G18.1/G19.1 are not supported",
-    410: "cutter radius compensation (G41) is not simulated yet",
-    411: "cutter radius compensation (G41.1) is not simulated yet",
-    420: "cutter radius compensation (G42) is not simulated yet",
-    421: "cutter radius compensation (G42.1) is not simulated yet",
 }
 
 

@@ -28,6 +28,8 @@ def convert_cycle(m, motion: int, b) -> None:
         raise InterpError("cannot feed with zero feed rate")
     if m.feed_mode == 930:
         raise InterpError("cannot use inverse time feed with canned cycles")
+    if m.comp.side:
+        raise InterpError("cannot use canned cycles with cutter compensation on")
     cyc = m.cycle
     if "r" in v:
         r_word = v["r"]

@@ -17,6 +17,7 @@ from feedlog.toolpath.interp.block import Block
 from feedlog.toolpath.interp.canon import (K_ARC_CCW, K_ARC_CW, K_DWELL, K_LINEAR, K_NONE, K_RAPID, Canon,
                                            Context)
 from feedlog.toolpath.interp.codes import CYCLES, REFUSED_G, g_name
+from feedlog.toolpath.interp.comp import Compensation
 from feedlog.toolpath.interp.errors import InterpError
 from feedlog.toolpath.interp.tools import ToolTable
 
@@ -71,6 +72,9 @@ class Machine:
         self.cycle_il: float | None = None
         self.line_src = 0
         self.unknown_systems: set[int] = set()   # selected systems whose offsets no parameter file gave
+        self.comp = Compensation(self)
+        self.last_machine: list[float] | None = None   # machine position where the last move ended
+        self.warn_zero_radius: set[int] = set()  # tools used for compensation without a tool table
         self._ctx_key = None
         self._ctx = 0
         self.retract_r_plane = True           # LinuxCNC starts retracting to the R plane (G99)
@@ -112,6 +116,11 @@ class Machine:
 
     def emit(self, kind: int, end, centre=(math.nan, math.nan, math.nan), turns: int = 0, dwell: float = 0.0,
              feed: float | None = None) -> None:
+        if kind <= K_ARC_CCW:
+            self.last_machine = self._machine_of(end)
+        if self.comp.queue:      # rows keep their order behind moves cutter compensation still holds
+            self.comp.hold(kind, end, centre, turns if kind == K_ARC_CCW else -turns, dwell=dwell)
+            return
         f = MM_PER_INCH if self.inch else 1.0
         if feed is None:
             feed = self.feed * f
@@ -160,10 +169,27 @@ class Machine:
             if v["p"] < 0:
                 raise InterpError("negative dwell time")
             self.emit(K_DWELL, self.pos, dwell=v["p"])
+        comp_on = bool(self.comp.side)
         if "plane" in g:
+            if comp_on and g["plane"] != self.plane:
+                raise InterpError("cannot change planes with cutter radius compensation on")
             self.plane = g["plane"]
         if "units" in g:
+            if comp_on and (g["units"] == 200) != self.inch:
+                raise InterpError("cannot change units with cutter radius compensation")
             self._units(g["units"] == 200)
+        if "comp" in g:
+            if g["comp"] == 400:
+                self.comp.off()
+            else:
+                self.comp.on(g["comp"], v)
+        comp_on = bool(self.comp.side)
+        if comp_on and ("tool_length" in g or "coords" in g or "control" in g):
+            what = ("tool offset" if "tool_length" in g else "coordinate systems" if "coords" in g
+                    else "control mode")
+            raise InterpError(f"cannot change {what} with cutter radius compensation on")
+        if comp_on and g.get("nonmodal", -1) in (280, 300, 520, 920, 921, 922, 923):
+            raise InterpError(f"cannot use {g_name(g['nonmodal'])} with cutter radius compensation on")
         if "tool_length" in g:
             self._tool_length(g["tool_length"], v)
         if "coords" in g:
@@ -190,8 +216,12 @@ class Machine:
             self._axis_offsets(mode0, v)
         if b.motion != -1:
             self._motion(b)
+        if m.get("toolchange") == 6:
+            self.resync()
         end = False
         stop = m.get("stop", -1)
+        if stop != -1:
+            self.comp.stop()
         if stop in (2, 30):
             end = True
         if len(self.canon.rows) == before:
@@ -317,6 +347,8 @@ class Machine:
         p_int = int(v.get("p", 0) + 0.0001)
         if p_int == 0:
             p_int = self.origin_index
+        if self.comp.side and p_int == self.origin_index:
+            raise InterpError("cannot change the active coordinate system with cutter radius compensation on")
         base = 5200 + p_int * 20
         cx = self._current_in_system(p_int)
         if "r" in v:
@@ -427,11 +459,20 @@ class Machine:
             self.P.p[base + k] = self._program_to_user(machine[k], k)
 
     def _machine_position(self) -> list[float]:
-        x = self.pos[0] + self.g92[0]
-        y = self.pos[1] + self.g92[1]
-        x, y = rotate(x, y, self.rotation)
-        out = [x, y] + [self.pos[k] + self.g92[k] for k in (2, 3, 4, 5)]
+        return self._machine_of(self.pos)
+
+    def _machine_of(self, p) -> list[float]:
+        """Machine coordinates (program units) of program point `p` under the offsets in force."""
+        x, y = rotate(p[0] + self.g92[0], p[1] + self.g92[1], self.rotation)
+        out = [x, y] + [p[k] + self.g92[k] for k in (2, 3, 4, 5)]
         return [out[k] + self.origin[k] + self.tool_offset[k] for k in range(6)]
+
+    def resync(self) -> None:
+        """After a tool change LinuxCNC re-reads where the machine is: the interpreter's point becomes the
+        machine position of the last move under the offsets now in force (a G40 before it had only moved
+        the interpreter's idea of the point, not the tool)."""
+        if self.last_machine is not None:
+            self.pos = self._relative(self.last_machine)
 
     # -- motion -------------------------------------------------------------------------------------
     def _ends(self, b: Block) -> list[float]:
@@ -452,9 +493,18 @@ class Machine:
             for k, a in ((3, "a"), (4, "b"), (5, "c")):
                 out.append(v[a] - self.origin[k] - self.g92[k] if a in v else pos[k])
             return out
+        base = pos
+        comp = self.comp
+        if comp.side and not comp.first:     # unprogrammed in-plane axes continue from the programmed point
+            base = list(pos)
+            base[0] = comp.program[0]
+            if self.plane == 170:
+                base[1] = comp.program[1]
+            elif self.plane == 180:
+                base[2] = comp.program[2]
         if not self.incremental:
-            x = v.get("x", pos[0])
-            y = v.get("y", pos[1])
+            x = v.get("x", base[0])
+            y = v.get("y", base[1])
             if "@" in v and "^" in v:
                 r, t = v["@"], math.radians(v["^"])
                 x, y = r * math.cos(t), r * math.sin(t)
@@ -467,9 +517,9 @@ class Machine:
                 r = math.hypot(y, x)
                 t = math.radians(v["^"])
                 x, y = r * math.cos(t), r * math.sin(t)
-            return [x, y, v.get("z", pos[2]), v.get("a", pos[3]), v.get("b", pos[4]), v.get("c", pos[5])]
-        x = pos[0] + v.get("x", 0.0)
-        y = pos[1] + v.get("y", 0.0)
+            return [x, y, v.get("z", base[2]), v.get("a", pos[3]), v.get("b", pos[4]), v.get("c", pos[5])]
+        x = base[0] + v.get("x", 0.0)
+        y = base[1] + v.get("y", 0.0)
         if "@" in v:
             if x == 0 and y == 0:
                 raise InterpError("incremental motion with polar coordinates is indeterminate when at the origin")
@@ -482,7 +532,7 @@ class Machine:
             t = math.atan2(y, x) + math.radians(v["^"])
             r = math.hypot(y, x)
             x, y = r * math.cos(t), r * math.sin(t)
-        return [x, y, pos[2] + v.get("z", 0.0), pos[3] + v.get("a", 0.0), pos[4] + v.get("b", 0.0),
+        return [x, y, base[2] + v.get("z", 0.0), pos[3] + v.get("a", 0.0), pos[4] + v.get("b", 0.0),
                 pos[5] + v.get("c", 0.0)]
 
     def _motion(self, b: Block) -> None:
@@ -509,8 +559,14 @@ class Machine:
     def _straight(self, motion: int, b: Block) -> None:
         if motion == 10:
             self._feed_checks(b, "G1")
+        self.comp.arc_not_allowed = False
         self.motion_mode = motion
         end = self._ends(b)
+        if self.comp.active:
+            if b.g.get("nonmodal") == 530:
+                raise InterpError("cannot use G53 with cutter radius compensation")
+            self.comp.straight(motion, end)
+            return
         if motion == 0:
             self.traverse(end)
             return
@@ -527,6 +583,8 @@ class Machine:
 
     def _arc(self, motion: int, b: Block) -> None:
         v = b.v
+        if self.comp.arc_not_allowed:
+            raise InterpError("the move just after exiting cutter compensation mode must be straight, not an arc")
         ijk = "i" in v or "j" in v or "k" in v
         if "r" not in v and not ijk:
             raise InterpError("R, I, J, and K words all missing for arc")
@@ -549,6 +607,9 @@ class Machine:
         end = self._ends(b)
         self.motion_mode = motion
         p_words = int(round(v["p"])) if "p" in v else 1
+        if self.comp.active and self.plane in (170, 180):
+            self.comp.arc(motion, end, v, p_words)
+            return
         s1, s2 = self.pos[u], self.pos[w]
         e1, e2 = end[u], end[w]
         radius_tol = RADIUS_TOLERANCE_INCH if self.inch else RADIUS_TOLERANCE_MM
