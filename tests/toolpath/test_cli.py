@@ -47,12 +47,12 @@ def test_text_summary_and_parquet_output_refuses_to_overwrite(tmp_path, capsys):
 
 def test_bad_program_is_one_line_naming_file_line_and_code(tmp_path, capsys):
     prog = tmp_path / "bad.ngc"
-    prog.write_text("G1 X1 F100\nG41 D1 X2\n")
+    prog.write_text("G1 X1 F100\nG38.2 Z-1\nM2\n")
     assert main(["program", str(prog)]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and f"{prog}:2" in err and "G41" in err
+    assert len(err.splitlines()) == 1 and f"{prog}:2" in err and "G38.2" in err and "probing" in err
     s = run_json(capsys, str(prog), "--lenient")
-    assert {u["code"] for u in s["unsupported"]} == {"G41", "D1"} and s["warnings"]
+    assert {u["code"] for u in s["unsupported"]} == {"G38.2"} and s["warnings"]
 
 
 def test_five_axis_example_with_its_profile(capsys):

@@ -100,7 +100,7 @@ def test_subroutine_files_along_the_search_path(tmp_path):
     ("#1 = SQRT[-1]\nM2\n", 1, "sqrt"),
     ("G1 X1\nM2\n", 1, "zero feed"),
     ("#5420 = 1\nM2\n", 1, "read-only"),
-    ("o1 if [1]\nG0 X1\n", 2, "file ended"),
+    ("o<s> sub\nG0 X1\no<s> call\n", 3, "no endsub"),
     ("G1 F100 X1 X2\nM2\n", 1, "multiple X"),
     ("G38.2 Z-1 F100\nM2\n", 1, "probing"),
     ("G41 D1 G18\nG41 D1\nM2\n", 2, "cannot turn cutter radius compensation on when it is on"),

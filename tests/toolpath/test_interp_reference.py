@@ -57,6 +57,9 @@ def test_linuxcnc_example_programs(name):
         expected = REFUSED_ON_PURPOSE.get(name, "cutter radius compensation")
         assert expected.lower() in str(error).lower(), str(error)
         return
+    if ref.error and "file ended" in ref.message.lower():   # feedlog reads to the end and says so
+        assert error is None and any("without" in w for w in program.warnings), (error, program)
+        return
     if ref.error:
         assert error is not None, f"LinuxCNC refuses {name} (line {ref.line}: {ref.message}); feedlog ran it"
         assert error.line is not None

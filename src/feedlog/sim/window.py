@@ -114,10 +114,10 @@ class WindowedSimulation:
         self.reader = None
         self._slice: int | None = None     # rows of a prepared batch handed on at once (None: all)
         if isinstance(program, (str, Path)):
-            from feedlog.toolpath.stream import ProgramReader  # noqa: PLC0415
+            from feedlog.toolpath.stream import open_program_reader  # noqa: PLC0415
 
             kw = {} if chunk_bytes is None else {"chunk_bytes": chunk_bytes}
-            self.reader = ProgramReader(program, lenient=lenient, name=name, **kw)
+            self.reader = open_program_reader(program, lenient=lenient, name=name, **kw)
             self._tables = iter(self.reader)
         else:
             table = getattr(program, "blocks", program)

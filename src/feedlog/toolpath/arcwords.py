@@ -2,8 +2,11 @@
 
 Centre format (I J K, incremental from the start or absolute with G90.1) or radius format (R > 0: at
 most 180 deg, R < 0: the longer way); P gives the number of turns. The offset word along the plane's
-normal, both formats on one line, neither, a radius shorter than half the chord and a centre whose end
-radius differs from its start radius by more than max(0.002 mm, 0.1 %) are errors.
+normal, both formats on one line, neither, a radius shorter than half the chord are errors, and so is a
+centre whose end radius differs from its start radius beyond LinuxCNC's limit: more than 100 x T, or more
+than T and 0.1 %, where T is CENTER_ARC_RADIUS_TOLERANCE (0.0283 mm in mm programs, 0.00283 in in inch
+programs). LinuxCNC runs such slightly spiral arcs (4-decimal inch rounding makes them), and so does
+feedlog.
 """
 
 from __future__ import annotations
@@ -16,7 +19,19 @@ import numpy as np
 from feedlog.toolpath import arcs
 from feedlog.toolpath.limits import MAX_ARC_TURNS
 
-RADIUS_TOL_MM, RADIUS_TOL_REL = 0.002, 0.001  # start vs end radius mismatch allowed on I/J/K arcs
+MM_PER_INCH = 25.4
+# LinuxCNC's CENTER_ARC_RADIUS_TOLERANCE_INCH / _MM (INI settable there) and its relative limit
+CENTER_ARC_RADIUS_TOLERANCE_INCH = 2 * 0.001 * np.sqrt(2)
+CENTER_ARC_RADIUS_TOLERANCE_MM = 2 * 0.01 * np.sqrt(2)
+SPIRAL_RELATIVE_TOLERANCE = 0.001
+
+
+def spiral_too_large(r0, r1, tolerance):
+    """LinuxCNC's test of a centre-format arc's end radius r1 against its start radius r0 (same units
+    as `tolerance`): True where the arc is refused."""
+    abs_err = np.abs(r1 - r0)
+    rel_err = abs_err / np.maximum(r0, r1)
+    return (abs_err > tolerance * 100.0) | ((rel_err > SPIRAL_RELATIVE_TOLERANCE) & (abs_err > tolerance))
 
 
 @dataclass
@@ -31,6 +46,7 @@ class ArcWords:
     radius: np.ndarray           # (m,) R
     turns: np.ndarray            # (m,) P
     absolute_centre: np.ndarray  # (m,) G90.1
+    inch: np.ndarray | None = None  # (m,) bool: the arc's line is in inches (its tolerance is the inch one)
 
 
 @dataclass
@@ -78,7 +94,9 @@ def resolve_arcs(w: ArcWords, fail: Callable[[int, str, str], Exception]) -> Arc
     r0 = np.hypot(s[:, 0] - c[:, 0], s[:, 1] - c[:, 1])
     r1 = np.hypot(e[:, 0] - c[:, 0], e[:, 1] - c[:, 1])
     first(r0 <= 0, "arc of zero radius", "G2/G3")
-    mism = np.abs(r1 - r0) > np.maximum(RADIUS_TOL_MM, RADIUS_TOL_REL * r0)
+    tol_mm = np.where(w.inch if w.inch is not None else False, CENTER_ARC_RADIUS_TOLERANCE_INCH * MM_PER_INCH,
+                      CENTER_ARC_RADIUS_TOLERANCE_MM)
+    mism = ~use_r & spiral_too_large(r0, r1, tol_mm)
     if mism.any():
         k = int(np.flatnonzero(mism)[0])
         raise fail(k, f"arc end radius {r1[k]:.4f} differs from start radius {r0[k]:.4f} mm",

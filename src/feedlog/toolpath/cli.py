@@ -17,7 +17,7 @@ from feedlog.parquet_sink import ParquetSink
 from feedlog.toolpath.dialects import DIALECTS
 from feedlog.toolpath.interp import InterpOptions
 from feedlog.toolpath.load import load_program, stream_dialect
-from feedlog.toolpath.stream import ProgramReader
+from feedlog.toolpath.stream import open_program_reader
 from feedlog.toolpath.summary import Summary, format_summary, summarize
 
 STREAM_BYTES = 16 << 20   # files this large are read and summarised chunk by chunk
@@ -112,7 +112,7 @@ def _streams(args: argparse.Namespace) -> bool:
 def _summarize_stream(args: argparse.Namespace, profile) -> dict:
     """The summary and the --parquet table, batch by batch (memory bounded by a chunk of the file)."""
     with contextlib.ExitStack() as stack:
-        reader = stack.enter_context(ProgramReader(args.file, lenient=args.lenient))
+        reader = stack.enter_context(open_program_reader(args.file, lenient=args.lenient, interp=interp_options(args)))
         sink = None
         if args.out is not None:
             sink = ParquetSink(stack.enter_context(atomic_output(args.out)))

@@ -155,7 +155,8 @@ def parse_chunk(text: str, state: ParseState, *, file: str, lenient: bool = Fals
         ijk_rows = [S["I"], S["J"], S["K"]]
         arc_words = ArcWords(start=start[:3, a].T, end=end[:3, a].T, plane=plane[a], ccw=motion_mode[a] == 30,
                              ijk=W[np.ix_(ijk_rows, a)].T * unit[a, None], radius=W[S["R"], a] * unit[a],
-                             turns=W[S["P"], a], absolute_centre=modal["arc_distance"][a] == 901)
+                             turns=W[S["P"], a], absolute_centre=modal["arc_distance"][a] == 901,
+                             inch=modal["units"][a] == 200)
         geo = resolve_arcs(arc_words, lambda k, message, code: R.error(a[k], message, code))
         turns[a] = geo.turns
         length[a] = geo.length

@@ -134,3 +134,23 @@ class ProgramReader:
         blocks = batches[0] if len(batches) == 1 else pd.concat(batches, ignore_index=True)
         return Program(blocks=blocks, path=self.path, warnings=self.warnings, unsupported=list(self.unsupported),
                        metadata=self.metadata)
+
+
+def open_program_reader(source: str | Path, *, lenient: bool = False, name: str | None = None,
+                        chunk_bytes: int = CHUNK_BYTES, interp=None):
+    """A streaming reader of a program: the vectorised ProgramReader, or, for a program that needs the
+    interpreter (toolpath.interp: parameters, O-words, cycles, ...; found by scanning the text chunk by
+    chunk), an InterpretedReader with the same interface."""
+    from feedlog.toolpath.interp.reader import InterpretedReader  # noqa: PLC0415 - interp imports this module
+    from feedlog.toolpath.interp.run import needs_interpreter  # noqa: PLC0415
+
+    _, _, chunks = open_source(source, name, chunk_bytes=chunk_bytes)
+    try:
+        needs = any(needs_interpreter(chunk) for chunk in chunks)
+    finally:
+        close = getattr(chunks, "close", None)
+        if close is not None:
+            close()
+    if needs:
+        return InterpretedReader(source, name=name, interp=interp)
+    return ProgramReader(source, lenient=lenient, name=name, chunk_bytes=chunk_bytes)

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import math
 
+from feedlog.toolpath.arcwords import (CENTER_ARC_RADIUS_TOLERANCE_INCH, CENTER_ARC_RADIUS_TOLERANCE_MM,
+                                       spiral_too_large)
 from feedlog.toolpath.interp import cycles
 from feedlog.toolpath.interp.block import Block
 from feedlog.toolpath.interp.canon import (K_ARC_CCW, K_ARC_CW, K_DWELL, K_LINEAR, K_NONE, K_RAPID, Canon,
@@ -23,11 +25,8 @@ from feedlog.toolpath.interp.tools import ToolTable
 
 MM_PER_INCH = 25.4
 INCH_PER_MM = 1.0 / 25.4
-CENTER_ARC_RADIUS_TOLERANCE_INCH = 2 * 0.001 * math.sqrt(2)
-CENTER_ARC_RADIUS_TOLERANCE_MM = 2 * 0.01 * math.sqrt(2)
 RADIUS_TOLERANCE_INCH = 0.00005
 RADIUS_TOLERANCE_MM = RADIUS_TOLERANCE_INCH * MM_PER_INCH
-SPIRAL_RELATIVE_TOLERANCE = 0.001
 TINY = 1e-12
 PATH_EXACT_PATH, PATH_EXACT_STOP, PATH_CONTINUOUS = 0, 1, 2  # schema.PATH_MODES order
 
@@ -645,9 +644,9 @@ def _arc_centre_ijk(s1, s2, e1, e2, absolute, o1, o2, radius_tol, spiral_abs):
     if r1 < radius_tol or r2 < radius_tol:
         raise InterpError(f"zero-radius arc: start=({s1:.4f},{s2:.4f}) center=({c1:.4f},{c2:.4f}) "
                           f"end=({e1:.4f},{e2:.4f})")
-    abs_err = abs(r1 - r2)
-    rel_err = abs_err / max(r1, r2)
-    if abs_err > spiral_abs * 100.0 or (rel_err > SPIRAL_RELATIVE_TOLERANCE and abs_err > spiral_abs):
+    if spiral_too_large(r1, r2, spiral_abs):
+        abs_err = abs(r1 - r2)
+        rel_err = abs_err / max(r1, r2)
         raise InterpError(f"radius to end of arc differs from radius to start: start=({s1:.4f},{s2:.4f}) "
                           f"center=({c1:.4f},{c2:.4f}) end=({e1:.4f},{e2:.4f}) r1={r1:.4f} r2={r2:.4f} "
                           f"abs_err={abs_err:.4g} rel_err={rel_err * 100:.4f}% (tolerance {spiral_abs:.4g})")

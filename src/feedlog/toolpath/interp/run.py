@@ -22,7 +22,7 @@ from feedlog.toolpath.program import Program
 _NEEDS = re.compile(rb"[#\[\]<>@^=]|"
                     rb"o\s*[0-9]+\s*(?:sub|endsub|call|do|while|repeat|if|elseif|else|endif|break|continue|"
                     rb"endwhile|endrepeat|return)|"
-                    rb"g\s*0*(?:28|30|33|38|4[1-3]|5[23]|7[36]|8[1-9]|92\s*\.\s*[23])(?![0-9])|m\s*0*(?:61|98|99)(?![0-9])",
+                    rb"g\s*0*(?:28|30|33|38|4[1-3]|5[23]|5[5-9]|7[36]|8[1-9]|92\s*\.\s*[23])(?![0-9])|m\s*0*(?:61|98|99)(?![0-9])",
                     re.IGNORECASE)
 _COMMENT = re.compile(rb"\([^)\n]*\)|;[^\n]*")
 
@@ -72,7 +72,4 @@ def interpret(source: str | Path, *, name: str | None = None, options: InterpOpt
     meta = dict(it.metadata)
     meta["interpreter"] = "feedlog.toolpath.interp"
     meta["blocks_executed"] = it.blocks
-    title = next((c for c in blocks["comment"].head(50) if c), None) if len(blocks) else None
-    if title:
-        meta.setdefault("title", title)
     return Program(blocks=blocks, path=it.main.path, warnings=list(it.warnings), metadata=meta)

@@ -14,6 +14,7 @@ runaway loop stops with an error naming the line, never hangs).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -112,6 +113,9 @@ class Interpreter:
         self.blocks = 0
         self.warnings: list[str] = []
         self.metadata: dict = {"file": label, "lines": len(self.main.lines), "percent_lines": []}
+        title = _first_comment(self.main.lines)
+        if title:
+            self.metadata["title"] = title
         self.finished = False
         self._stack_key = -1
         self._stack_str = ""
@@ -300,9 +304,12 @@ class Interpreter:
             raise self._error(f"end of file seeking o-word o<{self.skipping_to_sub}> sub")
         if self.skipping is not None and self.defining_sub:
             raise self._error(f"end of file inside the definition of o<{self.sub_name}>: no endsub")
-        if self.file.percent:
-            raise self._error("file ended with no percent sign")
-        raise self._error("file ended with no percent sign or program end (M2/M30)")
+        if len(self.frames) > 1:
+            raise self._error("file ended inside a subroutine call (no endsub or return)")
+        what = "a closing '%'" if self.file.percent else "a program end (M2/M30) or '%' lines"
+        self.warnings.append(f"{Path(self.file.name).name} ends at line {len(self.file.lines)} without {what}: "
+                             "LinuxCNC refuses such a file; read to its end")
+        self._finish()
 
     # -- O-words ------------------------------------------------------------------------------------
     def _scoped(self, ow) -> str:
@@ -530,3 +537,15 @@ def _o_line(raw: str) -> bool:
     if code.startswith("n"):
         code = code[1:].lstrip("0123456789.")
     return code.startswith("o")
+
+
+_COMMENT = re.compile(r"\(([^()]*)\)|;(.*)")
+
+
+def _first_comment(lines: list[str]) -> str | None:
+    """The program's title as the vectorised parser takes it: the first comment of the file."""
+    for raw in lines:
+        m = _COMMENT.search(raw)
+        if m:
+            return (m.group(1) if m.group(1) is not None else m.group(2)).strip()
+    return None
