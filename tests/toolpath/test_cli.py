@@ -83,3 +83,24 @@ def test_five_axis_cl_data_with_orientation_vectors(capsys):
     f = block_features(parse_program(path))
     cut = f.iloc[2:-1]  # the ring: orientation leans 5-25 deg toward the centre and keeps turning
     assert (cut["ori_arc_deg"] > 0.4).all() and (cut["sin_rot"].between(0.08, 0.43)).all()
+
+
+def test_without_a_profile_the_program_picks_one_by_its_axes_and_says_so(capsys):
+    s = run_json(capsys, str(EXAMPLES / "fiveaxis_ac.ngc"))
+    assert s["profile"] == "linuxcnc-xyzac" and "moves A, C" in s["profile_choice"]
+    s = run_json(capsys, str(EXAMPLES / "pocket.ngc"))
+    assert s["profile"] == "linuxcnc-xyz" and "X, Y, Z only" in s["profile_choice"]
+    assert main(["program", str(EXAMPLES / "fiveaxis_ac.ngc"), "--profile", "linuxcnc-xyz"]) == 2
+    assert "does not have" in capsys.readouterr().err
+
+
+def test_program_with_subroutine_files_along_the_given_path(tmp_path, capsys):
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    (subs / "drill.ngc").write_text("o<drill> sub\nG81 R1 Z-#1\no<drill> endsub\nM2\n")
+    prog = tmp_path / "main.ngc"
+    prog.write_text("G21 F300\nG0 X0 Y0 Z5\no<drill> call [3]\nG0 X10\no<drill> call [4]\nG80\nM2\n")
+    assert main(["program", str(prog)]) == 2
+    assert "o<drill>" in capsys.readouterr().err
+    s = run_json(capsys, str(prog), "--subroutine-path", str(subs))
+    assert s["kinds"]["linear"] == 2 and s["bbox"]["z_mm"][0] == -4.0

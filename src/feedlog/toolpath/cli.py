@@ -25,8 +25,9 @@ STREAM_BYTES = 16 << 20   # files this large are read and summarised chunk by ch
 
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", metavar="FILE", type=Path, help="part program (RS274/NGC G-code)")
-    parser.add_argument("--profile", default=DEFAULT_PROFILE,
-                        help=f"machine profile: shipped name or TOML path (default {DEFAULT_PROFILE})")
+    parser.add_argument("--profile", default=None,
+                        help=f"machine profile: shipped name or TOML path (default: {DEFAULT_PROFILE}, or "
+                             f"{FIVE_AXIS_PROFILE} for a program that moves A or C; the summary says which)")
     parser.add_argument("--lenient", action="store_true",
                         help="list unsupported codes and skip them instead of stopping at the first")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
@@ -39,6 +40,23 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--stream", action=argparse.BooleanOptionalAction, default=None,
                         help="read the program in chunks, summarise and write -o batch by batch "
                              f"(RS274/NGC only; default: for such files of {STREAM_BYTES >> 20} MiB or more)")
+
+
+FIVE_AXIS_PROFILE = "linuxcnc-xyzac"
+
+
+def pick_profile(program) -> tuple[str, str]:
+    """A shipped profile for a program given without one, by the axes it moves, and why."""
+    m = program.motion
+    moved = [a for a, col, col0 in (("A", "a_deg", "a0_deg"), ("B", "b_deg", "b0_deg"), ("C", "c_deg", "c0_deg"))
+             if len(m) and (m[col] - m[col0]).abs().max() > 1e-9]
+    if not moved:
+        return DEFAULT_PROFILE, f"{DEFAULT_PROFILE}: the program moves X, Y, Z only (give --profile for your machine)"
+    if "B" in moved:
+        raise FeedlogError(f"{program.name}: the program moves {', '.join(moved)}; no shipped profile has a B axis: "
+                           "give --profile a TOML profile of the machine")
+    return FIVE_AXIS_PROFILE, (f"{FIVE_AXIS_PROFILE}: the program moves {', '.join(moved)} "
+                               "(give --profile for your machine)")
 
 
 def add_interpreter_arguments(parser: argparse.ArgumentParser) -> None:
@@ -72,12 +90,14 @@ def interp_options(args: argparse.Namespace) -> InterpOptions:
 def run(args: argparse.Namespace) -> int:
     if args.out is not None and args.out.exists() and not args.overwrite:
         raise FeedlogError(f"{args.out} exists; pass --overwrite to replace it")
-    profile = load_profile(args.profile)
     if _streams(args):
-        summary = _summarize_stream(args, profile)
+        summary = _summarize_stream(args, load_profile(args.profile or DEFAULT_PROFILE))
     else:
         program = load_program(args.file, lenient=args.lenient, dialect=args.dialect, interp=interp_options(args))
-        summary = summarize(program, profile)
+        name, why = (args.profile, None) if args.profile else pick_profile(program)
+        summary = summarize(program, load_profile(name))
+        if why:
+            summary["profile_choice"] = why
         if args.out is not None:
             with atomic_output(args.out) as temporary:
                 program.blocks.to_parquet(temporary, index=False)

@@ -224,6 +224,8 @@ def format_summary(s: dict[str, Any]) -> str:
         f"  CAM time     {s['cam_time_s']:.3f} s (rapids {s['rapid_time_s']:.3f} s at the rapid rate of "
         f"{s['profile']}, dwell {s['dwell_s']:.3f} s)",
     ]
+    if s.get("profile_choice"):
+        lines.append(f"  profile      {s['profile_choice']}")
     for col, (lo, hi) in s["bbox"].items():
         lines.append(f"  {col:<12} {lo:.4f} .. {hi:.4f}")
     for w in s.get("work_offsets") or []:
