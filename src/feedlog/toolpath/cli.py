@@ -92,6 +92,8 @@ def run(args: argparse.Namespace) -> int:
         raise FeedlogError(f"{args.out} exists; pass --overwrite to replace it")
     if _streams(args):
         summary = _summarize_stream(args, load_profile(args.profile or DEFAULT_PROFILE))
+        if not args.profile:   # a streamed program on a three-axis machine reads only X Y Z moves
+            summary["profile_choice"] = f"{DEFAULT_PROFILE}: the program moves X, Y, Z only (give --profile for your machine)"
     else:
         program = load_program(args.file, lenient=args.lenient, dialect=args.dialect, interp=interp_options(args))
         name, why = (args.profile, None) if args.profile else pick_profile(program)

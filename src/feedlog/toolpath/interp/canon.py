@@ -88,6 +88,7 @@ class Canon:
         turns = np.asarray(cols[12], dtype=np.int16)
         feed = np.asarray(cols[13], dtype=np.float64)
         dwell = np.asarray(cols[14], dtype=np.float64)
+        is_motion = kind <= K_ARC_CCW
         start_pos = np.empty((6, n))
         if n:
             start_pos[:, 0] = start
@@ -108,7 +109,6 @@ class Canon:
         work = np.array([c.work for c in contexts], dtype=np.float64).reshape(-1, 6)[ctx].T if n else np.zeros((6, 0))
         tool = np.array([c.tool for c in contexts], dtype=np.float64).reshape(-1, 6)[ctx].T if n else np.zeros((6, 0))
         is_arc = (kind == K_ARC_CW) | (kind == K_ARC_CCW)
-        is_motion = kind <= K_ARC_CCW
         d = end[:3] - start_pos[:3]
         length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
         radius = np.full(n, np.nan)

@@ -156,9 +156,10 @@ class Compensation:
     def hold(self, kind: int, end, centre=(math.nan, math.nan, math.nan), turn: int = 0, sweep: float = 0.0,
              dwell: float = 0.0, direction=(0.0, 0.0)) -> None:
         m = self.m
+        m.emitted += 1
         f = 25.4 if m.inch else 1.0
         if kind <= 3:
-            m.last_machine = m._machine_of(end)
+            m.last_move = (list(end), m._offsets())
         self.queue.append(Held(kind, m.line_src, m.context(), end, centre, turn, sweep, m.feed * f, dwell,
                                direction, m.inch))
 

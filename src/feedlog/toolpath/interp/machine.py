@@ -72,7 +72,8 @@ class Machine:
         self.line_src = 0
         self.unknown_systems: set[int] = set()   # selected systems whose offsets no parameter file gave
         self.comp = Compensation(self)
-        self.last_machine: list[float] | None = None   # machine position where the last move ended
+        self.emitted = 0                       # rows emitted or held so far
+        self.last_move: tuple | None = None   # (end, offsets then) of the last move: where the tool is
         self.warn_zero_radius: set[int] = set()  # tools used for compensation without a tool table
         self._ctx_key = None
         self._ctx = 0
@@ -115,8 +116,9 @@ class Machine:
 
     def emit(self, kind: int, end, centre=(math.nan, math.nan, math.nan), turns: int = 0, dwell: float = 0.0,
              feed: float | None = None) -> None:
+        self.emitted += 1
         if kind <= K_ARC_CCW:
-            self.last_machine = self._machine_of(end)
+            self.last_move = (end, self._offsets())
         if self.comp.queue:      # rows keep their order behind moves cutter compensation still holds
             self.comp.hold(kind, end, centre, turns if kind == K_ARC_CCW else -turns, dwell=dwell)
             return
@@ -128,8 +130,22 @@ class Machine:
                                 centre[0] * f, centre[1] * f, centre[2] * f, turns, feed, dwell))
 
     def emit_none(self) -> None:
-        p = self.pos
-        self.emit(K_NONE, p)
+        """A row for a line that moves nothing: it stands where the tool is, which is the interpreter's
+        point except after G40 (the tool stays at the compensated point) or a G88 (no retract)."""
+        self.emit(K_NONE, self.tool_position())
+
+    def tool_position(self) -> list[float]:
+        """Where the tool is, in the program coordinates now in force (program units)."""
+        if self.last_move is None or self.comp.queue:
+            return self.pos
+        end, offsets = self.last_move
+        if offsets == self._offsets():
+            return end
+        machine = self._machine_of(end, offsets)
+        if offsets[4] != self.inch:
+            k = MM_PER_INCH if offsets[4] else INCH_PER_MM
+            machine = [v * k if i < 3 else v for i, v in enumerate(machine)]
+        return self._relative(machine)
 
     def traverse(self, end) -> None:
         self.emit(K_RAPID, end)
@@ -139,15 +155,41 @@ class Machine:
         self.emit(K_LINEAR, end, feed=feed)
         self.pos = list(end)
 
+    # -- the fast lane: a line of G0/G1, axis words and F ---------------------------------------------
+    def fast_ok(self, motion: int) -> bool:
+        """Whether a plain G0/G1 line can skip the general path (no compensation, per-minute feed, a G0/G1
+        motion mode in force or given)."""
+        return (not self.comp.side and self.feed_mode == 940
+                and (motion in (0, 10) or (motion == -1 and self.motion_mode in (0, 10))))
+
+    def fast_line(self, motion: int, v: dict) -> None:
+        if "f" in v:
+            f = v["f"]
+            if f < 0.0:
+                raise InterpError("negative F word used")
+            self.feed = f
+        if motion == -1:
+            motion = self.motion_mode
+        if motion == 10 and self.feed == 0.0:
+            raise InterpError("cannot do G1 with zero feed rate")
+        self.comp.arc_not_allowed = False
+        self.cycle_il = None
+        self.motion_mode = motion
+        pos = self.pos
+        if self.incremental:
+            end = [pos[0] + v.get("x", 0.0), pos[1] + v.get("y", 0.0), pos[2] + v.get("z", 0.0),
+                   pos[3] + v.get("a", 0.0), pos[4] + v.get("b", 0.0), pos[5] + v.get("c", 0.0)]
+        else:
+            end = [v.get("x", pos[0]), v.get("y", pos[1]), v.get("z", pos[2]), v.get("a", pos[3]),
+                   v.get("b", pos[4]), v.get("c", pos[5])]
+        self.emit(K_RAPID if motion == 0 else K_LINEAR, end)
+        self.pos = end
+
     # -- one block ------------------------------------------------------------------------------------
     def execute(self, b: Block) -> bool:
         """Run a block. Returns True when it ends the program (M2/M30). Emits at least one row."""
-        before = len(self.canon.rows)
+        before = self.emitted
         g, m, v = b.g, b.m, b.v
-        for code in g.values():
-            why = REFUSED_G.get(code)
-            if why is not None:
-                raise InterpError(why)
         if b.motion in REFUSED_G:
             raise InterpError(REFUSED_G[b.motion])
         if "feed_mode" in g:
@@ -223,7 +265,7 @@ class Machine:
             self.comp.stop()
         if stop in (2, 30):
             end = True
-        if len(self.canon.rows) == before:
+        if self.emitted == before:
             self.emit_none()
         return end
 
@@ -458,20 +500,25 @@ class Machine:
             self.P.p[base + k] = self._program_to_user(machine[k], k)
 
     def _machine_position(self) -> list[float]:
-        return self._machine_of(self.pos)
+        return self._machine_of(self.pos, self._offsets())
 
-    def _machine_of(self, p) -> list[float]:
-        """Machine coordinates (program units) of program point `p` under the offsets in force."""
-        x, y = rotate(p[0] + self.g92[0], p[1] + self.g92[1], self.rotation)
-        out = [x, y] + [p[k] + self.g92[k] for k in (2, 3, 4, 5)]
-        return [out[k] + self.origin[k] + self.tool_offset[k] for k in range(6)]
+    def _offsets(self) -> tuple:
+        return (tuple(self.g92), self.rotation, tuple(self.origin), tuple(self.tool_offset), self.inch)
+
+    @staticmethod
+    def _machine_of(p, offsets) -> list[float]:
+        """Machine coordinates of program point `p` under `offsets` (from _offsets()), in their units."""
+        g92, rotation, origin, tool, _ = offsets
+        x, y = rotate(p[0] + g92[0], p[1] + g92[1], rotation)
+        out = [x, y] + [p[k] + g92[k] for k in (2, 3, 4, 5)]
+        return [out[k] + origin[k] + tool[k] for k in range(6)]
 
     def resync(self) -> None:
         """After a tool change LinuxCNC re-reads where the machine is: the interpreter's point becomes the
         machine position of the last move under the offsets now in force (a G40 before it had only moved
         the interpreter's idea of the point, not the tool)."""
-        if self.last_machine is not None:
-            self.pos = self._relative(self.last_machine)
+        if self.last_move is not None:
+            self.pos = list(self.tool_position())
 
     # -- motion -------------------------------------------------------------------------------------
     def _ends(self, b: Block) -> list[float]:

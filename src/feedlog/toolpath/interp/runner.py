@@ -244,21 +244,64 @@ class Interpreter:
                 raise self._error(str(exc), raw) from None
 
     def _record(self, line, m_list) -> None:
-        mcodes = " ".join(f"M{c}" for c in m_list)
-        stop = any(c in STOP_M for c in m_list)
-        n_word = int(line.n) if line.n is not None else -1
-        self.m.line_src = self.canon.source(Source(self.file.name, self.seq, self._stack(), mcodes,
-                                                   line.comment, n_word, stop))
+        stack = self._stack()
+        key = (stack, tuple(m_list), self.file.name)
+        src = line.sources.get(key)
+        if src is None:
+            mcodes = " ".join(f"M{c}" for c in m_list)
+            stop = any(c in STOP_M for c in m_list)
+            n_word = int(line.n) if line.n is not None else -1
+            src = line.sources[key] = self.canon.source(Source(self.file.name, self.seq, stack, mcodes,
+                                                               line.comment, n_word, stop))
+        self.m.line_src = src
 
     def _execute(self, line) -> bool:
         m = self.m
         P = self.params
+        simple = line.simple
+        if simple is not None and m.fast_ok(simple[0]):
+            if not line.static:
+                p = P.p
+                p[5420], p[5421], p[5422], p[5423], p[5424], p[5425] = m.pos
+                values = {k: (v(P) if callable(v) else v) for k, v in simple[1]}
+            else:
+                values = dict(simple[1])
+            self._record(line, ())
+            m.fast_line(simple[0], values)
+            return False
         if not line.static:
             p = P.p
-            pos = m.pos
-            p[5420], p[5421], p[5422], p[5423], p[5424], p[5425] = pos
-        b = build(line.words, P)
-        refuse(b)
+            p[5420], p[5421], p[5422], p[5423], p[5424], p[5425] = m.pos
+        if not line.words:      # parameter settings only
+            self._assign(line)
+            if line.comment:
+                self._record(line, ())
+                m.emit_none()
+            return False
+        if line.static and line.block is not None:
+            b = line.block
+        else:
+            b = build(line.words, P)
+            refuse(b)
+            if line.static:
+                line.block = b
+        if line.assigns:
+            self._assign(line)
+        if not b.g and not b.m and not b.v:
+            if line.comment:
+                self._record(line, ())
+                m.emit_none()
+            return False
+        enhance(b, m.motion_mode, m.plane)
+        self._record(line, b.m_list)
+        end = m.execute(b)
+        if end:
+            self.metadata.setdefault("end_line", self.seq)
+        return end
+
+    def _assign(self, line) -> None:
+        """A line's parameter settings: all values read first, then numbered ones set, then named ones."""
+        P = self.params
         values = []
         for target, raw in line.assigns:
             value = raw(P) if callable(raw) else raw
@@ -272,19 +315,6 @@ class Interpreter:
         for target, value in values:
             if isinstance(target, str):
                 P.set_named(target, value)
-        if not b.g and not b.m and not b.v:
-            if line.comment:
-                self._record(line, ())
-                m.emit_none()
-            return False
-        enhance(b, m.motion_mode, m.plane)
-        self._record(line, b.m_list)
-        end = m.execute(b)
-        if end:
-            self.metadata.setdefault("end_line", self.seq)
-        if b.m.get("stop") == 60 or b.m.get("stop") == 0:
-            pass
-        return end
 
     def _finish(self) -> None:
         self.finished = True
@@ -316,10 +346,16 @@ class Interpreter:
         if ow.kind in ("sub", "endsub", "call", "return", ""):
             return ow.name
         if len(self.frames) > 1:
-            return f"{self.frames[-1].name}#{ow.name}"
-        if self.defining_sub:
-            return f"{self.sub_name}#{ow.name}"
-        return f"#{ow.name}"
+            scope = self.frames[-1].name
+        elif self.defining_sub:
+            scope = self.sub_name
+        else:
+            scope = ""
+        cache = ow.scoped
+        name = cache.get(scope)
+        if name is None:
+            name = cache[scope] = f"{scope}#{ow.name}"
+        return name
 
     def _save_label(self, name: str, kind: str) -> None:
         old = self.labels.get(name)

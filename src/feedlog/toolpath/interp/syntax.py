@@ -31,6 +31,7 @@ class OWord:
     kind: str
     args: list = field(default_factory=list)
     test: object = None
+    scoped: dict = field(default_factory=dict)   # enclosing subroutine -> label name (LinuxCNC's "sub#label")
 
 
 @dataclass(slots=True)
@@ -49,6 +50,9 @@ class Line:
     comment: str = ""
     last_comment: str = ""
     static: bool = True          # no parameter or function to evaluate: values are floats
+    block: object = None         # the evaluated Block of a static line (built once)
+    sources: dict = field(default_factory=dict)   # (call stack, M codes) -> canon source index
+    simple: tuple | None = None  # (G code x10 or -1, [(letter, value)]) of a plain G0/G1 line (fast lane)
 
     @property
     def empty(self) -> bool:
@@ -119,6 +123,34 @@ def parse_line(raw: str, number: int) -> Line:
         _only_comments(r)
         line.static = False
         return line
+    _read_items(r, code, line)
+    line.simple = _simple(line)
+    return line
+
+
+def _simple(line: Line) -> tuple | None:
+    """A line of only G0/G1, axis words X-C and F (what loops of moves are made of) runs in the fast lane."""
+    if line.assigns or line.oword is not None or not line.words:
+        return None
+    motion = -1
+    rest = []
+    for letter, value in line.words:
+        if letter == "g":
+            if callable(value) or value not in (0.0, 1.0) or motion != -1:
+                return None
+            motion = int(value) * 10
+        elif letter in "xyzabcf":
+            if any(letter == seen for seen, _ in rest):
+                return None
+            rest.append((letter, value))
+        else:
+            return None
+    if not any(letter != "f" for letter, _ in rest):
+        return None
+    return motion, rest
+
+
+def _read_items(r: Reader, code: str, line: Line) -> None:
     while r.pos < len(code):
         c = r.peek()
         if c == "\x00":
@@ -144,7 +176,6 @@ def parse_line(raw: str, number: int) -> Line:
         if callable(value):
             line.static = False
         line.words.append((c, value))
-    return line
 
 
 def _only_comments(r: Reader) -> None:
