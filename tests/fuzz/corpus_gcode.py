@@ -121,7 +121,8 @@ def odd_files(rng: random.Random) -> list[Case]:
         _case("100k-bad-lines", "G1 X1 Q\n" * 100_000, expect="error"),
         _case("100k-lines-last-bad", good + "G1 X1 #5\n", expect="error"),
         _case("random-bytes", bytes(rng.randrange(256) for _ in range(4096))),
-        _case("parameters", "#1=5\nG1 X#1 F100\n", expect="error"),
+        _case("parameters", "#1=5\nG1 X#1 F100\nM2\n", expect="ok"),        # the interpreter reads them
+        _case("undefined-parameter", "G1 X#<nope> F100\nM2\n", expect="error"),
     ]
 
 

@@ -31,7 +31,7 @@ from feedlog.toolpath.source import read_source
 from feedlog.toolpath.words import STOP_M
 
 MAX_CALL_LEVEL = 10          # LinuxCNC: INTERP_SUB_ROUTINE_LEVELS
-MAX_BLOCKS = 50_000_000      # executed lines before a program counts as a runaway loop
+MAX_BLOCKS = 20_000_000      # executed lines before a program counts as a runaway loop (about 2 min)
 BATCH_ROWS = 1 << 16         # rows per block-table batch when streaming
 SUFFIXES = (".ngc", ".nc")
 
