@@ -36,7 +36,7 @@ from feedlog.align.blocks import NO_TIME, SHORT_LEAVE_SAMPLES, MotionSpan, _last
 from feedlog.align.feed import LINEAR
 from feedlog.align.pipeline import STRAIGHT, Alignment, position_quantum
 from feedlog.errors import AlignmentError, FeedlogError
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
+from feedlog.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import MachineProfile
 from feedlog.toolpath import Program, load_program, to_machine
 

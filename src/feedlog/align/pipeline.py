@@ -39,7 +39,7 @@ from feedlog.align.subsample import refine_span
 from feedlog.align.timing import stream_timing
 from feedlog.align.work_offset import estimate_work_offset
 from feedlog.errors import AlignmentError, FeedlogError
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
+from feedlog.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import MachineProfile, load_profile
 from feedlog.toolpath import Program, block_features, cl_points, load_program, to_machine
 from feedlog.toolpath.schema import CONTINUOUS, RAPID

@@ -23,7 +23,7 @@ import pandas as pd
 from feedlog.align.blocks import NO_TIME
 from feedlog.diagnose.progress import block_end_progress, crossing_times, sample_progress
 from feedlog.errors import AlignmentError, FeedlogError
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
+from feedlog.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import LINEAR_AXES, MachineProfile
 from feedlog.toolpath.schema import AXIS_UNITS
 

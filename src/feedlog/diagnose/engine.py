@@ -28,7 +28,7 @@ from feedlog.diagnose.fit import Scorer
 from feedlog.diagnose.hypothesis import candidates
 from feedlog.diagnose.select import Judged, SelectConfig, Selection, select
 from feedlog.errors import FeedlogError
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 from feedlog.profile import MachineProfile, load_profile
 
 LEVELS = ("timing", "feedback", "line")

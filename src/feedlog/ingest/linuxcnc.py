@@ -24,7 +24,7 @@ import pandas as pd
 from feedlog.errors import FeedlogError, IngestError
 from feedlog.ingest.linuxcnc_capture import has_samples, load_capture, motion_span
 from feedlog.ingest.linuxcnc_session import MachineIni, cleanup, run_session, session_error
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording
+from feedlog.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording
 from feedlog.ingest.writer import write_recording
 from feedlog.profile import load_profile
 

@@ -31,7 +31,7 @@ import pandas as pd
 from feedlog.errors import IngestError
 from feedlog.ingest.mapping import ColumnMap, convert, load_preset, parse_map, resolve_target
 from feedlog.ingest.mtconnect_obs import UNAVAILABLE, DataItemType, Observations
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 
 DEFAULT_SHDR_PRESET = "mtconnect-shdr"
 STANDARD_UNITS = {"length_unit": "mm", "angle_unit": "deg", "feed_unit": "mm/s"}
