@@ -23,8 +23,8 @@ import pandas as pd
 from feedlog.align.blocks import NO_TIME
 from feedlog.diagnose.progress import block_end_progress, crossing_times, sample_progress
 from feedlog.errors import AlignmentError, FeedlogError
+from feedlog.profile import LINEAR_AXES, MachineProfile, path_acc_limit
 from feedlog.recording import PROFILE_ATTACHMENT, Recording
-from feedlog.profile import LINEAR_AXES, MachineProfile
 from feedlog.toolpath.schema import AXIS_UNITS
 
 ROTARY_COLUMNS = {"a": "a_deg", "b": "b_deg", "c": "c_deg"}
@@ -140,11 +140,11 @@ class Case:
 
 def _program(rec: Recording, program: Any, lenient: bool):
     """The given program, or the one the recording carries (align's rule)."""
-    from feedlog.align.pipeline import _program as align_program  # noqa: PLC0415
+    from feedlog.align.attached import attached_program  # noqa: PLC0415
     from feedlog.errors import AlignmentError  # noqa: PLC0415
 
     try:
-        return align_program(rec, program, lenient)
+        return attached_program(rec, program, lenient)
     except AlignmentError as exc:
         raise DiagnoseError(str(exc)) from None
 
@@ -381,9 +381,7 @@ def _on_path(alignment: Any, axes: pd.DataFrame) -> float:
 
 def span_acceleration(profile: MachineProfile) -> float:
     """The acceleration align assumes when it places motion start and end between rest samples."""
-    from feedlog.align.pipeline import _acc_limit  # noqa: PLC0415
-
-    return _acc_limit(profile)
+    return path_acc_limit(profile)
 
 
 def check_same_machine(cases: list[Case]) -> None:
