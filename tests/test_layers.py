@@ -175,19 +175,11 @@ def _report(problems: list[str]) -> str:
         "\n".join(problems)
 
 
-# today's code breaks the layering at the places issue #29 names; the next commits move those pieces
-TODAY = pytest.mark.xfail(strict=True, reason="issue #29: sim/measurement.py imports Recording from ingest; "
-                          "diagnose/report.py and diagnose/rerun_view.py import viz; diagnose/cases.py imports "
-                          "align's private _program and _acc_limit")
-
-
-@TODAY
 def test_every_feedlog_import_points_to_its_own_layer_or_a_lower_one():
     problems = layer_violations(all_imports())
     assert not problems, _report(problems)
 
 
-@TODAY
 def test_no_package_imports_another_packages_private_names():
     problems = private_violations(all_imports())
     assert not problems, _report(problems)

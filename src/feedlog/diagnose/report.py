@@ -19,7 +19,7 @@ import numpy as np  # noqa: E402
 
 from feedlog.diagnose.attribution import class_table  # noqa: E402
 from feedlog.diagnose.summary import _fmt, summary_lines  # noqa: E402
-from feedlog.viz.colors import source_color  # noqa: E402
+from feedlog.colors import source_color  # noqa: E402
 
 DPI = 100
 MAX_PROFILE_PLOTS = 4
