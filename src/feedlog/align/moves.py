@@ -47,9 +47,9 @@ def planner_moves(program: Program, profile: MachineProfile) -> np.ndarray:
     """Per motion block of `program.motion` (in order): the index of the planner move it belongs to
     (0, 1, ...; consecutive blocks merged by LinuxCNC's collinear merge share one index). The chains
     come from feedlog.sim's `naive_cam` mechanism run on the program's blocks with `profile`'s axes."""
-    from feedlog.sim.context import Context  # noqa: PLC0415 - sim is only needed for this model
-    from feedlog.sim.naive_cam import NaiveCamMerge  # noqa: PLC0415
-    from feedlog.sim.path import prepare_blocks  # noqa: PLC0415
+    from feedlog.sim.context import Context  # sim is only needed for this model
+    from feedlog.sim.naive_cam import NaiveCamMerge
+    from feedlog.sim.path import prepare_blocks
 
     motion_block = program.motion["block"].to_numpy(dtype=np.int64)
     if len(motion_block) == 0:

@@ -204,7 +204,7 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
     if "line_from" in recording.metadata:
         report["line_from"] = recording.metadata["line_from"]
     if cfg.positions not in recording.streams:
-        from feedlog.align.line_only import align_on_lines  # noqa: PLC0415 - line_only imports this module
+        from feedlog.align.line_only import align_on_lines  # line_only imports this module
         return align_on_lines(recording, prog, prof, cfg, report)
     axes, cols, pos = _positions(recording, cfg)
     t = axes["t_ns"].to_numpy(dtype=np.int64)
@@ -308,7 +308,7 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
     report["boundary"] = boundary
     base = None
     if boundary == "leave" and prof is not None and prof.mechanism("naive_cam").get("enabled", False):
-        from feedlog.align.moves import moves_from_blocks  # noqa: PLC0415 - moves imports this module
+        from feedlog.align.moves import moves_from_blocks  # moves imports this module
         base = geo
         geo = moves_from_blocks(recording, geo, points, report, program=prog, profile=prof, positions=cfg.positions)
     report["geometry_model"] = "per block" if base is None else "planner moves"
@@ -334,7 +334,7 @@ def _refine_with_sim(span: MotionSpan, t: np.ndarray, pos: np.ndarray, cols: lis
                      prof: MachineProfile, offset: np.ndarray, report: dict[str, Any]) -> tuple[MotionSpan, str | None]:
     model = _model_profile(prof)
     try:
-        from feedlog.sim import simulate  # noqa: PLC0415 - only sparse recordings need the model
+        from feedlog.sim import simulate  # only sparse recordings need the model
         sim = simulate(prog, model)
     except (ImportError, FeedlogError) as exc:
         report["warnings"].append(f"no model for sub-sample motion start/end ({exc}); kinematic estimate used")

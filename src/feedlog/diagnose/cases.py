@@ -116,7 +116,7 @@ class Case:
     def sim_input(self) -> Any:
         """The program as the simulation reads it, prepared once for the many re-simulations of a fit."""
         if self._arrays is None:
-            from feedlog.sim.path import ProgramArrays  # noqa: PLC0415
+            from feedlog.sim.path import ProgramArrays
 
             self._arrays = ProgramArrays(self.program)
         return self._arrays
@@ -140,8 +140,8 @@ class Case:
 
 def _program(rec: Recording, program: Any, lenient: bool):
     """The given program, or the one the recording carries (align's rule)."""
-    from feedlog.align.attached import attached_program  # noqa: PLC0415
-    from feedlog.errors import AlignmentError  # noqa: PLC0415
+    from feedlog.align.attached import attached_program
+    from feedlog.errors import AlignmentError
 
     try:
         return attached_program(rec, program, lenient)
@@ -219,7 +219,7 @@ def machine_identity(rec: Recording) -> dict[str, str]:
     out = {k: rec.metadata[k] for k in ("machine", "controller", "ini", "servo_period_ns") if rec.metadata.get(k)}
     ini = rec.attachments.get("machine.ini")
     if ini is not None:
-        import hashlib  # noqa: PLC0415
+        import hashlib
 
         out["machine.ini"] = hashlib.sha256(ini).hexdigest()[:16]
     return out
@@ -235,8 +235,8 @@ def attached_profile(rec: Recording, name: str) -> MachineProfile | None:
 def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, program: Any = None,
                  lenient: bool = False, align_overrides: dict[str, Any] | None = None) -> Case:
     """Read, check and align one recording for diagnosis on `profile`."""
-    from feedlog.align import align_recording  # noqa: PLC0415
-    from feedlog.ingest import read_recording  # noqa: PLC0415
+    from feedlog.align import align_recording
+    from feedlog.ingest import read_recording
 
     rec = source if isinstance(source, Recording) else read_recording(source)
     src = rec.source or (str(source) if not isinstance(source, Recording) else "recording")
@@ -348,9 +348,9 @@ def partial_case(alignment: Any, prog: Any) -> tuple[Any, Any, str]:
     """A recording of some program lines: the program cut to them. Lines found from the line stream start
     with one that may have been under way when the recording began (align leaves it unchecked): the case
     then starts where that line ends, in the recording and in the program."""
-    from dataclasses import replace  # noqa: PLC0415
+    from dataclasses import replace
 
-    from feedlog.align.partial import slice_program  # noqa: PLC0415
+    from feedlog.align.partial import slice_program
 
     lines = alignment.report["lines"]
     first, last = int(lines["first"]), int(lines["last"])
@@ -372,7 +372,7 @@ def partial_case(alignment: Any, prog: Any) -> tuple[Any, Any, str]:
 
 def _on_path(alignment: Any, axes: pd.DataFrame) -> float:
     """The distance from a line at which align saw the tool leave it (as align_recording computes it)."""
-    from feedlog.align.pipeline import position_quantum  # noqa: PLC0415
+    from feedlog.align.pipeline import position_quantum
 
     cfg = alignment.report.get("config", {})
     pos = axes[[c for c in ("x_mm", "y_mm", "z_mm") if c in axes.columns]].to_numpy(np.float64)

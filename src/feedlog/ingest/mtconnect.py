@@ -187,8 +187,8 @@ def pivot(obs: Observations, cmap: ColumnMap, *, strict: bool, file: str) -> tup
 
 def read_mtconnect(path: str | Path, options) -> Recording:
     """Read an SHDR log or a Streams XML file (by suffix: .xml is XML, anything else SHDR)."""
-    from feedlog.ingest.mtconnect_shdr import read_shdr  # noqa: PLC0415
-    from feedlog.ingest.mtconnect_xml import read_streams_xml  # noqa: PLC0415
+    from feedlog.ingest.mtconnect_shdr import read_shdr
+    from feedlog.ingest.mtconnect_xml import read_streams_xml
 
     path = Path(path)
     head = path.read_bytes()[:512].lstrip(b"\xef\xbb\xbf \t\r\n")

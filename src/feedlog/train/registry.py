@@ -169,7 +169,7 @@ def model_names() -> list[str]:
 
 def _load_builtins() -> None:
     # the built-in models register themselves on import, in this order
-    import feedlog.train.model_mlp  # noqa: F401
-    import feedlog.train.model_seq  # noqa: F401
-    import feedlog.train.model_final  # noqa: F401
+    import feedlog.train.model_mlp
+    import feedlog.train.model_seq
+    import feedlog.train.model_final
     import feedlog.train.model_hybrid  # noqa: F401
