@@ -225,3 +225,8 @@ def test_the_checker_finds_upward_imports_anywhere_in_a_module(tmp_path):
     assert any("feedlog.train.m:Cls (train" in p for p in up) and any("feedlog.viz.v:g (viz" in p for p in up)
     private = private_violations(imports, root)
     assert len(private) == 1 and "rec.py:2" in private[0] and "_hidden" in private[0], private
+
+
+def test_the_layer_order_is_the_documented_one():
+    text = (SRC.parent / "docs" / "architecture.md").read_text(encoding="utf-8")
+    assert " < ".join(LAYERS) in text, "docs/architecture.md must show the layer order tests/test_layers.py checks"
