@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from feedlog.align.attached import attached_program
 from feedlog.align.blocks import NO_TIME
 from feedlog.diagnose.progress import block_end_progress, crossing_times, sample_progress
 from feedlog.errors import AlignmentError, FeedlogError
@@ -140,9 +141,6 @@ class Case:
 
 def _program(rec: Recording, program: Any, lenient: bool):
     """The given program, or the one the recording carries (align's rule)."""
-    from feedlog.align.attached import attached_program
-    from feedlog.errors import AlignmentError
-
     try:
         return attached_program(rec, program, lenient)
     except AlignmentError as exc:

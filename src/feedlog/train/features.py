@@ -34,9 +34,8 @@ Models read align's block tables, whose feature columns are `feedlog.toolpath.sc
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 import pandas as pd
@@ -132,12 +131,12 @@ def planner_inputs(profile: MachineProfile | None) -> dict[str, float]:
     """The planner constants of `profile` (`kinematic.planner_constants`) as `kin_time_s` reads them from
     the constants it gets. They come from the table's profile every time (`Model.table_constants`), so
     they are not part of the constants a model saves."""
-    return dataclasses.asdict(kinematic.planner_constants(profile))
+    return asdict(kinematic.planner_constants(profile))
 
 
 def planner_of(constants: dict[str, float]) -> kinematic.PlannerConstants:
     """The planner constants in `constants` (`planner_inputs`); the mechanisms' defaults for any it lacks."""
-    default = dataclasses.asdict(kinematic.planner_constants(None))
+    default = asdict(kinematic.planner_constants(None))
     return kinematic.PlannerConstants(**{key: float(constants.get(key, value)) for key, value in default.items()})
 
 
