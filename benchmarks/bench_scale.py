@@ -96,9 +96,9 @@ def _model(path: Path) -> None:
     """A small MLP checkpoint for the predict case, trained once on synthetic tables."""
     if path.exists():
         return
-    from feedlog.train import make_model  # noqa: PLC0415
-    from feedlog.train.checkpoint import save_checkpoint  # noqa: PLC0415
-    from feedlog.train.synthetic import synthetic_set  # noqa: PLC0415
+    from feedlog.train import make_model
+    from feedlog.train.checkpoint import save_checkpoint
+    from feedlog.train.synthetic import synthetic_set
 
     model = make_model("mlp", preset="quick", epochs=3)
     model.fit(synthetic_set(n_train=4, n_test=0, n_blocks=300, seed=0), progress=False)

@@ -41,7 +41,7 @@ def cases() -> list[dict]:
 def line_time_error_ms(recording_path: Path, res) -> float:
     """Mean absolute difference (ms) of the time spent on each program line: LinuxCNC's
     motion.program-line stream (within motion) against the simulated block table."""
-    from feedlog.ingest import read_recording  # noqa: PLC0415
+    from feedlog.ingest import read_recording
 
     rec = read_recording(recording_path)
     ln = rec.stream("line")

@@ -17,7 +17,8 @@ import numpy as np
 import pandas as pd
 
 from feedlog.ingest.recording import Recording
-from feedlog.viz.overlay import log_view, new_stream, save_view
+from feedlog.rerun_stream import new_stream
+from feedlog.viz.overlay import log_view, save_view
 from feedlog.viz.prepare import ModelPrediction, ViewInputs, prepare_view
 
 

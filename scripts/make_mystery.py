@@ -20,7 +20,7 @@ from pathlib import Path
 import tomli_w
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from linuxcnc_variants import derive_machine  # noqa: E402
+from linuxcnc_variants import derive_machine
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "recordings" / "mystery"

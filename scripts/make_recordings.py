@@ -26,7 +26,7 @@ from pathlib import Path
 import tomli_w
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import linuxcnc_programs as progs  # noqa: E402
+import linuxcnc_programs as progs
 
 ROOT = Path(__file__).resolve().parents[1]
 RECORDINGS = ROOT / "recordings"

@@ -86,8 +86,8 @@ def run_per_input(inputs: Sequence[str | Path], outdir: str | Path, make_task: C
     `make_task(label, root, token)` builds an input's task; `fn` runs one (`execution.run_tasks`).
     Returns the labels in input order and per label the existing output's name (a str: not run) or the
     task's `execution.TaskResult`. The job's partial files are removed whatever happens."""
-    from feedlog import storage  # noqa: PLC0415
-    from feedlog.execution import run_tasks  # noqa: PLC0415
+    from feedlog import storage
+    from feedlog.execution import run_tasks
 
     labels = [str(p) for p in inputs]
     stems = [storage.stem(p) for p in labels]

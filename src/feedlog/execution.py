@@ -213,7 +213,7 @@ class _Dask:
 
     def __init__(self, *, scheduler: str, jobs: int | None, log: Callable[[str], None], **_: Any) -> None:
         try:
-            from distributed import Client, LocalCluster  # noqa: PLC0415 - heavy; only for cluster runs
+            from distributed import Client, LocalCluster  # heavy; only for cluster runs
         except ImportError as exc:
             raise FeedlogError(f"--scheduler needs dask.distributed ({exc}); pip install 'dask[distributed]'") \
                 from None
@@ -221,7 +221,7 @@ class _Dask:
         self.scheduler = scheduler
         try:
             if scheduler == LOCAL:
-                import logging  # noqa: PLC0415
+                import logging
 
                 self.cluster = LocalCluster(n_workers=jobs or os.cpu_count() or 1, threads_per_worker=1,
                                             processes=True, dashboard_address=":0", silence_logs=logging.ERROR)
@@ -261,8 +261,8 @@ class _Dask:
                                f"every worker ({len(bad)} of {len(theirs)} differ)")
 
     def map(self, fn, items, labels, done, desc) -> list[TaskResult]:
-        from distributed import as_completed as completed  # noqa: PLC0415
-        from distributed import KilledWorker  # noqa: PLC0415
+        from distributed import as_completed as completed
+        from distributed import KilledWorker
 
         token = uuid.uuid4().hex[:8]
         futures = {self.client.submit(_call, fn, item, key=f"feedlog-{desc}-{i}-{token}"): i
@@ -318,7 +318,7 @@ class TaskRunner:
             on_done: Callable[[int, int, TaskResult[R]], None] | None = None) -> list[TaskResult[R]]:
         """`fn(item)` for every item; results in input order (see the module docstring for failures).
         `on_done(k, index, result)` is called as each task ends, the k-th to end (1-based), in this process."""
-        from tqdm import tqdm  # noqa: PLC0415
+        from tqdm import tqdm
 
         items = list(items)
         labels = [label(item) for item in items]

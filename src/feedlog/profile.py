@@ -228,6 +228,18 @@ class MachineProfile:
         Path(path).write_text(self.to_toml())
 
 
+def path_acc_limit(profile: MachineProfile | None) -> float:
+    """The acceleration (mm/s^2) the tool may have along the path: the interpolator's path limit when the
+    profile sets one, else the smallest linear axis acceleration; inf without a profile (or linear axes)."""
+    if profile is None:
+        return math.inf
+    acc = profile.interpolator.path_acc_max_mm_s2
+    if math.isfinite(acc):
+        return float(acc)
+    lin = [profile.axes[a].acc_max for a in LINEAR_AXES if a in profile.axes]
+    return float(min(lin)) if lin else math.inf
+
+
 def shipped_profiles() -> list[str]:
     """Short names of the profiles that ship with feedlog."""
     return sorted(p.name[:-5] for p in resources.files("feedlog.profiles").iterdir() if p.name.endswith(".toml"))

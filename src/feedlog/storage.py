@@ -50,7 +50,7 @@ def join(root: str, *parts: str) -> str:
 
 def _fs(url: str):
     try:
-        import fsspec  # noqa: PLC0415 - only for URLs
+        import fsspec  # only for URLs
     except ImportError:
         raise FeedlogError(f"{url}: URLs need fsspec (pip install fsspec)") from None
     try:

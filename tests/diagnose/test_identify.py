@@ -165,7 +165,7 @@ def test_a_faithful_five_axis_recording_with_a_work_offset_gives_no_finding():
     """A bundled LinuxCNC recording of a five-axis program with a G54: the simulated recording the line
     level compares with is not in the program's frame; align must not guess an offset for it (a few um
     off, it moved every modelled block end and named a 11 ms 'logger latency')."""
-    from pathlib import Path  # noqa: PLC0415
+    from pathlib import Path
 
     rec = Path(__file__).resolve().parents[2] / "recordings" / "mix5ax_004.mcap"
     dx = diagnose([rec], "linuxcnc-xyzac", config=FAST)

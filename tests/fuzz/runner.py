@@ -273,10 +273,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--limit-mb", type=int, default=3000, help="address space allowed beyond the start-up")
     parser.add_argument("--only", help="run only cases whose name contains this")
     args = parser.parse_args(argv)
-    import feedlog.cli  # noqa: F401 - imports counted before the memory cap
-    import feedlog.ingest  # noqa: F401
-    import feedlog.sim  # noqa: F401
-    import feedlog.toolpath  # noqa: F401
+    import feedlog.cli
+    import feedlog.ingest
+    import feedlog.sim
+    import feedlog.toolpath
 
     kinds = KINDS if args.kind == "all" else (args.kind,)
     corpora = {kind: build(kind) for kind in kinds}

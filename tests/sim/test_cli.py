@@ -112,7 +112,7 @@ def test_streamed_program_without_motion_writes_the_tables_of_the_whole_run(tmp_
 
 
 def test_a_run_that_would_not_fit_is_refused_in_one_line(tmp_path, capsys, monkeypatch):
-    import feedlog.sim.output as output  # noqa: PLC0415
+    import feedlog.sim.output as output
 
     src = tmp_path / "p.ngc"
     src.write_text(PROGRAM)
@@ -136,8 +136,8 @@ def test_stream_with_a_mechanism_without_windowed_form_is_one_clear_error(tmp_pa
 
 
 def test_large_program_streams_by_default_unless_a_mechanism_cannot(tmp_path, capsys, monkeypatch):
-    import feedlog.sim.cli as cli  # noqa: PLC0415
-    import feedlog.sim.output as output  # noqa: PLC0415
+    import feedlog.sim.cli as cli
+    import feedlog.sim.output as output
 
     src = tmp_path / "p.ngc"
     src.write_text(PROGRAM)

@@ -6,6 +6,8 @@ from __future__ import annotations
 import tomllib
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
 from feedlog.sim import simulate
@@ -66,10 +68,7 @@ def test_recorded_sessions_cycle_times():
     assert len(g61) >= 5 and abs(sum(g61) / len(g61)) < 0.003
 
 
-def _line_times_ms(rec) -> "pd.Series":
-    import numpy as np
-    import pandas as pd
-
+def _line_times_ms(rec) -> pd.Series:
     ln = rec.stream("line")
     t, lines = ln["t_ns"].to_numpy(), ln["line"].to_numpy()
     t0, t1 = int(rec.metadata["motion_start_ns"]), int(rec.metadata["motion_end_ns"])

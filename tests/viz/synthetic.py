@@ -32,25 +32,30 @@ def motion(*, rate_hz: float, feed: float = FEED_MM_MIN, accel_mm_s2: float = 50
     t_offset = lead_s
     if lead_s > 0:  # standing still before the program starts
         tt = np.arange(0.0, lead_s, 1.0 / rate_hz)
-        t_list.append(tt); pos_list.append(np.repeat(corners[:1], len(tt), axis=0))
-        feed_list.append(np.zeros(len(tt))); block_list.append(np.full(len(tt), -1))
+        t_list.append(tt)
+        pos_list.append(np.repeat(corners[:1], len(tt), axis=0))
+        feed_list.append(np.zeros(len(tt)))
+        block_list.append(np.full(len(tt), -1))
     for k in range(len(corners) - 1):
         a, b = corners[k], corners[k + 1]
         length = float(np.linalg.norm(b - a))
         t_acc = v / accel_mm_s2
         d_acc = 0.5 * accel_mm_s2 * t_acc ** 2
         if 2 * d_acc > length:  # triangular profile
-            t_acc = np.sqrt(length / accel_mm_s2); d_acc = length / 2; t_flat = 0.0; vp = accel_mm_s2 * t_acc
+            t_acc = np.sqrt(length / accel_mm_s2)
+            d_acc, t_flat, vp = length / 2, 0.0, accel_mm_s2 * t_acc
         else:
-            t_flat = (length - 2 * d_acc) / v; vp = v
+            t_flat, vp = (length - 2 * d_acc) / v, v
         dur = 2 * t_acc + t_flat
         tt = np.arange(0.0, dur, 1.0 / rate_hz)
         s = np.where(tt < t_acc, 0.5 * accel_mm_s2 * tt ** 2,
                      np.where(tt < t_acc + t_flat, d_acc + vp * (tt - t_acc),
                               length - 0.5 * accel_mm_s2 * (dur - tt) ** 2))
         sp = np.where(tt < t_acc, accel_mm_s2 * tt, np.where(tt < t_acc + t_flat, vp, accel_mm_s2 * (dur - tt)))
-        t_list.append(t_offset + tt); pos_list.append(a + np.outer(s / length, b - a))
-        feed_list.append(sp * 60.0); block_list.append(np.full(len(tt), k))
+        t_list.append(t_offset + tt)
+        pos_list.append(a + np.outer(s / length, b - a))
+        feed_list.append(sp * 60.0)
+        block_list.append(np.full(len(tt), k))
         t_offset += dur
     t = np.concatenate(t_list)
     return (t0_ns + np.rint(t * 1e9).astype(np.int64), np.concatenate(pos_list), np.concatenate(feed_list),

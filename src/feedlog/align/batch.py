@@ -64,7 +64,7 @@ def output_dir(outdir: str | Path, recording: str | Path) -> Path:
 
 def align_one(task: AlignTask) -> BatchItem:
     """Runs on a worker: read, align, publish the folder and the dataset partitions."""
-    from feedlog.ingest import read_recording  # noqa: PLC0415 - keep worker start-up light
+    from feedlog.ingest import read_recording  # keep worker start-up light
 
     name = storage.stem(task.label)
     with storage.local_input(task.recording) as local:
@@ -101,8 +101,8 @@ def decisions(report: dict[str, Any]) -> list[str]:
 
 def _shared_inputs(program: str | Path | None, profile: str | Path | None, config: AlignConfig):
     """The program and profile given for every recording, read here (errors stop the job before it starts)."""
-    from feedlog.profile import MachineProfile, load_profile  # noqa: PLC0415
-    from feedlog.toolpath import load_program  # noqa: PLC0415
+    from feedlog.profile import MachineProfile, load_profile
+    from feedlog.toolpath import load_program
 
     prog = prof = None
     if program is not None:

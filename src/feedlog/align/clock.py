@@ -64,7 +64,7 @@ def estimate_offset(ref_t_ns: np.ndarray, ref_values: np.ndarray, other_t_ns: np
     grid = uniform_timebase(int(t0), int(t1), int(period_ns))
     a = _on_grid(ref_t, ref_values, grid, "reference")
     b = _on_grid(oth_t, other_values, grid, "other")
-    from scipy import signal  # noqa: PLC0415 - scipy.signal costs ~0.7 s to import; only the cross-correlation needs it
+    from scipy import signal  # scipy.signal costs ~0.7 s to import; only the cross-correlation needs it
     corr = signal.correlate(b, a, mode="full", method="fft")
     lags = signal.correlation_lags(len(b), len(a), mode="full")
     if max_offset_ns is not None:

@@ -21,7 +21,7 @@ from feedlog.align.blocks import NO_TIME, MotionSpan, blocks_from_lines
 from feedlog.align.pipeline import Alignment, AlignConfig, _points_table, join_by_block
 from feedlog.align.timing import stream_timing
 from feedlog.errors import AlignmentError
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 from feedlog.profile import MachineProfile
 from feedlog.toolpath import Program, block_features, cl_points
 

@@ -13,8 +13,9 @@ LinuxCNC 2.9 (read in src/emc/task/emccanon.cc and src/emc/tp/tp.c):
 - **Blends (planner).** Between two xyz moves the planner inserts a blend arc. The arc is queued when
   the next move is added and takes the next move's id (`tp->nextId`), i.e. its line: the line switches
   where the tool leaves the straight move into the blend. When the straight rest of a move left over by
-  its two blends would take less than `ARC_BLEND_GAP_CYCLES` servo cycles (INI [TRAJ], default 4;
-  `blendCheckConsume` in src/emc/tp/blendmath.c: rest length / planned speed), the next blend arc
+  its two blends would take less than `ARC_BLEND_GAP_CYCLES` servo cycles (INI [TRAJ], default 4, the
+  profile's `[sim.blend_arc] gap_cycles`; `blendCheckConsume` in src/emc/tp/blendmath.c: rest length /
+  planned speed), the next blend arc
   *consumes* it (`param.consume`, `tcqPopBack`, the rest added to the arc as `line_length`): the move's
   line shows only during the blend INTO it; the next line starts where the tool arrives on its chord.
   Moves with rotary motion (or into one) blend parabolically, not by arcs, and are not consumed this way.
@@ -36,8 +37,9 @@ from feedlog.align.blocks import NO_TIME, SHORT_LEAVE_SAMPLES, MotionSpan, _last
 from feedlog.align.feed import LINEAR
 from feedlog.align.pipeline import STRAIGHT, Alignment, position_quantum
 from feedlog.errors import AlignmentError, FeedlogError
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import MachineProfile
+from feedlog.recording import PROFILE_ATTACHMENT, Recording
+from feedlog.sim.mechanism import mechanism_params
 from feedlog.toolpath import Program, load_program, to_machine
 
 
@@ -45,9 +47,9 @@ def planner_moves(program: Program, profile: MachineProfile) -> np.ndarray:
     """Per motion block of `program.motion` (in order): the index of the planner move it belongs to
     (0, 1, ...; consecutive blocks merged by LinuxCNC's collinear merge share one index). The chains
     come from feedlog.sim's `naive_cam` mechanism run on the program's blocks with `profile`'s axes."""
-    from feedlog.sim.context import Context  # noqa: PLC0415 - sim is only needed for this model
-    from feedlog.sim.naive_cam import NaiveCamMerge  # noqa: PLC0415
-    from feedlog.sim.path import prepare_blocks  # noqa: PLC0415
+    from feedlog.sim.context import Context  # sim is only needed for this model
+    from feedlog.sim.naive_cam import NaiveCamMerge
+    from feedlog.sim.path import prepare_blocks
 
     motion_block = program.motion["block"].to_numpy(dtype=np.int64)
     if len(motion_block) == 0:
@@ -69,7 +71,7 @@ def planner_moves(program: Program, profile: MachineProfile) -> np.ndarray:
 
 def move_leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndarray, seg_end: np.ndarray,
                      end_index: np.ndarray, move: np.ndarray, *, on_path_mm: float = 1e-4,
-                     touch_mm: float = 0.01, gap_cycles: float = 4.0, arc_blends: np.ndarray | None = None,
+                     touch_mm: float = 0.01, gap_cycles: float | None = None, arc_blends: np.ndarray | None = None,
                      search_s: float = 0.5) -> np.ndarray:
     """Per motion block: where the line switches, for the last block of each straight planner move.
 
@@ -80,12 +82,15 @@ def move_leave_times(t_ns: np.ndarray, positions: np.ndarray, seg_start: np.ndar
     of the first sample farther than `on_path_mm` from that chord after the last sample on it, searched
     among the samples after the previous move's end match up to its own end match (at most `search_s`
     before it). When the tool runs the chord for less than `gap_cycles` servo cycles (LinuxCNC's
-    ARC_BLEND_GAP_CYCLES, default 4) between two blend arcs (`arc_blends`: per block, xyz-only motion;
+    ARC_BLEND_GAP_CYCLES: the profile's `[sim.blend_arc] gap_cycles`, `moves_from_blocks` passes it;
+    None: that mechanism's default, 4) between two blend arcs (`arc_blends`: per block, xyz-only motion;
     default all), the next blend consumed that straight rest and its line shows from where the tool
     arrived on the chord: that sample instead. A straight move whose chord the path only touches (the
     blends before and after it meet) ends at the touching point (nearest sample within `touch_mm`);
     one never within `touch_mm` of its chord gets the previous move's result (zero time). Other
     blocks: NO_TIME (their end is their CL match)."""
+    if gap_cycles is None:
+        gap_cycles = float(mechanism_params(None, "blend_arc")["gap_cycles"])
     t = np.asarray(t_ns, dtype=np.int64)
     p = np.asarray(positions, dtype=np.float64)[:, :3]
     a = np.asarray(seg_start, dtype=np.float64)
@@ -300,7 +305,8 @@ def moves_from_blocks(recording: Recording, geo: pd.DataFrame, points: pd.DataFr
             turn = (motion[f"{ax}_deg"] - motion[f"{ax}0_deg"]).abs().to_numpy(dtype=np.float64)
             rotary |= np.nan_to_num(turn, nan=0.0) > 1e-9
     leave = move_leave_times(t, xyz, np.where(straight, p0, np.nan), np.where(straight, p1, np.nan), end_index,
-                             move, on_path_mm=on_path, arc_blends=~rotary)
+                             move, on_path_mm=on_path, arc_blends=~rotary,
+                             gap_cycles=float(mechanism_params(profile, "blend_arc")["gap_cycles"]))
     span = MotionSpan(t_start_ns=int(report["motion"]["t_start_ns"]), t_end_ns=int(report["motion"]["t_end_ns"]),
                       first_index=0, last_index=len(t) - 1)
     # blocks inside a move: their own end is their CL match (arrival); the move's last block: the leave

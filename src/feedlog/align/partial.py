@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from feedlog.errors import AlignmentError
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 from feedlog.toolpath import Program
 from feedlog.toolpath.schema import RAPID
 

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from feedlog.align.attached import attached_profile, attached_program
 from feedlog.align.blocks import (NO_TIME, MotionSpan, blocks_from_geometry, blocks_from_lines, compare_blocks,
                                   leave_times, motion_span, rest_noise, split_merged)
 from feedlog.align.clock import event_offset, shift_stream
@@ -39,9 +40,9 @@ from feedlog.align.subsample import refine_span
 from feedlog.align.timing import stream_timing
 from feedlog.align.work_offset import estimate_work_offset
 from feedlog.errors import AlignmentError, FeedlogError
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
-from feedlog.profile import MachineProfile, load_profile
-from feedlog.toolpath import Program, block_features, cl_points, load_program, to_machine
+from feedlog.profile import MachineProfile, load_profile, path_acc_limit
+from feedlog.recording import Recording
+from feedlog.toolpath import Program, block_features, cl_points, to_machine
 from feedlog.toolpath.schema import CONTINUOUS, RAPID
 
 BOUNDARIES = ("auto", "pass", "leave")
@@ -122,31 +123,6 @@ class Alignment:
     geometry_blocks_base: pd.DataFrame | None = None  # per block, before the planner-move model (when it ran)
 
 
-def _profile(recording: Recording, profile: MachineProfile | str | Path | None) -> MachineProfile | None:
-    if isinstance(profile, MachineProfile):
-        return profile
-    if profile is not None:
-        return load_profile(profile)
-    data = recording.attachments.get(PROFILE_ATTACHMENT)
-    if data is not None:
-        return MachineProfile.from_toml(data.decode("utf-8"), source=f"{recording.source}:{PROFILE_ATTACHMENT}")
-    return None
-
-
-def _program(recording: Recording, program: Program | str | Path | None, lenient: bool,
-             dialect: str = "auto") -> Program:
-    if isinstance(program, Program):
-        return program
-    if program is not None:
-        return load_program(Path(program), lenient=lenient, dialect=dialect)
-    text = recording.program_text
-    if text is None:
-        raise AlignmentError(f"{recording.source or 'recording'}: no program given and none attached "
-                             "(program.ngc); pass one with --program")
-    return load_program(text, lenient=lenient, dialect=dialect,
-                        name=f"{Path(recording.source).stem or 'recording'}:program.ngc")
-
-
 def position_quantum(pos: np.ndarray, *, samples: int = 100_000) -> float:
     """The smallest non-zero step of any linear axis (over an evenly strided subset): the encoder or
     fieldbus resolution of quantised positions, ~0 for floating-point commanded positions."""
@@ -154,16 +130,6 @@ def position_quantum(pos: np.ndarray, *, samples: int = 100_000) -> float:
     d = np.abs(np.diff(pos[::step, :3], axis=0)) if step > 1 else np.abs(np.diff(pos[:, :3], axis=0))
     nz = d[d > 0]
     return float(nz.min()) if len(nz) else 0.0
-
-
-def _acc_limit(profile: MachineProfile | None) -> float:
-    if profile is None:
-        return np.inf
-    acc = profile.interpolator.path_acc_max_mm_s2
-    if np.isfinite(acc):
-        return float(acc)
-    lin = [profile.axes[a].acc_max for a in ("x", "y", "z") if a in profile.axes]
-    return float(min(lin)) if lin else np.inf
 
 
 def _positions(recording: Recording, cfg: AlignConfig) -> tuple[pd.DataFrame, list[str], np.ndarray]:
@@ -188,8 +154,8 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     Keyword overrides set `AlignConfig` fields, e.g. `align_recording(rec, tol_mm=2.0)`.
     """
     cfg = replace(config or AlignConfig(), **overrides) if overrides else (config or AlignConfig())
-    prof = _profile(recording, profile)
-    prog = _program(recording, program, cfg.lenient, cfg.dialect)
+    prof = attached_profile(recording, profile)
+    prog = attached_program(recording, program, cfg.lenient, cfg.dialect)
     try:
         return _align(recording, prog, prof, cfg)
     except AlignmentError as exc:
@@ -238,7 +204,7 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
     if "line_from" in recording.metadata:
         report["line_from"] = recording.metadata["line_from"]
     if cfg.positions not in recording.streams:
-        from feedlog.align.line_only import align_on_lines  # noqa: PLC0415 - line_only imports this module
+        from feedlog.align.line_only import align_on_lines  # line_only imports this module
         return align_on_lines(recording, prog, prof, cfg, report)
     axes, cols, pos = _positions(recording, cfg)
     t = axes["t_ns"].to_numpy(dtype=np.int64)
@@ -254,7 +220,7 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
     still = cfg.still_mm if cfg.still_mm is not None else min(0.05, max(1e-6, REST_NOISE_K * rest_noise(
         t, pos, probe_s=probe_s)))
     report["still_mm"] = still
-    span = motion_span(t, pos, still_mm=still, acc_mm_s2=_acc_limit(prof))
+    span = motion_span(t, pos, still_mm=still, acc_mm_s2=path_acc_limit(prof))
     refined = None
     if timing.period_ns > SPARSE_NS and prof is not None and cfg.model_span and lines is None \
             and not cfg.estimate_offset:  # the model runs the whole program in the program's own frame
@@ -342,7 +308,7 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
     report["boundary"] = boundary
     base = None
     if boundary == "leave" and prof is not None and prof.mechanism("naive_cam").get("enabled", False):
-        from feedlog.align.moves import moves_from_blocks  # noqa: PLC0415 - moves imports this module
+        from feedlog.align.moves import moves_from_blocks  # moves imports this module
         base = geo
         geo = moves_from_blocks(recording, geo, points, report, program=prog, profile=prof, positions=cfg.positions)
     report["geometry_model"] = "per block" if base is None else "planner moves"
@@ -368,7 +334,7 @@ def _refine_with_sim(span: MotionSpan, t: np.ndarray, pos: np.ndarray, cols: lis
                      prof: MachineProfile, offset: np.ndarray, report: dict[str, Any]) -> tuple[MotionSpan, str | None]:
     model = _model_profile(prof)
     try:
-        from feedlog.sim import simulate  # noqa: PLC0415 - only sparse recordings need the model
+        from feedlog.sim import simulate  # only sparse recordings need the model
         sim = simulate(prog, model)
     except (ImportError, FeedlogError) as exc:
         report["warnings"].append(f"no model for sub-sample motion start/end ({exc}); kinematic estimate used")

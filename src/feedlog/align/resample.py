@@ -84,7 +84,7 @@ def lowpass(t_ns: np.ndarray, values: np.ndarray, *, cutoff_hz: float, period_ns
     out = np.array(values, dtype=np.float64, copy=True)
     if not 0 < wn < 1:
         return out
-    from scipy import signal  # noqa: PLC0415 - scipy.signal costs ~0.7 s to import; most alignments never filter
+    from scipy import signal  # scipy.signal costs ~0.7 s to import; most alignments never filter
     sos = signal.butter(BUTTER_ORDER, wn, output="sos")
     pad = 3 * (2 * len(sos) + 1)
     cuts = np.flatnonzero(np.diff(t_ns) > gap_factor * period_ns) + 1

@@ -102,7 +102,7 @@ def table_metadata(alignment: Alignment, table: str, *, recording_path: str | No
 def dataset_points(points: pd.DataFrame) -> pd.DataFrame:
     """The points table with every axis's measured feed column (NaN where the machine has no such axis), so
     that three- and five-axis recordings are partitions of one dataset with one schema."""
-    from feedlog.toolpath.schema import AXES, AXIS_UNITS  # noqa: PLC0415
+    from feedlog.toolpath.schema import AXES, AXIS_UNITS
 
     measured = [f"v{a}_meas_{AXIS_UNITS[a]}_min" for a in AXES]
     out = points.assign(**{c: np.nan for c in measured if c not in points.columns})

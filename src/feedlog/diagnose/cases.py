@@ -20,11 +20,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from feedlog.align.attached import attached_program
 from feedlog.align.blocks import NO_TIME
 from feedlog.diagnose.progress import block_end_progress, crossing_times, sample_progress
 from feedlog.errors import AlignmentError, FeedlogError
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
-from feedlog.profile import LINEAR_AXES, MachineProfile
+from feedlog.profile import LINEAR_AXES, MachineProfile, path_acc_limit
+from feedlog.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.toolpath.schema import AXIS_UNITS
 
 ROTARY_COLUMNS = {"a": "a_deg", "b": "b_deg", "c": "c_deg"}
@@ -116,7 +117,7 @@ class Case:
     def sim_input(self) -> Any:
         """The program as the simulation reads it, prepared once for the many re-simulations of a fit."""
         if self._arrays is None:
-            from feedlog.sim.path import ProgramArrays  # noqa: PLC0415
+            from feedlog.sim.path import ProgramArrays
 
             self._arrays = ProgramArrays(self.program)
         return self._arrays
@@ -140,11 +141,8 @@ class Case:
 
 def _program(rec: Recording, program: Any, lenient: bool):
     """The given program, or the one the recording carries (align's rule)."""
-    from feedlog.align.pipeline import _program as align_program  # noqa: PLC0415
-    from feedlog.errors import AlignmentError  # noqa: PLC0415
-
     try:
-        return align_program(rec, program, lenient)
+        return attached_program(rec, program, lenient)
     except AlignmentError as exc:
         raise DiagnoseError(str(exc)) from None
 
@@ -219,7 +217,7 @@ def machine_identity(rec: Recording) -> dict[str, str]:
     out = {k: rec.metadata[k] for k in ("machine", "controller", "ini", "servo_period_ns") if rec.metadata.get(k)}
     ini = rec.attachments.get("machine.ini")
     if ini is not None:
-        import hashlib  # noqa: PLC0415
+        import hashlib
 
         out["machine.ini"] = hashlib.sha256(ini).hexdigest()[:16]
     return out
@@ -235,8 +233,8 @@ def attached_profile(rec: Recording, name: str) -> MachineProfile | None:
 def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, program: Any = None,
                  lenient: bool = False, align_overrides: dict[str, Any] | None = None) -> Case:
     """Read, check and align one recording for diagnosis on `profile`."""
-    from feedlog.align import align_recording  # noqa: PLC0415
-    from feedlog.ingest import read_recording  # noqa: PLC0415
+    from feedlog.align import align_recording
+    from feedlog.ingest import read_recording
 
     rec = source if isinstance(source, Recording) else read_recording(source)
     src = rec.source or (str(source) if not isinstance(source, Recording) else "recording")
@@ -348,9 +346,9 @@ def partial_case(alignment: Any, prog: Any) -> tuple[Any, Any, str]:
     """A recording of some program lines: the program cut to them. Lines found from the line stream start
     with one that may have been under way when the recording began (align leaves it unchecked): the case
     then starts where that line ends, in the recording and in the program."""
-    from dataclasses import replace  # noqa: PLC0415
+    from dataclasses import replace
 
-    from feedlog.align.partial import slice_program  # noqa: PLC0415
+    from feedlog.align.partial import slice_program
 
     lines = alignment.report["lines"]
     first, last = int(lines["first"]), int(lines["last"])
@@ -372,7 +370,7 @@ def partial_case(alignment: Any, prog: Any) -> tuple[Any, Any, str]:
 
 def _on_path(alignment: Any, axes: pd.DataFrame) -> float:
     """The distance from a line at which align saw the tool leave it (as align_recording computes it)."""
-    from feedlog.align.pipeline import position_quantum  # noqa: PLC0415
+    from feedlog.align.pipeline import position_quantum
 
     cfg = alignment.report.get("config", {})
     pos = axes[[c for c in ("x_mm", "y_mm", "z_mm") if c in axes.columns]].to_numpy(np.float64)
@@ -381,9 +379,7 @@ def _on_path(alignment: Any, axes: pd.DataFrame) -> float:
 
 def span_acceleration(profile: MachineProfile) -> float:
     """The acceleration align assumes when it places motion start and end between rest samples."""
-    from feedlog.align.pipeline import _acc_limit  # noqa: PLC0415
-
-    return _acc_limit(profile)
+    return path_acc_limit(profile)
 
 
 def check_same_machine(cases: list[Case]) -> None:

@@ -43,9 +43,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from feedlog.diagnose.engine import DiagnoseConfig, diagnose  # noqa: PLC0415
-    from feedlog.diagnose.summary import summary_lines, to_json  # noqa: PLC0415
-    from feedlog.diagnose.write import write_outputs  # noqa: PLC0415
+    from feedlog.diagnose.engine import DiagnoseConfig, diagnose
+    from feedlog.diagnose.summary import summary_lines, to_json
+    from feedlog.diagnose.write import write_outputs
 
     try:
         if args.out is not None and args.out.exists() and not args.overwrite and (

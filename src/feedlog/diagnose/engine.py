@@ -28,7 +28,7 @@ from feedlog.diagnose.fit import Scorer
 from feedlog.diagnose.hypothesis import candidates
 from feedlog.diagnose.select import Judged, SelectConfig, Selection, select
 from feedlog.errors import FeedlogError
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 from feedlog.profile import MachineProfile, load_profile
 
 LEVELS = ("timing", "feedback", "line")
@@ -124,7 +124,7 @@ def load_cases(sources: Sequence[str | Path | Recording], profile: MachineProfil
     if not sources:
         raise DiagnoseError("no recordings to diagnose")
     if profile is None:
-        from feedlog.ingest import read_recording  # noqa: PLC0415
+        from feedlog.ingest import read_recording
 
         first = sources[0] if isinstance(sources[0], Recording) else read_recording(sources[0])
         prof = attached_profile(first, Path(first.source).stem)
@@ -134,12 +134,12 @@ def load_cases(sources: Sequence[str | Path | Recording], profile: MachineProfil
     else:
         prof = profile if isinstance(profile, MachineProfile) else load_profile(profile)
     if runner is not None and len(sources) > 1 and not any(isinstance(s, Recording) for s in sources):
-        from feedlog import storage  # noqa: PLC0415
-        from feedlog.diagnose.parallel import PrepareItem, prepare_task  # noqa: PLC0415
+        from feedlog import storage
+        from feedlog.diagnose.parallel import PrepareItem, prepare_task
 
         prog = program
         if prog is not None and not hasattr(prog, "blocks"):  # parsed once here, sent as data
-            from feedlog.toolpath import load_program  # noqa: PLC0415
+            from feedlog.toolpath import load_program
 
             prog = load_program(Path(prog), lenient=lenient)
         items = [PrepareItem(source=storage.absolute(str(s)), profile=prof, program=prog, lenient=lenient)
@@ -198,7 +198,7 @@ def level_error(scorer: Scorer, *, floor: bool = True) -> Callable[[np.ndarray, 
 
 def feedback_noise(cases: Sequence[Case]) -> float:
     """Noise of the feedback positions at rest (the first 0.1 s), the largest over the recordings."""
-    from feedlog.align.blocks import rest_noise  # noqa: PLC0415
+    from feedlog.align.blocks import rest_noise
 
     out = 0.0
     for c in cases:
@@ -214,7 +214,7 @@ def diagnose(sources: Sequence[str | Path | Recording], profile: MachineProfile 
     cfg = config or DiagnoseConfig()
     if not cfg.parallel:
         return _diagnose(sources, profile, program, cfg, lenient, progress, runner=None)
-    from feedlog.execution import task_runner  # noqa: PLC0415
+    from feedlog.execution import task_runner
 
     with task_runner(jobs=cfg.jobs, scheduler=cfg.scheduler, progress=False,
                      log=progress or (lambda _msg: None)) as runner:
@@ -222,7 +222,7 @@ def diagnose(sources: Sequence[str | Path | Recording], profile: MachineProfile 
 
 
 def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, progress, *, runner) -> Diagnosis:
-    import uuid  # noqa: PLC0415
+    import uuid
 
     laps: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -249,7 +249,7 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
         noise = {"feedback": feedback_noise(cases), "line": max(c.period_s for c in cases)}.get(level, 0.0)
         many = None
         if runner is not None:
-            from feedlog.diagnose.parallel import held_out_on  # noqa: PLC0415
+            from feedlog.diagnose.parallel import held_out_on
 
             many = held_out_on(runner, f"{token}:{level}", scorer, cfg.min_segment_s)
         selections[level] = select(scorer, level_hyps, error=error, evidence=ev,
@@ -265,8 +265,8 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
     dx = Diagnosis(profile=prof, extended=extended, cases=cases, evidence=ev, selections=selections,
                    scorers=scorers, findings=findings, noise_floor=_noise_floor(scorers, cfg, cases))
     t2 = time.perf_counter()
-    from feedlog.diagnose.levels import measure_levels  # noqa: PLC0415
-    from feedlog.diagnose.unexplained import find_unexplained  # noqa: PLC0415
+    from feedlog.diagnose.levels import measure_levels
+    from feedlog.diagnose.unexplained import find_unexplained
 
     dx.levels, dx.held_out, dx.where = measure_levels(dx)
     laps["levels"] = time.perf_counter() - t2

@@ -71,7 +71,7 @@ def sustained_peak(values: np.ndarray, n: int) -> float:
     a = np.abs(np.asarray(values, dtype=np.float64))
     if len(a) < n or n <= 1:
         return float(a.max()) if len(a) else 0.0
-    from numpy.lib.stride_tricks import sliding_window_view  # noqa: PLC0415
+    from numpy.lib.stride_tricks import sliding_window_view
 
     return float(sliding_window_view(a, n).min(axis=1).max())
 

@@ -61,7 +61,7 @@ class Scorer:
 
     def __init__(self, profile: MachineProfile, cases: Sequence[Case], level: str, *,
                  min_segment_s: float | None = None) -> None:
-        from feedlog.sim import simulate  # noqa: PLC0415
+        from feedlog.sim import simulate
 
         self.profile, self.cases, self.level = profile, list(cases), level
         self._cache: dict[tuple, list[np.ndarray | None]] = {}
@@ -89,7 +89,7 @@ class Scorer:
             return float(self.weights[u.case][u.lo:u.hi].sum()) * 2.0 * case.segment_sigma_s ** 2
         if self.level == "line":  # two events on each side, each good to a sampling period
             return (u.hi - u.lo) * 4.0 * case.boundary_sigma_s ** 2
-        from feedlog.align.blocks import rest_noise  # noqa: PLC0415
+        from feedlog.align.blocks import rest_noise
 
         fb = case.feedback
         return (u.hi - u.lo) * fb.cmd.shape[1] * rest_noise(fb.t_ns, fb.fb) ** 2
@@ -148,7 +148,7 @@ class Scorer:
 
     def _residual(self, i: int, case: Case, profile: MachineProfile, changed: bool) -> np.ndarray | None:
         if self.level == "timing":
-            from feedlog.sim import simulate  # noqa: PLC0415
+            from feedlog.sim import simulate
 
             try:
                 sim = simulate(case.sim_input, profile) if changed else self.baseline_sims[i]

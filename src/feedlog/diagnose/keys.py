@@ -51,12 +51,12 @@ def unit(key: str) -> str:
 
 def _mechanism_params(profile: MachineProfile, mechanism: str) -> tuple[bool, dict[str, Any]]:
     """Whether a sim mechanism runs on `profile`, and its parameters in force."""
-    from feedlog.sim.mechanism import resolve_mechanisms  # noqa: PLC0415 - sim loads on first use
+    from feedlog.sim.mechanism import resolve_mechanisms  # sim loads on first use
 
     for mech in resolve_mechanisms(profile):
         if mech.name == mechanism:
             return True, mech.params()
-    from feedlog.sim.mechanism import mechanism_class  # noqa: PLC0415
+    from feedlog.sim.mechanism import mechanism_class
 
     cls = mechanism_class(mechanism)
     params = {k: v for k, v in profile.mechanism(mechanism).items() if k != "enabled"}

@@ -33,7 +33,7 @@ GRID = 2000   # points along the program for the speed profiles
 
 
 def simulate_all(cases: list[Case], profile: MachineProfile) -> list[Any]:
-    from feedlog.sim import simulate  # noqa: PLC0415
+    from feedlog.sim import simulate
 
     return [simulate(c.sim_input, profile) for c in cases]
 
@@ -72,8 +72,8 @@ def measured_cycle(case: Case, profile: MachineProfile) -> float:
     which the extended profile does better."""
     if not case.sparse:
         return case.cycle_s
-    from feedlog.align import align_recording  # noqa: PLC0415
-    from feedlog.errors import FeedlogError  # noqa: PLC0415
+    from feedlog.align import align_recording
+    from feedlog.errors import FeedlogError
 
     try:
         return float(align_recording(case.recording, case.program, profile=profile).cycle_time_s)
@@ -125,7 +125,7 @@ def _anchor_progress(case: Case, anchors: np.ndarray) -> np.ndarray:
 
 def progress_curves(case: Case, profile: MachineProfile, segments, sims: dict[str, Any]) -> pd.DataFrame | None:
     """Path speed (mm/min) and time along the program (s_mm) for the recording and each simulation."""
-    from feedlog.diagnose.evidence import _derivatives as derivs  # noqa: PLC0415
+    from feedlog.diagnose.evidence import _derivatives as derivs
 
     t, pos, cols = _measured(case, profile)
     lin = [i for i, c in enumerate(cols) if c.split("_")[0] in LINEAR_AXES]

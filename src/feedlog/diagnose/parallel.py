@@ -37,8 +37,8 @@ class PrepareItem:
 
 
 def prepare_task(item: PrepareItem) -> Case:
-    from feedlog import storage  # noqa: PLC0415
-    from feedlog.ingest import read_recording  # noqa: PLC0415
+    from feedlog import storage
+    from feedlog.ingest import read_recording
 
     with storage.local_input(item.source) as local:
         rec = read_recording(local)

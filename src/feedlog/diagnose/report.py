@@ -14,12 +14,12 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from feedlog.diagnose.attribution import class_table  # noqa: E402
-from feedlog.diagnose.summary import _fmt, summary_lines  # noqa: E402
-from feedlog.viz.colors import source_color  # noqa: E402
+from feedlog.colors import source_color
+from feedlog.diagnose.attribution import class_table
+from feedlog.diagnose.summary import _fmt, summary_lines
 
 DPI = 100
 MAX_PROFILE_PLOTS = 4

@@ -19,8 +19,8 @@ import rerun.blueprint as rrb
 
 from feedlog.diagnose.cases import position_columns
 from feedlog.diagnose.residuals import sim_span
-from feedlog.viz.colors import residual_colors
-from feedlog.viz.overlay import new_stream
+from feedlog.colors import residual_colors
+from feedlog.rerun_stream import new_stream
 
 MAX_POINTS = 200_000
 ROOT = "diagnose"

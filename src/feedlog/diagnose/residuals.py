@@ -62,7 +62,7 @@ def sim_span(case: Case, sim) -> tuple[float, float]:
     traj = sim.trajectory
     if case.sparse or case.still_mm <= 1e-6:
         return traj.motion_start_s, traj.motion_end_s
-    from feedlog.align.blocks import motion_span  # noqa: PLC0415
+    from feedlog.align.blocks import motion_span
 
     t, pos = traj.t_s, traj.pos
     try:
@@ -212,8 +212,8 @@ def timing_residual(case: Case, segments: Segments, sim) -> np.ndarray:
 
 def predicted_feedback(case: Case, profile: MachineProfile) -> np.ndarray | None:
     """The feedback positions `profile` predicts from the recording's own commanded joint positions."""
-    from feedlog.sim.feedback import feedback_chain, feedback_positions  # noqa: PLC0415
-    from feedlog.sim.mechanism import resolve_mechanisms  # noqa: PLC0415
+    from feedlog.sim.feedback import feedback_chain, feedback_positions
+    from feedlog.sim.mechanism import resolve_mechanisms
 
     fb = case.feedback
     if fb is None:
@@ -234,7 +234,7 @@ def rms(values: np.ndarray) -> float:
 
 def line_latency(profile: MachineProfile) -> float:
     """The line stream's latency behind the positions that `profile` declares (`[sim.logger_latency]`)."""
-    from feedlog.sim.mechanism import resolve_mechanisms  # noqa: PLC0415
+    from feedlog.sim.mechanism import resolve_mechanisms
 
     return next((float(m.line_s) for m in resolve_mechanisms(profile) if m.name == "logger_latency"), 0.0)
 
@@ -247,9 +247,9 @@ def model_line_offsets(case: Case, profile: MachineProfile) -> tuple[np.ndarray,
     no latency) and aligned the same way; a logger latency adds to it."""
     if case.line_offsets is None:
         return None
-    from feedlog.align import align_recording  # noqa: PLC0415
-    from feedlog.diagnose.cases import line_offsets  # noqa: PLC0415
-    from feedlog.sim import MeasurementModel, measure, simulate  # noqa: PLC0415
+    from feedlog.align import align_recording
+    from feedlog.diagnose.cases import line_offsets
+    from feedlog.sim import MeasurementModel, measure, simulate
 
     try:
         sim = simulate(case.program, profile, mechanisms={"logger_latency": False})

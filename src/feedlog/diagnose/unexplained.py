@@ -76,7 +76,7 @@ def find_unexplained(dx, *, learned: bool, min_effect_pct: float, min_gain: floa
     scorer = dx.scorers.get("timing")
     if scorer is None:
         return []
-    from feedlog.diagnose.engine import timing_error  # noqa: PLC0415
+    from feedlog.diagnose.engine import timing_error
 
     model = dx.selections["timing"].model if "timing" in dx.selections else {}
     res = scorer.residuals(model)
@@ -119,9 +119,9 @@ def find_unexplained(dx, *, learned: bool, min_effect_pct: float, min_gain: floa
 
 def learned_correction(dx) -> dict[str, Any]:
     """train/'s hybrid model on the extended profile: held out per unit, then trained on everything."""
-    from feedlog.train.dataset import TARGET, ProgramTable, fingerprint  # noqa: PLC0415
-    from feedlog.train.model_hybrid import attach_sim  # noqa: PLC0415
-    from feedlog.train.registry import make_model  # noqa: PLC0415
+    from feedlog.train.dataset import TARGET, ProgramTable, fingerprint
+    from feedlog.train.model_hybrid import attach_sim
+    from feedlog.train.registry import make_model
 
     tables = []
     for case in dx.cases:
@@ -154,7 +154,7 @@ def _unit_tables(dx, tables):
     """The held-out units as program tables: whole recordings, or halves of the one recording."""
     if len(tables) >= 2:
         return [(t.name, t) for t in tables]
-    from feedlog.train.dataset import ProgramTable  # noqa: PLC0415
+    from feedlog.train.dataset import ProgramTable
 
     t = tables[0]
     half = len(t.blocks) // 2

@@ -45,16 +45,16 @@ def write_outputs(dx, out: str | Path, *, overwrite: bool = False, rrd: bool = T
     try:
         dx.profile_out = str(out / PROFILE)
         (tmp / PROFILE).write_text(profile_text(dx))
-        from feedlog.diagnose.report import write_report  # noqa: PLC0415 (matplotlib loads on use)
+        from feedlog.diagnose.report import write_report  # matplotlib loads on use
 
         write_report(dx, tmp)
         if rrd:
-            from feedlog.diagnose.rerun_view import save_rrd  # noqa: PLC0415
+            from feedlog.diagnose.rerun_view import save_rrd
 
             save_rrd(dx, tmp / "diagnose.rrd")
         learned = next((u.get("learned_correction") for u in dx.unexplained if u.get("learned_correction")), None)
         if dx.learned_model is not None and learned and learned.get("gain_pct", 0) > 0:
-            from feedlog.train.checkpoint import save_checkpoint  # noqa: PLC0415
+            from feedlog.train.checkpoint import save_checkpoint
 
             save_checkpoint(dx.learned_model, tmp / "learned.pt")
         (tmp / "diagnose.json").write_text(json.dumps(to_json(dx), indent=1, allow_nan=False) + "\n")

@@ -7,7 +7,7 @@ overwrite=False, compression="none")`, `RecordingWriter(path, *, metadata=, atta
 
 from feedlog.ingest.reader import read_recording
 from feedlog.ingest.readers import ImportOptions, read_source
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording, check_stream
+from feedlog.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording, check_stream
 from feedlog.ingest.writer import RecordingWriter, write_recording
 
 __all__ = ["PROFILE_ATTACHMENT", "PROGRAM_ATTACHMENT", "ImportOptions", "Recording", "RecordingWriter",

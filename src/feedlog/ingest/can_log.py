@@ -21,7 +21,7 @@ from feedlog.ingest.bounded import BoundedReader
 from feedlog.ingest.can_dbc import seconds_to_us_ns
 from feedlog.ingest.can_dbc import CanFrames, DbcLayout, frame_problem
 from feedlog.ingest.can_streams import assemble_streams, decode_frames, lost_counts
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 
 BLOCK = 65536
 

@@ -9,7 +9,7 @@ from feedlog.cli_options import add_output, add_overwrite, add_quiet
 from feedlog.errors import IngestError
 from feedlog.ingest.mapping import preset_description, preset_names
 from feedlog.ingest.readers import SUFFIXES, ImportOptions, read_source
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT
+from feedlog.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT
 from feedlog.ingest.summary import format_summary, summarize
 from feedlog.ingest.unit_check import feed_unit_check
 from feedlog.ingest.writer import write_recording

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from feedlog.cli_options import add_output, add_overwrite, add_quiet
 from feedlog.errors import FeedlogError, IngestError, OutputError
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT
+from feedlog.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT
 
 # source name -> module with add_arguments(group) and record(args) -> dict
 SOURCES: dict[str, str] = {

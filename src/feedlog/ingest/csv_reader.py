@@ -32,7 +32,7 @@ import pyarrow.csv as pacsv
 from feedlog.errors import IngestError
 from feedlog.ingest.mapping import ColumnMap, build_streams, time_to_ns
 from feedlog.units import MAX_ABS_T_NS, time_factor
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 
 _OFFSET = re.compile(r"(Z|[+-]\d\d:?\d\d)$")
 SHOW_LINES = 10  # bad line numbers quoted in messages

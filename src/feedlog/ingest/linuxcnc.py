@@ -24,7 +24,7 @@ import pandas as pd
 from feedlog.errors import FeedlogError, IngestError
 from feedlog.ingest.linuxcnc_capture import has_samples, load_capture, motion_span
 from feedlog.ingest.linuxcnc_session import MachineIni, cleanup, run_session, session_error
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording
+from feedlog.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording
 from feedlog.ingest.writer import write_recording
 from feedlog.profile import load_profile
 
@@ -171,7 +171,7 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
         "units": "mm, deg, s",
         "nominal_rate_hz": f"{1e9 / period_ns:g}",
         "start_time": dt.datetime.fromtimestamp(float(report.get("run_wall_start", 0.0)),
-                                                tz=dt.timezone.utc).isoformat(timespec="milliseconds"),
+                                                tz=dt.UTC).isoformat(timespec="milliseconds"),
         "notes": notes,
         "source": "linuxcnc",
         "program": program,

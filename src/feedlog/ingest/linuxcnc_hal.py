@@ -83,7 +83,7 @@ def standard_layout(coordinates: str, joints: int, *, depth: int = 16384, first_
     for letter in letters:
         if letter not in seen:
             seen.append(letter)
-    motion = [Column(f"{l}_{'deg' if l in ROTARY_LETTERS else 'mm'}", f"axis.{l}.pos-cmd", "float") for l in seen]
+    motion = [Column(f"{a}_{'deg' if a in ROTARY_LETTERS else 'mm'}", f"axis.{a}.pos-cmd", "float") for a in seen]
     motion += [
         Column("current_vel", "motion.current-vel", "float"),
         Column("requested_vel", "motion.requested-vel", "float"),

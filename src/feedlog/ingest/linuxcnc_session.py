@@ -46,7 +46,7 @@ class MachineIni:
     values: dict[tuple[str, str], list[str]] = field(default_factory=dict)
 
     @classmethod
-    def read(cls, path: str | os.PathLike) -> "MachineIni":
+    def read(cls, path: str | os.PathLike) -> MachineIni:
         p = Path(path)
         try:
             text = p.read_bytes().decode("utf-8-sig")

@@ -20,7 +20,8 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Callable, TextIO
+from collections.abc import Callable
+from typing import TextIO
 
 import can
 import numpy as np

@@ -22,7 +22,7 @@ from feedlog.ingest.mapping import ColumnMap, build_streams, parse_map, resolve_
 from feedlog.ingest.mcap_scan import RecordScan, read_header
 from feedlog.ingest.reader import read_recording
 from feedlog.ingest.readers import ImportOptions
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 from feedlog.units import MAX_ABS_T_NS, time_factor
 
 

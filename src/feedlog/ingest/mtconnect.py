@@ -31,7 +31,7 @@ import pandas as pd
 from feedlog.errors import IngestError
 from feedlog.ingest.mapping import ColumnMap, convert, load_preset, parse_map, resolve_target
 from feedlog.ingest.mtconnect_obs import UNAVAILABLE, DataItemType, Observations
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 
 DEFAULT_SHDR_PRESET = "mtconnect-shdr"
 STANDARD_UNITS = {"length_unit": "mm", "angle_unit": "deg", "feed_unit": "mm/s"}
@@ -187,8 +187,8 @@ def pivot(obs: Observations, cmap: ColumnMap, *, strict: bool, file: str) -> tup
 
 def read_mtconnect(path: str | Path, options) -> Recording:
     """Read an SHDR log or a Streams XML file (by suffix: .xml is XML, anything else SHDR)."""
-    from feedlog.ingest.mtconnect_shdr import read_shdr  # noqa: PLC0415
-    from feedlog.ingest.mtconnect_xml import read_streams_xml  # noqa: PLC0415
+    from feedlog.ingest.mtconnect_shdr import read_shdr
+    from feedlog.ingest.mtconnect_xml import read_streams_xml
 
     path = Path(path)
     head = path.read_bytes()[:512].lstrip(b"\xef\xbb\xbf \t\r\n")

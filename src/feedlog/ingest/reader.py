@@ -20,7 +20,7 @@ from mcap.records import Attachment, Channel, Message, Metadata, Schema
 from feedlog.errors import IngestError
 from feedlog.ingest import mcap_format as fmt
 from feedlog.ingest.mcap_scan import RecordScan
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 
 
 class _Collector:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from feedlog.errors import IngestError
 from feedlog.ingest.mapping import ColumnMap, load_preset, parse_map
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 
 # scheme -> (module, function); each function is `read(path: Path, options: ImportOptions) -> Recording`
 READERS: dict[str, tuple[str, str]] = {

@@ -18,7 +18,8 @@ import queue
 import sys
 import threading
 import time
-from typing import Any, Iterable, Iterator
+from collections.abc import Iterable, Iterator
+from typing import Any
 
 import can
 import numpy as np

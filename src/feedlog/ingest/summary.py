@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 
 
 def stream_rate_hz(t_ns) -> float:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 
 TOLERANCE = 1.25     # median ratio within 1/1.25 .. 1.25: the units agree
 MIN_SAMPLES = 5      # moving samples needed to say anything

@@ -34,7 +34,7 @@ from mcap.writer import MCAP0_MAGIC, CompressionType, IndexType, Writer
 from feedlog.atomic import atomic_output
 from feedlog.errors import IngestError, OutputError
 from feedlog.ingest import mcap_format as fmt
-from feedlog.ingest.recording import Recording, first_bad_value
+from feedlog.recording import Recording, first_bad_value
 
 COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 ZSTD_DEFAULT_LEVEL = 3  # what mcap's writer uses (zstandard.compress's default)

@@ -48,8 +48,8 @@ class SimItem:
 
 def simulate_one(task: SimTask) -> dict[str, Any]:
     """Runs on a worker: parse, simulate, publish the folder and the dataset partitions; the summary."""
-    from feedlog.sim.simulate import simulate  # noqa: PLC0415
-    from feedlog.toolpath import load_program  # noqa: PLC0415
+    from feedlog.sim.simulate import simulate
+    from feedlog.toolpath import load_program
 
     name = storage.stem(task.label)
     with storage.local_input(task.program) as local:
@@ -83,7 +83,7 @@ def simulate_many(programs: list[str | Path], outdir: str | Path, *, profile: An
 
     `profile` is a MachineProfile, a shipped name or a TOML path (read here once).
     """
-    from feedlog.profile import MachineProfile, load_profile  # noqa: PLC0415
+    from feedlog.profile import MachineProfile, load_profile
 
     prof = profile if isinstance(profile, MachineProfile) else load_profile(profile)
     labels, outcome = run_per_input(

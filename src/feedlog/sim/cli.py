@@ -72,7 +72,7 @@ def parse_settings(settings: list[str], enable: list[str], disable: list[str]) -
 
 
 def _program(path: str, *, lenient: bool = False, dialect: str = "auto"):
-    from feedlog.toolpath import load_program  # noqa: PLC0415
+    from feedlog.toolpath import load_program
 
     return load_program(path, lenient=lenient, dialect=dialect)
 
@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_many(args: argparse.Namespace) -> int:
-    from feedlog.sim.batch import simulate_many  # noqa: PLC0415
+    from feedlog.sim.batch import simulate_many
 
     if args.out is None or str(args.out).lower().endswith(".parquet"):
         raise FeedlogError(f"{len(args.programs)} programs need an output folder: pass -o OUTDIR")
@@ -112,8 +112,8 @@ def _run_many(args: argparse.Namespace) -> int:
 
 
 def _run_one(args: argparse.Namespace, source: str, *, series: Path | None) -> int:
-    from feedlog.sim.batch import program_notes  # noqa: PLC0415
-    from feedlog.sim.simulate import simulate  # noqa: PLC0415
+    from feedlog.sim.batch import program_notes
+    from feedlog.sim.simulate import simulate
 
     for out in (series, args.blocks_out):
         if out is not None and out.exists() and not args.overwrite:
@@ -155,7 +155,7 @@ def _streams(args: argparse.Namespace, source: str, mechanisms) -> bool:
     """--stream, or by default a program file of STREAM_BYTES or more whose mechanisms all have a
     windowed form (otherwise the whole-program run, refused if it would not fit). Only RS274/NGC text
     streams: another dialect is translated whole."""
-    from feedlog.toolpath.load import stream_dialect  # noqa: PLC0415
+    from feedlog.toolpath.load import stream_dialect
 
     if args.stream is False:
         return False
@@ -170,18 +170,18 @@ def _streams(args: argparse.Namespace, source: str, mechanisms) -> bool:
         return False      # not a local file: parse_program says what is wrong with it
     if not large or stream_dialect(source, args.dialect) != "rs274ngc":
         return False
-    from feedlog.profile import load_profile  # noqa: PLC0415
-    from feedlog.sim.mechanism import resolve_mechanisms  # noqa: PLC0415
-    from feedlog.sim.window import unsupported  # noqa: PLC0415
+    from feedlog.profile import load_profile
+    from feedlog.sim.mechanism import resolve_mechanisms
+    from feedlog.sim.window import unsupported
 
     return not unsupported(resolve_mechanisms(load_profile(args.profile), mechanisms))
 
 
 def _run_windowed(args: argparse.Namespace, source: str, mechanisms, series: Path | None):
-    from tqdm import tqdm  # noqa: PLC0415
+    from tqdm import tqdm
 
-    from feedlog.sim.output import write_windowed  # noqa: PLC0415
-    from feedlog.sim.window import WindowedSimulation  # noqa: PLC0415
+    from feedlog.sim.output import write_windowed
+    from feedlog.sim.window import WindowedSimulation
 
     run = WindowedSimulation(source, args.profile, mechanisms=mechanisms, dt_s=args.dt, series=series is not None,
                              lenient=args.lenient)
@@ -198,14 +198,14 @@ def _run_windowed(args: argparse.Namespace, source: str, mechanisms, series: Pat
 
 def _check_fits(args: argparse.Namespace, program, series: Path | None) -> None:
     """Refuse (one line, exit 2) a whole-program run whose tables would not fit in memory."""
-    from feedlog.profile import load_profile  # noqa: PLC0415
-    from feedlog.sim.output import available_bytes, in_memory_bytes  # noqa: PLC0415
+    from feedlog.profile import load_profile
+    from feedlog.sim.output import available_bytes, in_memory_bytes
 
     profile = load_profile(args.profile)
     dt_s = args.dt or profile.interpolator.interpolation_period_s
     series_s = None
     if series is not None:   # the series lasts at least the CAM time (sum of L / F, dwells)
-        from feedlog.toolpath.features import block_features  # noqa: PLC0415
+        from feedlog.toolpath.features import block_features
         nominal = block_features(program, profile)["nominal_time_s"].to_numpy()
         series_s = float(np.nansum(nominal)) + float(program.blocks["dwell_s"].sum())
     need = in_memory_bytes(rows=len(program.blocks), series_s=series_s, dt_s=dt_s, axes=len(profile.axis_names))

@@ -35,7 +35,7 @@ class FollowingLag(Mechanism):
         return 10.0 * max(self.lag_s.values(), default=0.0)
 
     def feedback(self, dt_s: float, axes: tuple[str, ...], pos: np.ndarray) -> np.ndarray:
-        from scipy.signal import lfilter  # noqa: PLC0415 (scipy.signal imports slowly)
+        from scipy.signal import lfilter  # scipy.signal imports slowly
 
         pos = np.array(pos, dtype=np.float64, order="F")
         for i, axis in enumerate(axes):

@@ -1,6 +1,6 @@
 """Measurement model: what a data logger would record of a simulated run.
 
-Turns a `SimResult` into a `feedlog.ingest.recording.Recording` with the standard streams `axes`,
+Turns a `SimResult` into a `feedlog.recording.Recording` with the standard streams `axes`,
 `feed` and `line` (and `joints` when the machine has five-axis kinematics or the profile models
 feedback: `jN_pos` commanded, `jN_pos_fb` through the feedback mechanisms), sampled at `rate_hz`
 (5 Hz .. 1 kHz) with a constant latency (the logger sees the motion `latency_s` late), Gaussian
@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from feedlog.errors import SimulationError
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording
+from feedlog.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording
 from feedlog.sim.simulate import SimResult
 
 MIN_RATE_HZ, MAX_RATE_HZ = 5.0, 1000.0

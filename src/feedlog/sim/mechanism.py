@@ -181,6 +181,16 @@ def mechanism_class(name: str) -> type[Mechanism]:
     return load_entry(REGISTRY, name, what="sim mechanism", error=SimulationError)
 
 
+def mechanism_params(profile: MachineProfile | None, name: str) -> dict[str, Any]:
+    """The parameters mechanism `name` has under `profile`, switched on or not: its class defaults, those
+    it derives from the profile, then the profile's `[sim.<name>]` table; the class defaults alone without
+    a profile. How align and train read planner constants the simulation models (one source for all)."""
+    cls = mechanism_class(name)
+    if profile is None:
+        return cls().params()
+    return cls.from_params(profile, profile.mechanism(name)).params()
+
+
 MechanismSpec = Mapping[str, Any] | Sequence[str] | None
 
 

@@ -70,6 +70,6 @@ def in_memory_bytes(*, rows: int, series_s: float | None, dt_s: float, axes: int
 
 def available_bytes() -> int:
     """Memory the system can give without swapping (psutil's `available`)."""
-    import psutil  # noqa: PLC0415
+    import psutil
 
     return int(psutil.virtual_memory().available)

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from feedlog.sim.fir import Pulses, raw_samples
+from feedlog.sim.fir import raw_samples
 from feedlog.sim.path import Pieces
 from feedlog.sim.stream_plan import LINE_SPAN, Chunk, Owners
 

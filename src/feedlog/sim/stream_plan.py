@@ -235,7 +235,7 @@ class PlanSampler:
         """Samples of the grid from where the last call stopped up to the chunk's last piece's end
         (`k_end`: the grid's end, for the program's last chunk; else the next piece's start):
         (t, pos, speed, block * LINE_SPAN + line) or None when the chunk holds no grid sample."""
-        pc, plan = chunk.pieces, chunk.plan
+        plan = chunk.plan
         t_next = plan.t0[-1] + (plan.t_acc[-1] + plan.t_cru[-1] + plan.t_dec[-1] + plan.hold[-1] - plan.overlap_s[-1])
         k1 = k_end if k_end is not None else max(self.k, int(grid_first(np.array([t_next]), self.dt)[0]))
         ctx = Chunk.concat([self.prev, chunk]) if self.prev is not None else chunk

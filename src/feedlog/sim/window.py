@@ -114,7 +114,7 @@ class WindowedSimulation:
         self.reader = None
         self._slice: int | None = None     # rows of a prepared batch handed on at once (None: all)
         if isinstance(program, (str, Path)):
-            from feedlog.toolpath.stream import open_program_reader  # noqa: PLC0415
+            from feedlog.toolpath.stream import open_program_reader
 
             kw = {} if chunk_bytes is None else {"chunk_bytes": chunk_bytes}
             self.reader = open_program_reader(program, lenient=lenient, name=name, **kw)
@@ -252,7 +252,7 @@ class WindowedSimulation:
                               [i for i, a in enumerate(self.profile.axis_names) if a in ("x", "y", "z")])
         planner = stream_cls(int(self.interpolator.lookahead_blocks)) if self.interpolator.name == "lookahead" \
             else stream_cls()
-        from feedlog.sim.stream_plan import PlannedStream  # noqa: PLC0415
+        from feedlog.sim.stream_plan import PlannedStream
 
         return PlannedStream(planner, self.dt_s)
 

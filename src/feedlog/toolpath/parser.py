@@ -314,7 +314,7 @@ def parse_program(source: str | Path, *, lenient: bool = False, name: str | None
     listed in `Program.unsupported` (and a warning) and skipped. Malformed text always raises.
     The program is read in chunks (toolpath.stream.ProgramReader), gathered into one table here.
     """
-    from feedlog.toolpath.stream import ProgramReader  # noqa: PLC0415 (the reader builds on this module)
+    from feedlog.toolpath.stream import ProgramReader  # the reader builds on this module
 
     with ProgramReader(source, lenient=lenient, name=name) as reader:
         return reader.program()

@@ -35,7 +35,7 @@ Models read align's block tables, whose feature columns are `feedlog.toolpath.sc
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 import pandas as pd
@@ -125,6 +125,19 @@ def profile_constants(profile: MachineProfile | None) -> dict[str, float]:
     return {"ori_tol_deg": float(interp.orientation_tolerance_deg), "xo_mm": float(offset[0]),
             "yo_mm": float(offset[1]), "zo_mm": float(offset[2]),
             "servo_period_s": float(interp.servo_period_s), "acc_mm_s2": float(min(accs)) if accs else kinematic.BIG}
+
+
+def planner_inputs(profile: MachineProfile | None) -> dict[str, float]:
+    """The planner constants of `profile` (`kinematic.planner_constants`) as `kin_time_s` reads them from
+    the constants it gets. They come from the table's profile every time (`Model.table_constants`), so
+    they are not part of the constants a model saves."""
+    return asdict(kinematic.planner_constants(profile))
+
+
+def planner_of(constants: dict[str, float]) -> kinematic.PlannerConstants:
+    """The planner constants in `constants` (`planner_inputs`); the mechanisms' defaults for any it lacks."""
+    default = asdict(kinematic.planner_constants(None))
+    return kinematic.PlannerConstants(**{key: float(constants.get(key, value)) for key, value in default.items()})
 
 
 def build_inputs(table: pd.DataFrame, inputs: Sequence[str], *, constants: dict[str, float] | None = None,
@@ -237,7 +250,7 @@ def _kinematic_time(table: pd.DataFrame, constants: dict[str, float]) -> np.ndar
                                     table["tol_mm"].to_numpy(np.float64), table["corner_end_deg"].to_numpy(np.float64),
                                     rapid, constants.get("servo_period_s", 0.0), rotary=rotary,
                                     arc_acc=arc_acc if arc_acc < kinematic.BIG else None, merge=merge,
-                                    kink=kink)
+                                    kink=kink, planner=planner_of(constants))
 
 
 def base_time(table, base: str, constants: dict[str, float], *, needed_by: str = "") -> np.ndarray:

@@ -38,15 +38,20 @@ It knows nothing of the interpreter's collinear merging or an interpolation filt
 the learners learn. Over the 106 aligned training recordings it is off the measured sums by 1.08 %
 (72 three-axis, the long dense runs included; 0.96 % without them) and 1.10 % (34 five-axis) mean
 |error|, where the axis-limited CAM time is 16 % and 39 % short; nothing in it is fitted (the kink
-ratio, the arcs' normal and tangential shares and the segment cycles are LinuxCNC's constants).
+ratio, the arcs' tangential share, the segment and gap cycles are the planner constants the profile's
+sim mechanisms hold, `planner_constants`, LinuxCNC's unless a profile changes them; the normal shares
+are round values).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from feedlog.profile import MachineProfile
+from feedlog.sim.mechanism import mechanism_params
 from feedlog.sim.motion import reachable_speeds_sq
 
 ROTARY = ("a", "b", "c")
@@ -54,20 +59,40 @@ ROTARY = ("a", "b", "c")
 # not fitted
 NORMAL_SHARE = 0.5
 # share of the arc plane's acceleration (the smallest linear axis acceleration) a blend arc may use
-# across the path: LinuxCNC's sqrt(1 - TANGENTIAL_SHARE^2) (sim/corner_blend.py); with the blend arc run
+# across the path: about LinuxCNC's sqrt(1 - 0.5^2) (sim/corner_blend.py); with the blend arc run
 # as a piece of its own it gave 1.64 % against 2.05 % for 0.5 on the three-axis training recordings' sums
 BLEND_NORMAL_SHARE = 0.87
-# LinuxCNC's kink acceleration reduction (tp.c, sim/corner_blend.py `kink_ratio`), and the smallest
-# direction change (rad) taken as a G61 corner rather than a tangent junction
-KINK_RATIO = 0.1
+# the smallest direction change (rad) taken as a G61 corner rather than a tangent junction
 KINK_MIN_RAD = 0.01
-TANGENTIAL_SHARE = 0.5  # of the path acceleration a blend arc may use along the path (LinuxCNC)
-# LinuxCNC's planner segments (tp.c): each lasts at least TP_MIN_SEGMENT_CYCLES servo cycles over its
-# length, and a line piece shorter than ARC_BLEND_GAP_CYCLES cycles at the arc's speed is consumed by
-# the blend arc after it (blendCheckConsume)
-MIN_SEGMENT_CYCLES = 1.02
-GAP_CYCLES = 4.0
 BIG = 1e12
+
+
+@dataclass(frozen=True)
+class PlannerConstants:
+    """LinuxCNC's planner constants, as the profile's sim mechanisms hold them (`planner_constants`).
+
+    - `kink_ratio`: the kink acceleration reduction (tp.c; blend_arc's `kink_ratio`);
+    - `gap_cycles`: a line piece shorter than this many servo cycles at the arc's speed is consumed by
+      the blend arc after it (ARC_BLEND_GAP_CYCLES, blendCheckConsume; blend_arc's `gap_cycles`);
+    - `min_segment_cycles`: each planner segment lasts at least this many servo cycles over its length
+      (TP_MIN_SEGMENT_CYCLES; lookahead's `min_piece_cycles`);
+    - `tangential_share`: of the path acceleration a blend arc may use along the path (lookahead's
+      `arc_acc_ratio_tangential`).
+    """
+
+    kink_ratio: float
+    gap_cycles: float
+    min_segment_cycles: float
+    tangential_share: float
+
+
+def planner_constants(profile: MachineProfile | None) -> PlannerConstants:
+    """The planner constants of `profile` (the mechanisms' defaults without one): the values the simulation
+    runs with, so a profile that changes them (e.g. one `feedlog diagnose` extended) changes both."""
+    blend, plan = mechanism_params(profile, "blend_arc"), mechanism_params(profile, "lookahead")
+    return PlannerConstants(kink_ratio=float(blend["kink_ratio"]), gap_cycles=float(blend["gap_cycles"]),
+                            min_segment_cycles=float(plan["min_piece_cycles"]),
+                            tangential_share=float(plan["arc_acc_ratio_tangential"]))
 
 
 def path_limits(source: pd.DataFrame, profile: MachineProfile) -> tuple[np.ndarray, np.ndarray]:
@@ -127,7 +152,7 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
                    tol_mm: np.ndarray, corner_end_deg: np.ndarray, rapid: np.ndarray,
                    servo_period_s: float, rotary: np.ndarray | None = None,
                    arc_acc: float | None = None, kink: np.ndarray | None = None,
-                   merge: np.ndarray | None = None) -> np.ndarray:
+                   merge: np.ndarray | None = None, planner: PlannerConstants | None = None) -> np.ndarray:
     """Per block the trapezoid time (s) of one program, blocks in order (see the module text).
 
     `rotary` marks blocks that turn a rotary axis: a continuous-mode junction next to one is a
@@ -138,8 +163,10 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
     weighs it, max over the linear axes of |u_next - u| / acc_max (`junction_kink`); else the turn
     2 sin(half) over the arc plane's (or the block's path) acceleration. `merge` marks blocks the
     interpreter may join with their neighbours (G64 with Q > 0): LinuxCNC's segment is then longer
-    than the block, so neither the tangent check nor the segment clamp applies there.
+    than the block, so neither the tangent check nor the segment clamp applies there. `planner`: the
+    planner constants (`planner_constants`; default: those of the sim mechanisms' defaults).
     """
+    pc = planner_constants(None) if planner is None else planner
     length = np.maximum(np.nan_to_num(np.asarray(length, np.float64)), 0.0)
     n = len(length)
     if n == 0:
@@ -170,7 +197,7 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
     rot_junction = rot | np.append(rot[nxt], False)
     para = rot_junction & ~stop
     # LinuxCNC's tangent check (tpSetupTangent): a junction whose direction change needs under
-    # KINK_RATIO of the axis acceleration in one servo cycle, at both lines' speed caps (feed, length
+    # kink_ratio of the axis acceleration in one servo cycle, at both lines' speed caps (feed, length
     # per cycle), is passed without an arc at that speed; the blocks' acceleration drops by the share
     tangent = np.zeros(n, bool)
     scale = np.zeros(n)
@@ -182,11 +209,11 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
         by_angle = 2 * np.sin(half) / a_plane
         kink = by_angle if kink is None else np.where(np.isfinite(kink), kink, by_angle)
         scale = np.nan_to_num((v_kink / servo_period_s + nxt_acc) * np.asarray(kink, np.float64))
-        tangent = ~stop & ~para & (half > 0) & (scale < KINK_RATIO) & own_pair
+        tangent = ~stop & ~para & (half > 0) & (scale < pc.kink_ratio) & own_pair
         v_end = np.where(tangent, np.minimum(np.minimum(cruise, nxt_cruise), v_kink), v_end)
     # G61 corners without a rotary move keep LinuxCNC's kink reduction: both blocks at 90 % acceleration
     kink_g61 = exact & (turn > KINK_MIN_RAD) & (turn < np.pi) & ~mode_change & ~rot_junction
-    reduce = np.where(kink_g61, KINK_RATIO, np.where(tangent, scale, 0.0))
+    reduce = np.where(kink_g61, pc.kink_ratio, np.where(tangent, scale, 0.0))
     reduce = np.maximum(reduce, np.append(0.0, reduce[:-1]))
     acc = acc * (1.0 - reduce)
     acc = np.where(para, acc / 2, acc)
@@ -200,20 +227,20 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
     arc_cap = np.where(arc, v_end, 0.0)  # the arc's own speed limit, before look-ahead
     with np.errstate(invalid="ignore"):
         s_arc = np.where(arc, np.nan_to_num(radius * half), 0.0)  # half of the arc
-    # LinuxCNC's segments last at least MIN_SEGMENT_CYCLES servo cycles over what the arcs left of a
+    # LinuxCNC's segments last at least min_segment_cycles servo cycles over what the arcs left of a
     # line (a 0.02 mm block with an arc at one end keeps a 0.01 mm segment: under 10 mm/s); a rest
-    # shorter than GAP_CYCLES cycles at the arc's speed rides with the arc at its end
+    # shorter than gap_cycles cycles at the arc's speed rides with the arc at its end
     line_cruise = cruise
     if servo_period_s > 0:
-        t_min = MIN_SEGMENT_CYCLES * servo_period_s
+        t_min = pc.min_segment_cycles * servo_period_s
         rest = np.maximum(length - d_arc - np.append(0.0, d_arc[:-1]), 0.0)
-        eaten = arc & (rest < GAP_CYCLES * servo_period_s * arc_cap)
+        eaten = arc & (rest < pc.gap_cycles * servo_period_s * arc_cap)
         seg_cap = np.where(arc & own_pair, (2 * s_arc + np.where(eaten, rest, 0.0)) / t_min, BIG)
         rest_cap = np.where(eaten | (rest <= 0) | ~own, BIG, rest / t_min)
         arc_cap = np.where(arc, np.minimum(arc_cap, seg_cap), arc_cap)
         line_cruise = np.minimum(cruise, np.where(eaten, np.maximum(arc_cap, 1e-9), rest_cap))
         v_end = np.minimum(v_end, np.minimum(seg_cap, np.minimum(rest_cap, np.append(rest_cap[nxt], BIG))))
-    acc = acc * (1.0 - (1.0 - TANGENTIAL_SHARE) * cover)
+    acc = acc * (1.0 - (1.0 - pc.tangential_share) * cover)
     v_tri = np.minimum(np.sqrt(acc * length), cruise)
     # deviation of the parabola: v <= 2 sqrt(a P / sin(corner / 2)) (LinuxCNC's blend tolerance rule)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -232,23 +259,23 @@ def kinematic_time(length: np.ndarray, feed_mm_min: np.ndarray, acc: np.ndarray,
     plain = ~para & ~np.append(False, para[:-1])
     pieces = plain & (arc | np.append(False, arc[:-1])) & (length > 0)
     if pieces.any():
-        time = np.where(pieces, arc_pieces_time(length, v_in, v_end, line_cruise, line_acc, d_arc, s_arc, arc_cap),
-                        time)
+        time = np.where(pieces, arc_pieces_time(length, v_in, v_end, line_cruise, line_acc, d_arc, s_arc, arc_cap,
+                                                 pc.tangential_share), time)
     return np.where(length > 0, np.maximum(time, servo_period_s), 0.0)
 
 
-def arc_pieces_time(length, v_in, v_end, cruise, acc, tangent, arc_len, cap):
+def arc_pieces_time(length, v_in, v_end, cruise, acc, tangent, arc_len, cap, tangential_share):
     """Per block the time (s) of its three pieces: the second half of the blend arc at its start, the
     line left between the arcs' tangent points, the first half of the arc at its end. The block's
     length reaches to the corners; an arc replaces `tangent` of it at each end by `arc_len` of arc,
-    run at no more than the arc's speed `cap` and at TANGENTIAL_SHARE of the acceleration (LinuxCNC
+    run at no more than the arc's speed `cap` and at `tangential_share` of the acceleration (LinuxCNC
     plans a blend arc as a segment of its own). Arrays per block; `tangent`, `arc_len` and `cap` are
     per end junction (0 where no arc)."""
     t_s, t_e = np.append(0.0, tangent[:-1]), tangent
     s_s, s_e = np.append(0.0, arc_len[:-1]), arc_len
     c_s, c_e = np.append(0.0, cap[:-1]), cap
     line = np.maximum(length - t_s - t_e, 0.0)
-    a_arc = TANGENTIAL_SHARE * acc
+    a_arc = tangential_share * acc
     u_s = np.where(s_s > 0, np.minimum(np.minimum(c_s, cruise), np.sqrt(np.square(v_in) + 2 * a_arc * s_s)), v_in)
     u_e = np.where(s_e > 0, np.minimum(np.minimum(c_e, cruise), np.sqrt(np.square(v_end) + 2 * a_arc * s_e)), v_end)
     u_s = np.minimum(u_s, np.sqrt(np.square(u_e) + 2 * acc * line))

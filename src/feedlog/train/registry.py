@@ -17,7 +17,7 @@ from torch import nn
 
 from feedlog.errors import ModelError
 from feedlog.train.dataset import ProgramTable
-from feedlog.train.features import Normaliser, base_time, profile_constants, raw_columns
+from feedlog.train.features import Normaliser, base_time, planner_inputs, profile_constants, raw_columns
 
 MODELS: dict[str, type[Model]] = {}
 PRESETS = ("full", "quick")
@@ -115,8 +115,10 @@ class Model(abc.ABC):
         return raw_columns(self.inputs + base)
 
     def table_constants(self, table: ProgramTable) -> dict[str, float]:
-        """Machine constants for `table`: from its profile, else the ones the model was trained with."""
-        return profile_constants(table.profile) if table.profile is not None else self.constants
+        """Machine constants for `table`: from its profile, else the ones the model was trained with; the
+        planner constants of the kinematic time from its profile (the sim mechanisms' defaults without one)."""
+        machine = profile_constants(table.profile) if table.profile is not None else self.constants
+        return {**machine, **planner_inputs(table.profile)}
 
     def base_time(self, table: ProgramTable) -> np.ndarray:
         """Per block the time a model's output is a factor on: its config's `base` ("cam" without one),
@@ -167,7 +169,7 @@ def model_names() -> list[str]:
 
 def _load_builtins() -> None:
     # the built-in models register themselves on import, in this order
-    import feedlog.train.model_mlp  # noqa: F401
-    import feedlog.train.model_seq  # noqa: F401
-    import feedlog.train.model_final  # noqa: F401
+    import feedlog.train.model_mlp
+    import feedlog.train.model_seq
+    import feedlog.train.model_final
     import feedlog.train.model_hybrid  # noqa: F401

@@ -14,7 +14,8 @@ import time
 from pathlib import Path
 
 from feedlog.errors import FeedlogError
-from feedlog.viz.overlay import log_view, new_stream, view_blueprint
+from feedlog.rerun_stream import new_stream
+from feedlog.viz.overlay import log_view, view_blueprint
 from feedlog.viz.plots import plot_view
 from feedlog.viz.predictions import model_prediction
 from feedlog.viz.prepare import prepare_view

@@ -27,10 +27,10 @@ class Mystery:
 
 
 def diagnose_mystery(recordings: Path, out: Path, *, log: Callable[[str], None] = print) -> Mystery | None:
-    from feedlog.diagnose.engine import DiagnoseConfig, diagnose  # noqa: PLC0415
-    from feedlog.diagnose.summary import summary_lines  # noqa: PLC0415
-    from feedlog.diagnose.write import write_outputs  # noqa: PLC0415
-    from feedlog.errors import FeedlogError  # noqa: PLC0415
+    from feedlog.diagnose.engine import DiagnoseConfig, diagnose
+    from feedlog.diagnose.summary import summary_lines
+    from feedlog.diagnose.write import write_outputs
+    from feedlog.errors import FeedlogError
 
     folder = Path(recordings) / FOLDER
     files = sorted(folder.glob("*.mcap"))

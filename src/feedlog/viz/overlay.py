@@ -11,17 +11,16 @@ Entity paths (ENTITY_* below) are the contract the tests check in the saved .rrd
 
 from __future__ import annotations
 
-import uuid
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from feedlog.viz.colors import feed_colors, residual_colors, source_color
+from feedlog.colors import feed_colors, residual_colors, source_color
+from feedlog.rerun_stream import new_stream
 from feedlog.viz.prepare import AXIS_COLUMNS, ViewData
 
-APPLICATION_ID = "feedlog"
 TIMELINE_TIME, TIMELINE_BLOCK, TIMELINE_PATH = "time", "block", "path_um"
 ENTITY_PROGRAMMED = "path/programmed"
 ENTITY_MEASURED_PATH = "path/measured"
@@ -169,12 +168,6 @@ def view_blueprint(data: ViewData) -> rrb.Blueprint:
         rrb.TimePanel(timeline=TIMELINE_TIME),
         collapse_panels=False,
     )
-
-
-def new_stream(name: str) -> rr.RecordingStream:
-    """A recording stream of its own (not the global one), named after the recording; a fresh id per
-    export so that two exports sent to one viewer stay two recordings."""
-    return rr.RecordingStream(APPLICATION_ID, recording_id=f"feedlog-{name}-{uuid.uuid4().hex[:12]}")
 
 
 def save_view(data: ViewData, path: str | Path) -> dict[str, int]:

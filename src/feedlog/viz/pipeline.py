@@ -20,7 +20,7 @@ import numpy as np
 from feedlog import storage
 from feedlog.errors import FeedlogError
 from feedlog.execution import TaskRunner, task_runner
-from feedlog.ingest.recording import PROGRAM_ATTACHMENT, Recording
+from feedlog.recording import PROGRAM_ATTACHMENT, Recording
 from feedlog.viz.prepare import ModelPrediction, ViewData, prepare_view
 from feedlog.viz.sources import Gathered, finite_or_none, gather
 from feedlog.viz.stages import StageMissing, availability, stage_function

@@ -1,7 +1,7 @@
 """The overlays as static PNG plots (matplotlib, Agg backend) for reports and the README.
 
 Each function draws one figure from a `ViewData` (or the cycle-time table) and returns the path
-it wrote. Colours match the Rerun overlays (`viz.colors`).
+it wrote. Colours match the Rerun overlays (`feedlog.colors`).
 """
 
 from __future__ import annotations
@@ -12,12 +12,12 @@ import matplotlib
 
 matplotlib.use("Agg")  # no display: figures only go to files
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-from feedlog.viz.colors import source_color  # noqa: E402
-from feedlog.viz.prepare import ViewData  # noqa: E402
+from feedlog.colors import source_color
+from feedlog.viz.prepare import ViewData
 
 DPI = 100
 

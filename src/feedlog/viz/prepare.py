@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from feedlog.errors import FeedlogError
-from feedlog.ingest.recording import Recording
+from feedlog.recording import Recording
 
 LINEAR = ("x", "y", "z")
 ROTARY = ("a", "b", "c")

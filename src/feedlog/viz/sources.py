@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from feedlog.errors import FeedlogError, ProgramError
-from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
+from feedlog.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import MachineProfile, load_profile
 from feedlog.viz.prepare import ModelPrediction, ViewInputs
 from feedlog.viz.stages import StageMissing, stage_function

@@ -1,4 +1,5 @@
-"""Colours computed in numpy from matplotlib colormaps (Rerun's points take colours, not colormaps)."""
+"""Colours of every feedlog view (viz's Rerun overlays and PNG plots, diagnose's report and diagnose.rrd),
+computed in numpy from matplotlib colormaps (Rerun's points take colours, not colormaps)."""
 
 from __future__ import annotations
 
