@@ -3,7 +3,6 @@ naming file and line), its limits, the routing in load_program, and fuzzed input
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np

@@ -167,7 +167,7 @@ def programs(draw):
     lines = ["G17 G21 G90 G94 G40 G49 G54 G80 F800", "#1 = 1", "#2 = 2", "#<a> = 3", "#<_g> = 4", "#31 = 5",
              "G0 X1 Y1 Z10"]
     for depth in (0, 1):
-        lines += [f"o<s{depth}> sub", "#<a> = [#1 + #2]", "G1 X[#1] Y[#<a>]", f"G0 Z[5 + #2 * 0]",
+        lines += [f"o<s{depth}> sub", "#<a> = [#1 + #2]", "G1 X[#1] Y[#<a>]", "G0 Z[5 + #2 * 0]",
                   f"o<s{depth}> endsub [#1 * 2]"]
     for _ in range(draw(st.integers(2, 10))):
         lines += draw(statements())

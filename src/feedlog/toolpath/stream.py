@@ -141,8 +141,8 @@ def open_program_reader(source: str | Path, *, lenient: bool = False, name: str 
     """A streaming reader of a program: the vectorised ProgramReader, or, for a program that needs the
     interpreter (toolpath.interp: parameters, O-words, cycles, ...; found by scanning the text chunk by
     chunk), an InterpretedReader with the same interface."""
-    from feedlog.toolpath.interp.reader import InterpretedReader  # noqa: PLC0415 - interp imports this module
-    from feedlog.toolpath.interp.run import needs_interpreter  # noqa: PLC0415
+    from feedlog.toolpath.interp.reader import InterpretedReader  # interp imports this module: imported when used
+    from feedlog.toolpath.interp.run import needs_interpreter
 
     _, _, chunks = open_source(source, name, chunk_bytes=chunk_bytes)
     try:

@@ -278,17 +278,17 @@ class Compensation:
                 oldrad_uncomp = oldrad + radius if inside(side, prev.turn) else oldrad - radius
                 d = oldrad_uncomp * math.cos(th - phi)
                 if inside(side, prev.turn):
-                    l = (d - radius) / oldrad
-                    if l > 1.0 or l < -1.0:
+                    ratio = (d - radius) / oldrad
+                    if ratio > 1.0 or ratio < -1.0:
                         raise InterpError("arc to straight motion makes a corner the compensated tool can't fit "
                                           "in without gouging")
-                    angle = (-math.acos(l) if prev.turn > 0 else math.acos(l)) + th + math.pi
+                    angle = (-math.acos(ratio) if prev.turn > 0 else math.acos(ratio)) + th + math.pi
                 else:
-                    l = (d + radius) / oldrad
-                    if l > 1.0 or l < -1.0:
+                    ratio = (d + radius) / oldrad
+                    if ratio > 1.0 or ratio < -1.0:
                         raise InterpError("arc to straight motion makes a corner the compensated tool can't fit "
                                           "in without gouging")
-                    angle = (math.acos(l) if prev.turn > 0 else -math.acos(l)) + th + math.pi
+                    angle = (math.acos(ratio) if prev.turn > 0 else -math.acos(ratio)) + th + math.pi
                 self.move_endpoint_and_flush(pc1 + oldrad * math.cos(angle), pc2 + oldrad * math.sin(angle))
         else:
             self.dequeue()
@@ -382,16 +382,16 @@ class Compensation:
                 cyy = arc_radius * math.sin(beta - math.pi / 2)
                 if inside(side, turn):
                     dist = arc_radius - tool_radius
-                    l = (cyy + tool_radius) / dist
-                    if l > 1.0 or l < -1.0:
+                    ratio = (cyy + tool_radius) / dist
+                    if ratio > 1.0 or ratio < -1.0:
                         raise InterpError("arc move in concave corner cannot be reached by the tool without gouging")
-                    angle = theta + math.asin(l) if turn > 0 else theta - math.asin(l)
+                    angle = theta + math.asin(ratio) if turn > 0 else theta - math.asin(ratio)
                 else:
                     dist = arc_radius + tool_radius
-                    l = (cyy - tool_radius) / dist
-                    if l > 1.0 or l < -1.0:
+                    ratio = (cyy - tool_radius) / dist
+                    if ratio > 1.0 or ratio < -1.0:
                         raise InterpError("arc move in concave corner cannot be reached by the tool without gouging")
-                    angle = theta + math.pi - math.asin(l) if turn > 0 else theta + math.pi + math.asin(l)
+                    angle = theta + math.pi - math.asin(ratio) if turn > 0 else theta + math.pi + math.asin(ratio)
                 self.move_endpoint_and_flush(c1 + dist * math.cos(angle), c2 + dist * math.sin(angle))
             else:
                 prev = self.queue[0]
