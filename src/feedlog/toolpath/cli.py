@@ -15,6 +15,7 @@ from feedlog.profile import load_profile
 from feedlog.toolpath.features import DEFAULT_PROFILE
 from feedlog.parquet_sink import ParquetSink
 from feedlog.toolpath.dialects import DIALECTS
+from feedlog.toolpath.expand import expand
 from feedlog.toolpath.interp import InterpOptions
 from feedlog.toolpath.load import load_program, stream_dialect
 from feedlog.toolpath.stream import open_program_reader
@@ -36,6 +37,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_overwrite(parser, help="allow -o to replace an existing file")
     parser.add_argument("--dialect", choices=DIALECTS, default="auto",
                         help="G-code dialect: rs274ngc (LinuxCNC), fanuc/hurco, sinumerik (default: detected)")
+    parser.add_argument("--expand", type=Path, metavar="FLAT.ngc",
+                        help="write the flattened motion (loops unrolled, subroutines inlined, cycles and "
+                             "compensation resolved) as RS274/NGC, one line per move tagged with file, line "
+                             "and call stack")
     add_interpreter_arguments(parser)
     parser.add_argument("--stream", action=argparse.BooleanOptionalAction, default=None,
                         help="read the program in chunks, summarise and write -o batch by batch "
@@ -100,6 +105,12 @@ def run(args: argparse.Namespace) -> int:
         summary = summarize(program, load_profile(name))
         if why:
             summary["profile_choice"] = why
+        if args.expand is not None:
+            if args.expand.exists() and not args.overwrite:
+                raise FeedlogError(f"{args.expand} exists; pass --overwrite to replace it")
+            with atomic_output(args.expand) as temporary:
+                Path(temporary).write_text(expand(program))
+            summary["expanded"] = str(args.expand)
         if args.out is not None:
             with atomic_output(args.out) as temporary:
                 program.blocks.to_parquet(temporary, index=False)
@@ -117,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
 def _streams(args: argparse.Namespace) -> bool:
     """--stream, or by default an RS274/NGC file of STREAM_BYTES or more (other dialects are
     translated as a whole)."""
-    if args.stream is False:
+    if args.stream is False or args.expand is not None:   # --expand needs the whole table
         return False
     if args.stream:
         dialect = stream_dialect(args.file, args.dialect)
