@@ -43,8 +43,22 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--moves", type=int, default=1_000_000)
     ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--stream", action="store_true",
+                    help="read the program batch by batch (InterpretedReader, as `feedlog program --stream` and "
+                         "window-by-window simulation do) and keep only counts: the memory bound of streaming")
     args = ap.parse_args()
     text = program(args.moves)
+    if args.stream:
+        from feedlog.toolpath.interp.reader import InterpretedReader
+        t0, c0 = time.perf_counter(), time.process_time()
+        reader = InterpretedReader(text, name="bench.ngc")
+        rows = sum(len(batch) for batch in reader)
+        dt, cpu = time.perf_counter() - t0, time.process_time() - c0
+        blocks = reader.metadata["blocks_executed"]
+        print(f"streamed {blocks} blocks ({rows} rows, {reader.batches} batches) in {dt:.2f} s wall, {cpu:.2f} s "
+              f"CPU: {blocks / cpu:,.0f} blocks/s of CPU time; peak RSS "
+              f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")
+        return
     for _ in range(args.repeat):
         t0, c0 = time.perf_counter(), time.process_time()
         prog = interpret(text, name="bench.ngc")

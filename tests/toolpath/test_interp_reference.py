@@ -155,8 +155,11 @@ def statements(draw, depth=0):
             out += [f"o{label} else", draw(moves())]
         return out + [f"o{label} endif"]
     if choice == "loop":
-        return ([f"#<n{label}> = 0", f"o{label} while [#<n{label}> LT {draw(st.integers(0, 3))}]"] + body
-                + [f"#<n{label}> = [#<n{label}> + 1]", f"o{label} endwhile"])
+        jump = draw(st.sampled_from(["", "break", "continue"]))
+        exit_test = ([f"o{label + 5} if [#<n{label}> EQ {draw(st.integers(1, 3))}]", f"o{label} {jump}",
+                      f"o{label + 5} endif"] if jump else [])
+        return ([f"#<n{label}> = 0", f"o{label} while [#<n{label}> LT {draw(st.integers(0, 3))}]",
+                 f"#<n{label}> = [#<n{label}> + 1]"] + exit_test + body + [f"o{label} endwhile"])
     if choice == "repeat":
         return [f"o{label} repeat [{draw(st.integers(0, 3))}]"] + body + [f"o{label} endrepeat"]
     return [f"o<s{depth % 2}> call [{draw(expressions())}] [{draw(NUM)}]"]
@@ -243,3 +246,20 @@ def test_random_cutter_compensation_matches_linuxcnc(tmp_path_factory, text):
     assert error is None, f"{error}\n{text}"
     problems = compare(program.blocks, ref)
     assert not problems, (problems, text)
+
+
+def test_parameter_file_offsets_and_homes_match_linuxcnc(tmp_path):
+    """A machine's .var file (mm): G54/G55 offsets, the selected system, a G55 rotation, G28/G30 homes.
+    (The reference runs with inch machine units, so the program reads no length parameter directly.)"""
+    var = tmp_path / "machine.var"
+    var.write_text("5161\t10\n5162\t20\n5163\t30\n5181\t-5\n5182\t-6\n5183\t7\n5220\t2\n"
+                   "5221\t100\n5222\t50\n5223\t-20\n5241\t-30\n5242\t40\n5243\t5\n5250\t15\n")
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G21 F500\nG0 X1 Y2 Z3\nG1 X10 Y5\nG28 Z10\nG30\nG54 G1 X2 Y2\nG10 L20 P2 X0 Y0\n"
+                    "G55 G0 X5 Y5\nG28.1\nG0 X1\nG28\n#1 = [#5220 * 3]\n#2 = #5220\nG1 X#1 Y#2\nM2\n")
+    ref = reference(prog, var=var)
+    assert not ref.error, ref.message
+    program = interpret(prog, parameter_file=var)
+    problems = compare(program.blocks, ref)
+    assert not problems, problems
+    assert program.motion["coord_system"].iloc[0] == 2 and program.motion["rot_deg"].iloc[0] == 15

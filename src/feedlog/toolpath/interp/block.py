@@ -55,6 +55,9 @@ def build(words, C, unknown_u: bool = True) -> Block:
             code = as_int(value, "M code")
             if code < 0:
                 raise InterpError("negative M code used")
+            if code in (98, 99):
+                raise InterpError(f"M{code} (Fanuc-style subprograms in an RS274/NGC file) is not read yet; "
+                                  "use o<name> call / endsub")
             if code > 199:
                 raise InterpError(f"M code greater than 199 (M{code})")
             group = M_GROUP.get(code)

@@ -78,9 +78,12 @@ class Machine:
         self._ctx_key = None
         self._ctx = 0
         self.retract_r_plane = True           # LinuxCNC starts retracting to the R plane (G99)
-        for k in range(6):                    # parameters hold G54 (P1) at the start
-            self.origin[k] = self._user_to_program(self.P.p[5221 + k], k)
-        self.rotation = self.P.p[5230]
+        selected = int(self.P.p[5220] + 0.0001)  # the parameter file's selected system (#5220), else G54
+        self.origin_index = selected if 1 <= selected <= 9 else 1
+        base = 5200 + 20 * self.origin_index
+        for k in range(6):
+            self.origin[k] = self._user_to_program(self.P.p[base + 1 + k], k)
+        self.rotation = self.P.p[base + 10]
 
     # -- units -----------------------------------------------------------------------------------
     def _user_to_program(self, value: float, axis: int) -> float:

@@ -30,6 +30,7 @@ class Parameters:
 
     def __init__(self, lookup: Callable[[str], float | None]) -> None:
         self.p = [0.0] * MAX_PARAMETERS
+        self.p[5220] = 1.0           # G54 selected until a parameter file says otherwise
         self.frames: list[dict[str, float]] = [{}]   # level 0 holds globals and the main program's locals
         self.lookup = lookup
         self.loaded = False        # a parameter file gave the work offsets
