@@ -127,8 +127,6 @@ class Compensation:
                 raise InterpError(f"requested tool {tool} not found in the tool table")
             diameter = entry.diameter if entry is not None else 0.0
             radius = m._user_to_program(diameter, 0) / 2.0
-            if tool and m.tools.assumed:
-                m.warn_zero_radius.add(tool)
         if radius < 0.0:
             radius = -radius
             side = LEFT if side == RIGHT else RIGHT

@@ -133,7 +133,6 @@ def convert_cycle(m, motion: int, b) -> None:
     cyc["cc"] = depth_word
     if saved[0] != PATH_EXACT_PATH:
         m.control, m.tolerance, m.naive = saved
-    cyc["l"] = repeats
     cyc["r"] = r_word
     m.motion_mode = motion
 

@@ -67,14 +67,13 @@ class Machine:
         self.selected_tool = -1
         self.current_tool = 0
         self.tlo_on = False
-        self.cycle = {"r": 0.0, "cc": 0.0, "p": 0.0, "q": 0.0, "i": 0.0, "j": 0.0, "k": 0.0, "l": 1}
+        self.cycle = {"r": 0.0, "cc": 0.0, "p": 0.0, "q": 0.0}   # a canned cycle's modal R, depth, P, Q
         self.cycle_il: float | None = None
         self.line_src = 0
         self.unknown_systems: set[int] = set()   # selected systems whose offsets no parameter file gave
         self.comp = Compensation(self)
         self.emitted = 0                       # rows emitted or held so far
         self.last_move: tuple | None = None   # (end, offsets then) of the last move: where the tool is
-        self.warn_zero_radius: set[int] = set()  # tools used for compensation without a tool table
         self._ctx_key = None
         self._ctx = 0
         self.retract_r_plane = True           # LinuxCNC starts retracting to the R plane (G99)
@@ -90,9 +89,6 @@ class Machine:
         return value * INCH_PER_MM if (axis < 3 and self.inch) else value
 
     def _program_to_user(self, value: float, axis: int) -> float:
-        return value * MM_PER_INCH if (axis < 3 and self.inch) else value
-
-    def _mm(self, value: float, axis: int) -> float:
         return value * MM_PER_INCH if (axis < 3 and self.inch) else value
 
     # -- output --------------------------------------------------------------------------------------

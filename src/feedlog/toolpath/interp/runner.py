@@ -23,7 +23,7 @@ from feedlog.errors import ProgramError
 from feedlog.toolpath.interp.block import build, enhance, refuse
 from feedlog.toolpath.interp.canon import Canon, Source
 from feedlog.toolpath.interp.errors import InterpError
-from feedlog.toolpath.interp.machine import MM_PER_INCH, Machine
+from feedlog.toolpath.interp.machine import Machine
 from feedlog.toolpath.interp.params import Parameters
 from feedlog.toolpath.interp.syntax import parse_line
 from feedlog.toolpath.interp.tools import ToolTable
@@ -559,11 +559,6 @@ class Interpreter:
         if label.kind not in kinds:
             raise InterpError(f"no matching {'/'.join(kinds)} for o{ow.name} {ow.kind} (found {label.kind} at "
                               f"line {label.index + 1})")
-
-    @property
-    def position_mm(self) -> tuple:
-        f = MM_PER_INCH if self.m.inch else 1.0
-        return tuple(self.m.pos[k] * (f if k < 3 else 1.0) for k in range(6))
 
 
 def _o_line(raw: str) -> bool:
