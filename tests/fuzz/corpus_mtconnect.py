@@ -2,9 +2,10 @@
 
 Seeds are the committed real-shaped fixtures: the Hurco-like SHDR log (inches, in/min declared) and the
 Mazak-like Streams XML (three saved responses), and the real NIST test bed logs (tests/fixtures/ingest/nist:
-the Hurco box op 2 Split SHDR with its program attached, the Mazak day's first lines), imported with no options. Mutations: truncation, bit flips, inserted and deleted
-bytes, NaN/inf/huge values, bad timestamps, CR/CRLF/mixed line ends, a BOM, UTF-16 and Latin-1, swapped
-and repeated lines, a DOCTYPE with entities, an MTConnectError document, empty files.
+the Hurco box op 2 Split SHDR with its program attached, the Mazak day's first lines), imported with no
+options. Mutations: truncation, bit flips, inserted and deleted bytes, NaN/inf/huge values, bad
+timestamps, CR/CRLF/mixed line ends, a BOM, UTF-16 and Latin-1, swapped and repeated lines, a DOCTYPE
+with entities, an MTConnectError document, empty files.
 """
 
 from __future__ import annotations
@@ -150,7 +151,8 @@ def _nist(rng: random.Random) -> list[Case]:
         case("mazak-xabs-inf", _shdr_value(mazak, rng, b"Xabs", b"inf"), "error", lenient="ok"),
     ]
     for label, data, cuts in (("hurco", hurco, 3), ("mazak", mazak, 2)):
-        cases += _damaged(lambda name, *a, _l=label, **kw: case(f"{_l}-{name}", *a, **kw), data, rng, cuts=cuts, edits=1)
+        labelled = (lambda name, *a, _l=label, **kw: case(f"{_l}-{name}", *a, **kw))
+        cases += _damaged(labelled, data, rng, cuts=cuts, edits=1)
     return cases
 
 

@@ -79,7 +79,8 @@ def test_mazak_feed_is_checked_against_its_axis_feed_rates_not_its_sparse_positi
     assert "the feed column reads 5.084 x the speed of the axis velocities (median over 53 moving samples)" in printed
     assert "ft/min -> mm/s" in printed
     rec = read_recording(out)
-    assert rec.metadata["mapping_found"] == "x=Xabs,y=Yabs,z=Zabs,vx=Xfrt,vy=Yfrt,vz=Zfrt,feed=Fact,line=line,spindle=Srpm"
+    assert rec.metadata["mapping_found"] == ("x=Xabs,y=Yabs,z=Zabs,vx=Xfrt,vy=Yfrt,vz=Zfrt,feed=Fact,line=line,"
+                                             "spindle=Srpm")
     # without the axis feed rates, the positions (about 1 s apart) are no witness: no claim about units
     del rec.streams["velocity"]
     check = feed_unit_check(rec)
