@@ -106,3 +106,16 @@ def test_umich_real_all_experiments_import_with_consistent_units():
         rec = read_source(Path(UMICH) / f"experiment_{k:02d}.csv", ImportOptions(preset="umich-tool-wear"))
         check = velocity_check(rec, column="requested_feed_mm_min")
         assert check.warning is None and check.ratio == pytest.approx(1.0, abs=0.02), (k, check)
+
+
+def test_align_warns_when_recorded_lines_pass_the_programs_last_block():
+    from feedlog.align.pipeline import align_recording
+
+    real = Path(__file__).resolve().parents[1] / "fixtures" / "ingest" / "real"
+    rec = read_source(real / "hurco_shdr.txt", ImportOptions(length_unit="in", feed_unit="in/min"))
+    assert not [w for w in align_recording(rec, real / "hurco_part.nc").report["warnings"] if "beyond" in w]
+    lines = rec.streams["line"]
+    lines.loc[lines.index[-1], "line"] = 99
+    warned = [w for w in align_recording(rec, real / "hurco_part.nc").report["warnings"] if "beyond" in w]
+    assert warned == ["recorded line 99 (at 15.9 s, line sample 147) is beyond the program's last block (line 30), "
+                      "up to line 99 (1 of 148 samples): the program is not what ran?"]

@@ -207,6 +207,19 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     return out
 
 
+def _lines_beyond_program(recording: Recording, prog: Program, stream: str) -> str | None:
+    """Data that lies: recorded lines past the program's last block (the program is not what ran)."""
+    from feedlog.ingest.data_checks import lines_beyond  # noqa: PLC0415
+
+    table = recording.streams.get(stream)
+    if table is None or "line" not in table.columns or not len(table) or not len(prog.blocks):
+        return None
+    last = int(prog.blocks["line"].max())
+    t = table["t_ns"].to_numpy(dtype=np.int64)
+    return lines_beyond(t - recording.t_range_ns[0], table["line"].to_numpy(), last,
+                        f"the program's last block (line {last})")
+
+
 def _unstated_rounding(dist: np.ndarray, where: np.ndarray, cfg: AlignConfig, warnings: list[str]) -> dict | None:
     """How far the path left the program's points where the program states no blending tolerance, beyond
     what a sampled chord cuts off (the machine's own rounding, measured), with a warning when that is
@@ -237,6 +250,9 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
                                                                    "from": "config" if cfg.lines else "line stream"}}
     if "line_from" in recording.metadata:
         report["line_from"] = recording.metadata["line_from"]
+    beyond = _lines_beyond_program(recording, prog, cfg.line_stream)
+    if beyond:
+        report["warnings"].append(beyond)
     if cfg.positions not in recording.streams:
         from feedlog.align.line_only import align_on_lines  # noqa: PLC0415 - line_only imports this module
         return align_on_lines(recording, prog, prof, cfg, report)

@@ -124,6 +124,18 @@ def program_line_count(text: bytes) -> int:
     return text.count(b"\n") + (0 if text.endswith(b"\n") else 1)
 
 
+def lines_beyond(t_ns: np.ndarray, lines: np.ndarray, last: int, what: str) -> str | None:
+    """The first recorded line beyond `last` (a program's last line), with how far and how often, or None.
+    `t_ns`: the samples' times from the recording's start; `what` names the limit in the message."""
+    beyond = np.flatnonzero(lines > last)
+    if not len(beyond):
+        return None
+    first = int(beyond[0])
+    return (f"recorded line {int(lines[first])} (at {t_ns[first] / 1e9:.4g} s, line sample {first}) is beyond "
+            f"{what}, up to line {int(lines.max())} ({len(beyond)} of {len(lines)} samples): the program is not "
+            "what ran?")
+
+
 def program_lines(recording: Recording) -> str | None:
     """Recorded lines beyond the attached program's last line, or N words it does not hold (first one)."""
     from feedlog.ingest.recording import PROGRAM_ATTACHMENT  # noqa: PLC0415
@@ -135,15 +147,8 @@ def program_lines(recording: Recording) -> str | None:
     t = table["t_ns"].to_numpy(dtype=np.int64)
     t0 = recording.t_range_ns[0]
     if "line" in table.columns:
-        lines = table["line"].to_numpy()
-        count = program_line_count(program)
-        beyond = np.flatnonzero(lines > count)
-        if not len(beyond):
-            return None
-        first = int(beyond[0])
-        return (f"recorded line {int(lines[first])} (at {(t[first] - t0) / 1e9:.4g} s, line sample {first}) is beyond "
-                f"the program's {count} lines, up to line {int(lines.max())} ({len(beyond)} of {len(lines)} samples): "
-                "the program is not what ran?")
+        return lines_beyond(t - t0, table["line"].to_numpy(), program_line_count(program),
+                            f"the program's {program_line_count(program)} lines")
     if "block_number" in table.columns:
         numbers = table["block_number"].to_numpy()
         words = {int(m) for m in _N_WORD.findall(program)}
