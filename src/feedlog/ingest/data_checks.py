@@ -5,7 +5,8 @@ print what they find (the recording keeps every sample as recorded: a check neve
 
 - `feed_units`: every feed-like column against the positions' speed (`unit_check`).
 - `position_jumps`: steps between consecutive position samples faster than the recording allows: the
-  speed limit is `JUMP_FACTOR` x the fastest feed the recording itself shows (its `feed` stream), or
+  speed limit is `JUMP_FACTOR` x the fastest feed the recording itself shows (its `feed` stream; a rapid
+  is often a short share of the samples, so the maximum, not a percentile), or
   `MAX_MACHINE_SPEED_MM_S` without one. The UMich tool-wear CSVs jump between the home position and
   the part, up to 137 mm in one 0.1 s row, while their feed column never exceeds 50 mm/s.
 - `quantised`: positions rounded to a few significant digits (the UMich CSVs hold 3: at 100-999 mm a
@@ -72,7 +73,7 @@ def speed_limit_mm_s(recording: Recording) -> tuple[float, str]:
                 values = np.abs(feed[column].to_numpy(dtype=np.float64))
                 values = values[np.isfinite(values)]
                 if len(values):
-                    fastest = max(fastest, float(np.percentile(values, 99.5)) / 60.0)
+                    fastest = max(fastest, float(values.max()) / 60.0)
     if fastest > 0:
         return JUMP_FACTOR * fastest, f"{JUMP_FACTOR:g} x the fastest recorded feed, {fastest:.4g} mm/s"
     return MAX_MACHINE_SPEED_MM_S, "no machine tool's axes move faster; the recording has no feed to compare"

@@ -6,7 +6,8 @@ positions are a second witness: their derivative is the path speed. `feed_unit_c
 `feed` stream's `feed_mm_min` with the speed of x/y/z where the tool moves and, when the two disagree by
 more than 25 % in the median, says by what factor and which declared unit would explain it. It never
 changes the data: units stay declared, this only warns. `feed_unit_checks` does the same for every
-feed-like column (`feed_mm_min`, the path feed, and `requested_feed_mm_min`, the programmed one).
+feed-like column (`feed_mm_min`, the path feed, and `requested_feed_mm_min`, the programmed one, which
+is only warned about when a unit mistake explains it: a programmed feed is often not reached).
 
 The positions are a witness only where they are sampled densely: a log that reports positions when they
 change, about once a second (the NIST test bed's Mazak), averages reversals and stops into each
@@ -92,15 +93,21 @@ def velocity_check(recording: Recording, *, feed: str = "feed", column: str = "f
     if moving.sum() < MIN_SAMPLES:
         return None
     return _verdict(float(np.median(feed_at[moving] / speed[moving])), int(moving.sum()),
-                    FEED_COLUMNS.get(column, column), "the speed of the axis velocities")
+                    FEED_COLUMNS.get(column, column), "the speed of the axis velocities",
+                    unit_factors_only=column != "feed_mm_min")
 
 
-def _verdict(ratio: float, n: int, name: str, witness: str) -> UnitCheck:
+def _verdict(ratio: float, n: int, name: str, witness: str, *, unit_factors_only: bool = False) -> UnitCheck:
+    """The warning for a median ratio; `unit_factors_only`: say something only when a unit mistake
+    explains the ratio (a requested feed is often not reached: overrides, limits, short blocks)."""
     if 1 / TOLERANCE <= ratio <= TOLERANCE or not math.isfinite(ratio) or ratio <= 0:
         return UnitCheck(ratio, n, None)
     factor, why = min(EXPLANATIONS.items(), key=lambda kv: abs(math.log(ratio / kv[0])))
+    explained = abs(math.log(ratio / factor)) < math.log(TOLERANCE)
+    if unit_factors_only and not explained:
+        return UnitCheck(ratio, n, None)
     text = f"{name} reads {ratio:.4g} x {witness} (median over {n} moving samples): "
-    if abs(math.log(ratio / factor)) < math.log(TOLERANCE):
+    if explained:
         text += f"{why}"
     else:
         text += "check the declared --feed-unit and --length-unit (or the feed is not the path feed)"
@@ -155,4 +162,4 @@ def feed_unit_check(recording: Recording, *, positions: str = "axes", feed: str 
         return UnitCheck(ratio, n, f"{name}'s unit not checked: the positions move in steps of {step:g} mm, "
                                    f"{resolved / 60:.3g} mm/s per {spacing:.3g} s sample, too coarse for a feed of "
                                    f"{typical / 60:.3g} mm/s (median while moving; their speed reads {ratio:.3g} x)")
-    return _verdict(ratio, n, name, "the path speed of the positions")
+    return _verdict(ratio, n, name, "the path speed of the positions", unit_factors_only=column != "feed_mm_min")
