@@ -30,6 +30,7 @@ from feedlog.ingest.recording import Recording
 
 TOLERANCE = 1.25     # median ratio within 1/1.25 .. 1.25: the units agree
 MIN_SAMPLES = 5      # moving samples needed to say anything
+MAX_PAIRS = 200_000  # samples (or consecutive pairs) looked at, evenly spread over a long recording
 COARSE_SHARE = 0.25  # positions whose step per sample exceeds this share of the feed cannot judge its unit
 MAX_WITNESS_DT_S = 0.5  # positions further apart than this (median, while moving) cannot judge a feed's unit
 # factor (feed column / position speed) -> the likely mistake
@@ -70,6 +71,13 @@ def feed_unit_checks(recording: Recording, *, positions: str = "axes", feed: str
     return out
 
 
+def _spread(n: int) -> np.ndarray:
+    """Indices 0..n-1, or `MAX_PAIRS` of them evenly spread: a median needs no more (import stays fast)."""
+    if n <= MAX_PAIRS:
+        return np.arange(max(n, 0), dtype=np.int64)
+    return np.unique(np.linspace(0, n - 1, MAX_PAIRS).astype(np.int64))
+
+
 def velocity_check(recording: Recording, *, feed: str = "feed", column: str = "feed_mm_min") -> UnitCheck | None:
     """Compare a feed column with the controller's own axis velocities (`velocity` stream, mm/s), a
     witness that is neither sparse nor rounded nor thrown by position glitches; None without them."""
@@ -79,8 +87,9 @@ def velocity_check(recording: Recording, *, feed: str = "feed", column: str = "f
     cols = [c for c in VELOCITY_COLUMNS if c in vel.columns]
     if not cols:
         return None
-    speed = np.linalg.norm(vel[cols].to_numpy(dtype=np.float64), axis=1) * 60.0      # mm/min
-    t = vel["t_ns"].to_numpy(dtype=np.int64)
+    rows = _spread(len(vel))
+    speed = np.linalg.norm(vel[cols].to_numpy(dtype=np.float64)[rows], axis=1) * 60.0      # mm/min
+    t = vel["t_ns"].to_numpy(dtype=np.int64)[rows]
     ft = stream["t_ns"].to_numpy(dtype=np.int64)
     fv = stream[column].to_numpy(dtype=np.float64)
     at = np.clip(np.searchsorted(ft, t, side="right") - 1, 0, len(ft) - 1)          # the feed held at each time
@@ -129,12 +138,14 @@ def feed_unit_check(recording: Recording, *, positions: str = "axes", feed: str 
         return None
     t = axes["t_ns"].to_numpy(dtype=np.int64)
     p = axes[cols].to_numpy(dtype=np.float64)
-    dt = np.diff(t) / 1e9
+    first = _spread(len(t) - 1)                          # pairs of consecutive samples (first of each)
+    dt = (t[first + 1] - t[first]) / 1e9
     ok = dt > 0
     if ok.sum() < MIN_SAMPLES:
         return None
-    speed = np.linalg.norm(np.diff(p, axis=0)[ok], axis=1) / dt[ok] * 60.0   # mm/min between samples
-    mid = (t[:-1][ok] + t[1:][ok]) // 2
+    first = first[ok]
+    speed = np.linalg.norm(p[first + 1] - p[first], axis=1) / dt[ok] * 60.0   # mm/min between samples
+    mid = (t[first] + t[first + 1]) // 2
     ft = stream["t_ns"].to_numpy(dtype=np.int64)
     fv = stream[column].to_numpy(dtype=np.float64)
     feed_mid = np.interp((mid - ft[0]).astype(np.float64), (ft - ft[0]).astype(np.float64), fv)
