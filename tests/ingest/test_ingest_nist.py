@@ -86,3 +86,21 @@ def test_mazak_feed_is_checked_against_its_axis_feed_rates_not_its_sparse_positi
     check = feed_unit_check(rec)
     assert check.ratio == pytest.approx(24.2, abs=0.05)
     assert check.warning.startswith("the feed column's unit not checked: the positions are 1.05 s apart")
+
+
+def test_streams_xml_mapped_by_id_also_says_the_names(tmp_path, capsys):
+    # the shape of the NIST Streams XML (tdp/mtc/MTConnect, not vendored: 1.87 MB and more): ids and names differ
+    doc = tmp_path / "s.xml"
+    doc.write_text(
+        '<?xml version="1.0" encoding="UTF-8"?>\n<MTConnectStreams xmlns="urn:mtconnect.org:MTConnectStreams:1.3">'
+        '<Header creationTime="2017-02-27T17:16:46Z" sender="s" instanceId="1" version="1.3" bufferSize="1" '
+        'nextSequence="4" firstSequence="1" lastSequence="3"/><Streams><DeviceStream name="Hurco04" uuid="u">'
+        '<ComponentStream component="Path" name="path" componentId="Hurco04-path"><Samples>'
+        '<PathFeedrate dataItemId="Hurco04-path_9" timestamp="2017-02-07T16:02:39.2Z" name="Feed_Rate" sequence="1" '
+        'subType="ACTUAL">12.7</PathFeedrate></Samples><Events>'
+        '<Line dataItemId="Hurco04-path_1" timestamp="2017-02-07T16:02:39.2Z" name="Block_Number" sequence="2">8</Line>'
+        '<Line dataItemId="Hurco04-path_1" timestamp="2017-02-07T16:02:40.2Z" name="Block_Number" sequence="3">9</Line>'
+        '</Events></ComponentStream></DeviceStream></Streams></MTConnectStreams>\n')
+    assert main(["import", str(doc), "-o", str(tmp_path / "s.mcap")]) == 0
+    assert ("mapped: feed=Hurco04-path_9, line=Hurco04-path_1 (MTConnect types), by name feed=Feed_Rate, "
+            "line=Block_Number; no positions") in capsys.readouterr().out

@@ -89,6 +89,8 @@ def mapping_line(recording) -> str:
     text = f"mapped: {', '.join(p for p in found.split(',') if p and not p.startswith('t=')) or 'nothing'}"
     if meta.get("mapping"):
         text += f" ({meta['mapping']})"
+    if meta.get("mapping_names"):
+        text += f", by name {meta['mapping_names'].replace(',', ', ')}"
     if "axes" not in recording.streams:
         text += ("; no positions: align works on the line stream alone"
                  if "line" in recording.streams else "; no positions and no program line")
