@@ -119,3 +119,19 @@ def test_align_warns_when_recorded_lines_pass_the_programs_last_block():
     warned = [w for w in align_recording(rec, real / "hurco_part.nc").report["warnings"] if "beyond" in w]
     assert warned == ["recorded line 99 (at 15.9 s, line sample 147) is beyond the program's last block (line 30), "
                       "up to line 99 (1 of 148 samples): the program is not what ran?"]
+
+
+def test_align_reports_position_jumps_in_its_warnings_or_its_error():
+    from feedlog.align.pipeline import align_recording
+    from feedlog.errors import AlignmentError
+
+    real = Path(__file__).resolve().parents[1] / "fixtures" / "ingest" / "real"
+    rec = read_source(real / "umich_experiment.csv", ImportOptions(preset="umich-tool-wear"))
+    assert not [w for w in align_recording(rec, real / "umich_part.nc").report["warnings"] if "position steps" in w]
+    rec.streams["axes"].loc[0, "x_mm"] = 198.0          # a glitch before the motion: aligned, and said
+    warned = [w for w in align_recording(rec, real / "umich_part.nc").report["warnings"] if "position steps" in w]
+    assert len(warned) == 1 and "first at axes rows 1 (t = 0.1 s)" in warned[0]
+    rec.streams["axes"].loc[40, "x_mm"] = 198.0         # one in the middle of the part: the match fails, and says why
+    with pytest.raises(AlignmentError, match=r"farther than their tolerance .*; the positions may be why: 3 position "
+                                             r"steps faster than"):
+        align_recording(rec, real / "umich_part.nc")

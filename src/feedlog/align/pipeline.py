@@ -191,6 +191,17 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     prof = _profile(recording, profile)
     prog = _program(recording, program, cfg.lenient, cfg.dialect)
     try:
+        return _align_or_retry(recording, prog, prof, cfg)
+    except AlignmentError as exc:
+        jumps = _position_jumps(recording, cfg.positions)   # a failure on data that lies says so
+        if jumps:
+            raise AlignmentError(f"{exc}; the positions may be why: {jumps}") from None
+        raise
+
+
+def _align_or_retry(recording: Recording, prog: Program, prof: MachineProfile | None, cfg: AlignConfig) -> Alignment:
+    """`_align`, and once more with an estimated work offset when the program is not on the path."""
+    try:
         return _align(recording, prog, prof, cfg)
     except AlignmentError as exc:
         given = any(cfg.work_offset_mm)   # a work offset the user gave is trusted, not second-guessed
@@ -218,6 +229,15 @@ def _lines_beyond_program(recording: Recording, prog: Program, stream: str) -> s
     t = table["t_ns"].to_numpy(dtype=np.int64)
     return lines_beyond(t - recording.t_range_ns[0], table["line"].to_numpy(), last,
                         f"the program's last block (line {last})")
+
+
+def _position_jumps(recording: Recording, positions: str) -> str | None:
+    """Data that lies: position steps faster than the recording's own feeds allow (ingest.data_checks)."""
+    from feedlog.ingest.data_checks import position_jumps  # noqa: PLC0415
+
+    if positions != "axes":     # the check reads the standard stream; another one is the user's choice
+        return None
+    return position_jumps(recording)
 
 
 def _unstated_rounding(dist: np.ndarray, where: np.ndarray, cfg: AlignConfig, warnings: list[str]) -> dict | None:
@@ -253,6 +273,9 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
     beyond = _lines_beyond_program(recording, prog, cfg.line_stream)
     if beyond:
         report["warnings"].append(beyond)
+    jumps = _position_jumps(recording, cfg.positions)
+    if jumps:
+        report["warnings"].append(jumps)
     if cfg.positions not in recording.streams:
         from feedlog.align.line_only import align_on_lines  # noqa: PLC0415 - line_only imports this module
         return align_on_lines(recording, prog, prof, cfg, report)
