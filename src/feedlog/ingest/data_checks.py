@@ -1,9 +1,10 @@
 """Data that lies is reported, not absorbed: checks of a recording against itself and its program.
 
 Real logs carry mistakes nobody wrote down; `feedlog import` and `feedlog info` run these checks and
-print what they find (the recording keeps every sample as recorded: a check never edits data):
+print what they find (`align` the position jumps and the lines past the program) (the recording keeps every sample as recorded: a check never edits data):
 
-- `feed_units`: every feed-like column against the positions' speed (`unit_check`).
+- `unit_check` (`unit_check_requested_feed`): every feed-like column against the axis velocities or the
+  positions' speed (`ingest.unit_check`).
 - `position_jumps`: steps between consecutive position samples faster than the recording allows: the
   speed limit is `JUMP_FACTOR` x the fastest feed the recording itself shows (its `feed` stream; a rapid
   is often a short share of the samples, so the maximum, not a percentile), or
