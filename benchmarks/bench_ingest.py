@@ -1,4 +1,5 @@
-"""Ingest throughput: CSV import rows/s, recording write/read samples/s, CAN bulk decode frames/s.
+"""Ingest throughput: CSV import rows/s (and with `feedlog import`'s data checks), recording write/read
+samples/s, CAN bulk decode frames/s.
 
     python benchmarks/bench_ingest.py [--rows 2000000] [--frames 10000000]
 
@@ -22,6 +23,7 @@ from feedlog.ingest import Recording, read_recording, write_recording
 from feedlog.ingest.can_dbc import CanFrames, DbcLayout
 from feedlog.ingest.can_streams import decode_frames
 from feedlog.ingest.csv_reader import read_csv
+from feedlog.ingest.data_checks import run_checks
 from feedlog.ingest.mapping import load_preset
 
 
@@ -63,6 +65,11 @@ def main() -> None:
         timing = Timing(lambda: read_csv(csv_path, cmap), args.repeat)
         print(f"csv import (servo-trace-1khz, {args.rows} rows, {csv_path.stat().st_size / 1e6:.0f} MB): "
               f"rows {timing.rate(args.rows)}")
+        trace = read_csv(csv_path, cmap)
+        checks = Timing(lambda: run_checks(trace), args.repeat)
+        both = args.rows / (timing.wall + checks.wall) / 1e6
+        print(f"import data checks (units, jumps, rounding, program lines) on those rows: rows "
+              f"{checks.rate(args.rows)}; csv import with the checks: {both:.2f} M rows/s wall")
 
         n = args.rows
         t = np.arange(n, dtype=np.int64) * 1_000_000

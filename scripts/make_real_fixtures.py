@@ -15,8 +15,9 @@ generic profile (so `feedlog diagnose` has something to find), then logged the w
   mm/s), `LineLabel` = the N word of the executing block, and only part of the program (the finishing
   pass of a two-pass program, as a per-tool log would hold).
 - `umich_experiment.csv` + `umich_part.nc`: the University of Michigan CNC mill tool-wear columns
-  (X1_ActualPosition ... M1_sequence_number, M1_CURRENT_FEEDRATE, Machining_Process), 10 Hz, no time
-  column, block numbers in M1_sequence_number.
+  (X1_ActualPosition ... M1_sequence_number, M1_CURRENT_FEEDRATE in mm/s, Machining_Process), 10 Hz, no
+  time column. Unlike the public files (a counter there, which the preset keeps apart), M1_sequence_number
+  holds the N words of the executing blocks here: tests map it with `block_number=M1_sequence_number`.
 - `sinumerik_trace.csv` + `sinumerik_part.mpf`: a Sinumerik 840D trace at 50 Hz (`;`-separated, BTSS
   variable names), with its .mpf program (G710, CYCLE832, `;` comments).
 
@@ -338,7 +339,7 @@ def umich_experiment(rng: random.Random, prof, text: str, program_name: str, csv
         rec["S1_ActualVelocity"] = 0.0 if row.t_s <= 0 else 20.0
         rec["M1_CURRENT_PROGRAM_NUMBER"] = 1
         rec["M1_sequence_number"] = int(n_word.get(int(row.line), 0))
-        rec["M1_CURRENT_FEEDRATE"] = round(float(row.feed_mm_min), 2)
+        rec["M1_CURRENT_FEEDRATE"] = round(float(row.feed_mm_min) / 60.0, 3)   # mm/s, as the public files
         rec["Machining_Process"] = "Prep" if row.t_s <= 0 else ("Layer 1 Up" if row.t_s < duration else "End")
         rows.append(rec)
     pd.DataFrame(rows).to_csv(OUT / csv_name, index=False)

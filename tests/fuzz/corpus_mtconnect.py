@@ -1,9 +1,11 @@
 """Fuzz cases for MTConnect imports: `feedlog import FILE.txt|FILE.xml -o out.mcap` (strict and --lenient).
 
 Seeds are the committed real-shaped fixtures: the Hurco-like SHDR log (inches, in/min declared) and the
-Mazak-like Streams XML (three saved responses). Mutations: truncation, bit flips, inserted and deleted
-bytes, NaN/inf/huge values, bad timestamps, CR/CRLF/mixed line ends, a BOM, UTF-16 and Latin-1, swapped
-and repeated lines, a DOCTYPE with entities, an MTConnectError document, empty files.
+Mazak-like Streams XML (three saved responses), and the real NIST test bed logs (tests/fixtures/ingest/nist:
+the Hurco box op 2 Split SHDR with its program attached, the Mazak day's first lines), imported with no
+options. Mutations: truncation, bit flips, inserted and deleted bytes, NaN/inf/huge values, bad
+timestamps, CR/CRLF/mixed line ends, a BOM, UTF-16 and Latin-1, swapped and repeated lines, a DOCTYPE
+with entities, an MTConnectError document, empty files.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from tests.fuzz import mutate
 from tests.fuzz.cases import FIXTURES, Case, Run
 
 REAL = FIXTURES / "real"
+NIST = FIXTURES / "nist"   # real public-domain logs (NIST SMS test bed)
 SHDR_UNITS = ("--length-unit", "in", "--feed-unit", "in/min")
 
 
@@ -124,5 +127,36 @@ def _xml(rng: random.Random) -> list[Case]:
     return cases + _damaged(case, data, rng, cuts=6, edits=2)
 
 
+def _nist(rng: random.Random) -> list[Case]:
+    """The real logs, no options (the default preset must find their names), the program attached."""
+    hurco = (NIST / "Box-OP2-Hurco02-01of20.txt").read_bytes()
+    mazak = (NIST / "Mazak01-20161006-head4000.txt").read_bytes()
+    program = (NIST / "NIST_MTC_CRADA_BOX_REV-A OP2 (Front).NC").read_bytes()
+
+    def case(name, mutated, expect="any", **kw):
+        c = _case(f"nist/{name}", "b.txt", mutated, expect, extra=("--program", "p.nc"), **kw)
+        c.files["p.nc"] = program
+        if c.seed:
+            c.seed["p.nc"] = program
+        return c
+
+    cases = [
+        case("hurco-crlf", mutate.line_endings(hurco, b"\r\n"), seed=hurco),
+        case("hurco-bom", mutate.BOM + hurco, seed=hurco),
+        case("hurco-block-nan", _shdr_value(hurco, rng, b"Block_Number", b"NaN"), "error", lenient="ok"),
+        case("hurco-block-fraction", _shdr_value(hurco, rng, b"Block_Number", b"8.5"), "error", lenient="ok"),
+        case("hurco-feed-text", _shdr_value(hurco, rng, b"Feed_Rate", b"fast"), "error", lenient="ok"),
+        case("hurco-swapped-lines", mutate.swap_lines(hurco, rng, first=2), lenient="any"),
+        case("mazak-crlf", mutate.line_endings(mazak, b"\r\n"), seed=mazak),
+        case("mazak-xabs-inf", _shdr_value(mazak, rng, b"Xabs", b"inf"), "error", lenient="ok"),
+    ]
+    for label, data, cuts in (("hurco", hurco, 3), ("mazak", mazak, 2)):
+        def labelled(name, *a, _l=label, **kw):
+            return case(f"{_l}-{name}", *a, **kw)
+
+        cases += _damaged(labelled, data, rng, cuts=cuts, edits=1)
+    return cases
+
+
 def build(rng: random.Random) -> list[Case]:
-    return _shdr(rng) + _xml(rng)
+    return _shdr(rng) + _xml(rng) + _nist(rng)

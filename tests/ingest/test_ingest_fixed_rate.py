@@ -41,7 +41,12 @@ def test_umich_preset_reads_the_tool_wear_columns_at_10_hz():
     assert np.diff(axes["t_ns"]).tolist() == [100_000_000] * (len(axes) - 1)
     raw = pd.read_csv(REAL / "umich_experiment.csv")
     np.testing.assert_allclose(axes["x_mm"], raw["X1_ActualPosition"])
-    assert rec.streams["line"]["block_number"].tolist() == raw["M1_sequence_number"].tolist()
+    # the public files' sequence column is a counter, not N words: kept apart, never a block number
+    assert "line" not in rec.streams
+    assert rec.streams["program"]["sequence_number"].tolist() == raw["M1_sequence_number"].tolist()
+    # the feed column is mm/s (the velocity columns agree): 60 x in mm/min
+    np.testing.assert_allclose(rec.streams["feed"]["requested_feed_mm_min"], raw["M1_CURRENT_FEEDRATE"] * 60.0)
+    np.testing.assert_allclose(rec.streams["velocity"]["x_mm_s"], raw["X1_ActualVelocity"])
     assert rec.metadata["controller"] == "umich-tool-wear"
 
 

@@ -4,7 +4,7 @@ Machines are often logged per tool or per pass, so a recording may hold only som
 blocks. Three sources say which, in this order:
 1. the user: `--lines A:B` (program file lines, both included);
 2. the recording's line stream: its `line` column (program lines), or its `block_number` column (the
-   controller's N words, as MTConnect `LineLabel` or the UMich `M1_sequence_number` report them),
+   controller's N words, as MTConnect `LineLabel` reports them; the UMich sequence column is a counter),
    mapped to the program line holding that N word (`program_lines`);
 3. nothing: the whole program.
 A line stream that covers the program's feed moves changes nothing (rapids and short lead-ins before the

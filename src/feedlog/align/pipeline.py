@@ -157,6 +157,17 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
     prof = attached_profile(recording, profile)
     prog = attached_program(recording, program, cfg.lenient, cfg.dialect)
     try:
+        return _align_or_retry(recording, prog, prof, cfg)
+    except AlignmentError as exc:
+        jumps = _position_jumps(recording, cfg.positions)   # a failure on data that lies says so
+        if jumps:
+            raise AlignmentError(f"{exc}; the positions may be why: {jumps}") from None
+        raise
+
+
+def _align_or_retry(recording: Recording, prog: Program, prof: MachineProfile | None, cfg: AlignConfig) -> Alignment:
+    """`_align`, and once more with an estimated work offset when the program is not on the path."""
+    try:
         return _align(recording, prog, prof, cfg)
     except AlignmentError as exc:
         given = any(cfg.work_offset_mm)   # a work offset the user gave is trusted, not second-guessed
@@ -171,6 +182,28 @@ def align_recording(recording: Recording, program: Program | str | Path | None =
                                   f"offset ({', '.join(f'{v:.3f}' for v in est)}) mm; give it with --work-offset, "
                                   "or turn this off with --no-auto-offset")
     return out
+
+
+def _lines_beyond_program(recording: Recording, prog: Program, stream: str) -> str | None:
+    """Data that lies: recorded lines past the program's last block (the program is not what ran)."""
+    from feedlog.ingest.data_checks import lines_beyond
+
+    table = recording.streams.get(stream)
+    if table is None or "line" not in table.columns or not len(table) or not len(prog.blocks):
+        return None
+    last = int(prog.blocks["line"].max())
+    t = table["t_ns"].to_numpy(dtype=np.int64)
+    return lines_beyond(t - recording.t_range_ns[0], table["line"].to_numpy(), last,
+                        f"the program's last block (line {last})")
+
+
+def _position_jumps(recording: Recording, positions: str) -> str | None:
+    """Data that lies: position steps faster than the recording's own feeds allow (ingest.data_checks)."""
+    from feedlog.ingest.data_checks import position_jumps
+
+    if positions != "axes":     # the check reads the standard stream; another one is the user's choice
+        return None
+    return position_jumps(recording)
 
 
 def _unstated_rounding(dist: np.ndarray, where: np.ndarray, cfg: AlignConfig, warnings: list[str]) -> dict | None:
@@ -203,6 +236,12 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
                                                                    "from": "config" if cfg.lines else "line stream"}}
     if "line_from" in recording.metadata:
         report["line_from"] = recording.metadata["line_from"]
+    beyond = _lines_beyond_program(recording, prog, cfg.line_stream)
+    if beyond:
+        report["warnings"].append(beyond)
+    jumps = _position_jumps(recording, cfg.positions)
+    if jumps:
+        report["warnings"].append(jumps)
     if cfg.positions not in recording.streams:
         from feedlog.align.line_only import align_on_lines  # line_only imports this module
         return align_on_lines(recording, prog, prof, cfg, report)

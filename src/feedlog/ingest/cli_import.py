@@ -11,7 +11,7 @@ from feedlog.ingest.mapping import preset_description, preset_names
 from feedlog.ingest.readers import SUFFIXES, ImportOptions, read_source
 from feedlog.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT
 from feedlog.ingest.summary import format_summary, summarize
-from feedlog.ingest.unit_check import feed_unit_check
+from feedlog.ingest.data_checks import run_checks
 from feedlog.ingest.writer import write_recording
 
 
@@ -63,19 +63,38 @@ def run(args: argparse.Namespace) -> int:
                             rate_hz=args.rate_hz, device=args.device,
                             dbc=args.dbc, strict=not args.lenient, recover=args.recover)
     recording = read_source(args.source, options)
-    check = feed_unit_check(recording)
-    if check is not None and check.warning:
-        recording.metadata["unit_check"] = check.warning
     attach_session(recording, program=args.program, profile=args.profile, machine=args.machine, notes=args.notes)
+    recording.metadata.update(run_checks(recording))
     write_recording(args.out, recording, overwrite=args.overwrite, compression=args.compression)
     recording.source = args.out
     if not args.quiet:
         print(format_summary(summarize(recording)))
-    for key in ("bad_rows", "bad_records", "bad_frames", "unknown_ids", "short_frames", "incomplete_samples",
-                "recovered", "unavailable", "unit_check"):
+        print(mapping_line(recording))
+    for key in WARNING_KEYS:
         if key in recording.metadata:
             print(f"warning: {key}: {recording.metadata[key]}")
     return 0
+
+
+WARNING_KEYS = ("bad_rows", "bad_records", "bad_frames", "unknown_ids", "short_frames", "incomplete_samples",
+                "recovered", "unavailable", "unit_check", "unit_check_requested_feed", "position_jumps",
+                "quantised", "program_lines")
+
+
+def mapping_line(recording) -> str:
+    """`mapped: feed=Feed_Rate, line=Block_Number (preset mtconnect-shdr); ...`: what the import took from
+    where, and what a recording without positions can and cannot be used for."""
+    meta = recording.metadata
+    found = meta.get("mapping_found") or meta.get("columns", "")
+    text = f"mapped: {', '.join(p for p in found.split(',') if p and not p.startswith('t=')) or 'nothing'}"
+    if meta.get("mapping"):
+        text += f" ({meta['mapping']})"
+    if meta.get("mapping_names"):
+        text += f", by name {meta['mapping_names'].replace(',', ', ')}"
+    if "axes" not in recording.streams:
+        text += ("; no positions: align works on the line stream alone"
+                 if "line" in recording.streams else "; no positions and no program line")
+    return text
 
 
 def attach_session(recording, *, program: str | None = None, profile: str | None = None,

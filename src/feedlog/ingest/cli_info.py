@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from feedlog.ingest.data_checks import CHECK_KEYS, run_checks
 from feedlog.ingest.reader import read_recording
 from feedlog.ingest.summary import format_summary, summarize
 
@@ -17,6 +18,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    info = summarize(read_recording(args.recording, recover=args.recover))
-    print(json.dumps(info, indent=2) if args.json else format_summary(info))
+    recording = read_recording(args.recording, recover=args.recover)
+    info = summarize(recording)
+    # what the data checks find, for recordings imported before a check existed (or recorded live)
+    info["checks"] = {**{k: v for k, v in recording.metadata.items() if k in CHECK_KEYS}, **run_checks(recording)}
+    if args.json:
+        print(json.dumps(info, indent=2))
+    else:
+        print(format_summary(info))
+        for key, text in info["checks"].items():
+            print(f"warning: {key}: {text}")
     return 0

@@ -2,7 +2,8 @@
 
 A mapping is `target -> source field`, given on the command line (`--map t=time,x=X1_ActualPosition`)
 or by a named preset (`ingest/presets/<name>.toml`). Targets are short names of standard columns
-(`t`, `x` .. `c`, `feed`, `requested_feed`, `line`, `block_number`, `jN`, `jN_fb`, `in_position`,
+(`t`, `x` .. `c`, `feed`, `requested_feed`, `vx`/`vy`/`vz` (axis velocities, mm/s), `line`, `block_number`, `jN`,
+`jN_fb`, `in_position`,
 `motion_type`, `spindle`) or an explicit `stream.column` kept as is. Units are declared, never guessed:
 lengths, angles, feeds and times are converted here to mm, deg, mm/min and int64 ns.
 
@@ -30,6 +31,10 @@ TARGETS: dict[str, tuple[str, str, str]] = {
     "a": ("axes", "a_deg", "angle"), "b": ("axes", "b_deg", "angle"), "c": ("axes", "c_deg", "angle"),
     "feed": ("feed", "feed_mm_min", "velocity"),
     "requested_feed": ("feed", "requested_feed_mm_min", "velocity"),
+    # the controller's own axis velocities, mm/s as recorded (not converted: a witness for the feed's
+    # declared unit must not depend on it; MTConnect's AXIS_FEEDRATE and the UMich columns are mm/s)
+    "vx": ("velocity", "x_mm_s", "float"), "vy": ("velocity", "y_mm_s", "float"),
+    "vz": ("velocity", "z_mm_s", "float"),
     "line": ("line", "line", "int"),
     "block_number": ("line", "block_number", "int"),  # the controller's N word (align maps it to lines)
     "in_position": ("status", "in_position", "bool"),
@@ -39,6 +44,7 @@ TARGETS: dict[str, tuple[str, str, str]] = {
 _JOINT = re.compile(r"^j(\d+)(_fb)?$")
 _EXPLICIT = re.compile(r"^([a-z][a-z0-9_]*)\.([a-z][a-z0-9_]*)$")
 TIME_UNITS = ("s", "ms", "us", "ns", "datetime")
+_VECTOR_ITEM = re.compile(r"^(.*)\[\d\]$")
 
 
 def resolve_target(target: str) -> tuple[str, str, str]:
@@ -127,7 +133,10 @@ class ColumnMap:
         present = set(names)
         if not any(o in present for options in self.candidates.values() for o in options) and \
                 not any(s in present for t, s in self.mapping.items() if t != "t" and t not in self.candidates):
-            shown = ", ".join(sorted(present)[:30])
+            # `KEY[i]` (the i-th number of a vector value) are offered for every KEY: name the KEYs only
+            items = {n: _VECTOR_ITEM.match(n) for n in present}
+            real = sorted(n for n, m in items.items() if not (m and m.group(1) in present))
+            shown = ", ".join(real[:30]) + (f", ... ({len(real)} in all)" if len(real) > 30 else "")
             raise IngestError(f"{self.name}: none of the fields it maps is in the source; it has: {shown or 'none'}",
                               file=file, line=line)
         mapping = dict(self.mapping)

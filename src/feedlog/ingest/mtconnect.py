@@ -177,6 +177,10 @@ def pivot(obs: Observations, cmap: ColumnMap, *, strict: bool, file: str) -> tup
         raise IngestError("every mapped data item is UNAVAILABLE throughout", file=file, line=1)
     meta = {"mapping_found": ",".join(f"{t}={s}" for t, s in targets.items() if t in found),
             "observations": str(int(sum(len(v[0]) for v in found.values())))}
+    named = {t: obs.types[_INDEXED.sub(r"\1", s)].name for t, s in targets.items()
+             if t in found and _INDEXED.sub(r"\1", s) in obs.types}
+    if any(name and name != targets[t] for t, name in named.items()):   # ids (XML): say the names too
+        meta["mapping_names"] = ",".join(f"{t}={name or targets[t]}" for t, name in named.items())
     if missing:
         meta["not_in_file"] = ",".join(missing)
     if gaps:
