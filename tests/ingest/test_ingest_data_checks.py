@@ -117,7 +117,7 @@ def test_align_warns_when_recorded_lines_pass_the_programs_last_block():
     lines = rec.streams["line"]
     lines.loc[lines.index[-1], "line"] = 99
     warned = [w for w in align_recording(rec, real / "hurco_part.nc").report["warnings"] if "beyond" in w]
-    assert warned == ["recorded line 99 (at 15.9 s, line sample 147) is beyond the program's last block (line 30), "
+    assert warned == ["recorded line 99 (at 15.9 s, line sample 147) is beyond the program's last block (line 29), "
                       "up to line 99 (1 of 148 samples): the program is not what ran?"]
 
 
