@@ -178,3 +178,15 @@ def test_truncated_and_bit_flipped_real_programs_never_crash():
             interpret(text, name="mut.ngc")
         except ProgramError:
             pass
+
+
+def test_the_real_nist_hurco_program_reads_without_a_hand_fix():
+    """NIST SMS test bed, box op 2 (Hurco, inch; public domain, tests/fixtures/ingest/nist): its arcs carry
+    4-decimal inch rounding the machine ran (end radius off by up to 0.0033 mm) and it selects G58, whose
+    offsets the program does not give: it reads, and the unknown offset is said, not made up."""
+    path = ROOT / "tests" / "fixtures" / "ingest" / "nist" / "NIST_MTC_CRADA_BOX_REV-A OP2 (Front).NC"
+    program = load_program(path)
+    m = program.motion
+    assert len(m) > 1000 and (m["kind"].astype(str).str.startswith("arc")).sum() >= 14
+    assert (m["units"].astype(str) == "in").all()
+    assert any("G58 selected" in w and "taken as 0" in w for w in program.warnings)
