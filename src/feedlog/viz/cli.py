@@ -13,7 +13,9 @@ import sys
 import time
 from pathlib import Path
 
+from feedlog.atomic import atomic_output
 from feedlog.errors import FeedlogError
+from feedlog.storage import writable_dir
 from feedlog.viz.overlay import log_view, new_stream, view_blueprint
 from feedlog.viz.plots import plot_view
 from feedlog.viz.predictions import model_prediction
@@ -71,6 +73,8 @@ def run(args: argparse.Namespace) -> int:
         raise FeedlogError(f"{args.save} exists; pass --overwrite to replace it")
     if args.save is None and args.connect is None and not args.serve:
         check_display()
+    if args.save is not None:
+        writable_dir(args.save.parent)  # a read-only or missing place: said before any work
     recording = stage_function("read_recording")(args.recording)
     name = args.recording.stem
     gathered = gather(recording, name=name, program=args.program, profile=args.profile, simulate=args.sim,
@@ -85,10 +89,35 @@ def run(args: argparse.Namespace) -> int:
     for note in gathered.notes + data.notes:
         print(f"note: {note}")
 
+    if args.save is None:
+        counts = _send(args, data, name, None)
+    else:  # written under a temporary name, renamed when Rerun has written all of it
+        with atomic_output(args.save) as temporary:
+            counts = _send(args, data, name, temporary)
+    print(f"{name}: {sum(counts.values())} samples over {len(counts)} series")
+    if args.png is not None:
+        for kind, path in plot_view(data, args.png).items():
+            print(f"{kind} plot: {path}")
+    if args.save is not None:
+        print(f"saved {args.save}; open it with: rerun {args.save}")
+    if args.serve:
+        try:
+            while True:
+                time.sleep(1)
+        except KeyboardInterrupt:
+            pass
+    return 0
+
+
+def _send(args: argparse.Namespace, data, name: str, save: Path | None) -> dict[str, int]:
+    """Log the view to its sink: the file `save` (complete when this returns), a viewer or a web server;
+    returns the samples logged per series."""
     stream = new_stream(name)
     blueprint = view_blueprint(data)
-    if args.save is not None:
-        stream.save(str(args.save), default_blueprint=blueprint)
+    binary = None
+    if save is not None:  # feedlog writes the bytes: a write that fails is an error, not a Rerun hang
+        binary = stream.binary_stream()
+        stream.send_blueprint(blueprint, make_active=False, make_default=True)
     elif args.connect is not None:
         stream.connect_grpc(args.connect or None, default_blueprint=blueprint)
     elif args.serve:
@@ -101,21 +130,11 @@ def run(args: argparse.Namespace) -> int:
         spawn_viewer(stream, blueprint)
     stream.send_recording_name(name)
     counts = log_view(data, stream)
+    if binary is not None:
+        save.write_bytes(binary.read() or b"")
+        return counts
     try:
         stream.flush()
     except RuntimeError as exc:  # the viewer went away or was never reachable
         raise FeedlogError(f"could not deliver the recording to the Rerun viewer: {exc}") from None
-    print(f"{name}: {sum(counts.values())} samples over {len(counts)} series")
-    if args.png is not None:
-        for kind, path in plot_view(data, args.png).items():
-            print(f"{kind} plot: {path}")
-    if args.save is not None:
-        stream.disconnect()
-        print(f"saved {args.save}; open it with: rerun {args.save}")
-    if args.serve:
-        try:
-            while True:
-                time.sleep(1)
-        except KeyboardInterrupt:
-            pass
-    return 0
+    return counts
