@@ -1,4 +1,4 @@
-"""`feedlog view RECORDING [--program P] [--sim] [--model M] [--save out.rrd | --connect | --serve]`.
+"""`feedlog view RECORDING [--program P] [--sim] [--model M] [-o/--save out.rrd | --connect | --serve] [--json]`.
 
 Builds the Rerun overlays of one recording (programmed vs measured path, measured / commanded /
 simulated / learned feeds, residuals, block times) with a blueprint made in code, and sends them to
@@ -8,12 +8,14 @@ a file, a running viewer, a served web viewer, or a freshly spawned viewer (the 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
 from pathlib import Path
 
 from feedlog.atomic import atomic_output
+from feedlog.cli_options import add_overwrite, add_quiet
 from feedlog.errors import FeedlogError
 from feedlog.storage import writable_dir
 from feedlog.viz.overlay import log_view, new_stream, view_blueprint
@@ -38,11 +40,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--arrow-every", type=int, default=50, help="five-axis: one orientation arrow per N samples")
     parser.add_argument("--png", type=Path, metavar="DIR", help="also write the overlays as PNG plots into DIR")
     sink = parser.add_mutually_exclusive_group()
-    sink.add_argument("--save", type=Path, metavar="OUT.rrd", help="write a .rrd file instead of showing")
+    sink.add_argument("-o", "--out", "--save", dest="save", type=Path, metavar="OUT.rrd",
+                      help="write a .rrd file instead of showing")
     sink.add_argument("--connect", nargs="?", const="", metavar="URL",
                       help="send to a running Rerun viewer (default URL when none given)")
     sink.add_argument("--serve", action="store_true", help="serve a web viewer and keep running until Ctrl-C")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing --save file")
+    add_overwrite(parser, help="replace an existing --save file")
+    add_quiet(parser, help="print nothing but errors")
+    parser.add_argument("--json", action="store_true",
+                        help="print what was sent (samples per series, the saved file, plots, notes) as JSON")
 
 
 WEB_PORT = 9090
@@ -86,20 +92,27 @@ def run(args: argparse.Namespace) -> int:
     if args.sim and gathered.sim is None:
         gathered.notes.append("--sim given but no simulation could run (see above)")
     data = prepare_view(gathered.inputs)
-    for note in gathered.notes + data.notes:
-        print(f"note: {note}")
+    notes = gathered.notes + data.notes
+    if not (args.quiet or args.json):
+        for note in notes:
+            print(f"note: {note}")
 
     if args.save is None:
         counts = _send(args, data, name, None)
     else:  # written under a temporary name, renamed when Rerun has written all of it
         with atomic_output(args.save) as temporary:
             counts = _send(args, data, name, temporary)
-    print(f"{name}: {sum(counts.values())} samples over {len(counts)} series")
-    if args.png is not None:
-        for kind, path in plot_view(data, args.png).items():
+    plots = plot_view(data, args.png) if args.png is not None else {}
+    if args.json:
+        print(json.dumps({"recording": str(args.recording), "samples": sum(counts.values()), "series": counts,
+                          "saved": None if args.save is None else str(args.save),
+                          "plots": {kind: str(path) for kind, path in plots.items()}, "notes": notes}, indent=1))
+    elif not args.quiet:
+        print(f"{name}: {sum(counts.values())} samples over {len(counts)} series")
+        for kind, path in plots.items():
             print(f"{kind} plot: {path}")
-    if args.save is not None:
-        print(f"saved {args.save}; open it with: rerun {args.save}")
+        if args.save is not None:
+            print(f"saved {args.save}; open it with: rerun {args.save}")
     if args.serve:
         try:
             while True:
