@@ -31,9 +31,11 @@ def _looks_like_path(source: str) -> bool:
 
 def _refuse_binary(head: bytes, label: str) -> None:
     """Text never holds a NUL byte; a recording, an archive or an image given as the program does."""
-    if b"\0" in head[:8192]:
+    nul = head.find(b"\0", 0, 8192)
+    if nul >= 0:
         what = " (an MCAP file: a recording?)" if head.startswith(b"\x89MCAP") else ""
-        raise ProgramError(f"not a text part program: the file holds binary data{what}", file=label)
+        raise ProgramError(f"not a text part program: the file holds binary data, a NUL byte here{what}",
+                           file=label, line=head.count(b"\n", 0, nul) + 1)
 
 
 def read_source(source: str | Path, name: str | None) -> tuple[str, Path | None, str]:
