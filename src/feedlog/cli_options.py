@@ -18,8 +18,10 @@ def _hidden(parser: argparse.ArgumentParser, aliases, **kwargs) -> None:
 def add_output(parser: argparse.ArgumentParser, *, help: str, required: bool = False, type=None,  # noqa: A002
                default=None, metavar: str = "OUT", aliases: tuple[str, ...] = ()) -> None:
     """`-o/--out` (dest `out`), plus hidden `aliases` (e.g. `--outdir`) writing the same dest."""
-    group = parser.add_mutually_exclusive_group(required=required) if aliases and required else parser
-    group.add_argument("-o", "--out", dest="out", type=type, default=default, metavar=metavar, help=help)
+    grouped = bool(aliases and required)
+    group = parser.add_mutually_exclusive_group(required=True) if grouped else parser
+    group.add_argument("-o", "--out", dest="out", type=type, default=default, metavar=metavar, help=help,
+                       **({} if grouped else {"required": required}))
     for alias in aliases:
         group.add_argument(alias, dest="out", type=type, default=default, metavar=metavar, help=argparse.SUPPRESS)
 

@@ -95,6 +95,7 @@ def run_per_input(inputs: Sequence[str | Path], outdir: str | Path, make_task: C
     if dup:
         raise FeedlogError(f"{what} share the file name {dup[0]!r}: their outputs would collide in {outdir}")
     root = storage.absolute(str(outdir))
+    storage.writable_dir(root)  # a file there, a read-only or full disk: one error before any task runs
     token = uuid.uuid4().hex[:8]
     outcome: dict[str, Any] = {}
     tasks, run = [], []

@@ -17,10 +17,10 @@ import shutil
 import tempfile
 import uuid
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
-from feedlog.errors import FeedlogError
+from feedlog.errors import FeedlogError, OutputError
 
 PARTIAL = ".partial-"
 
@@ -90,6 +90,26 @@ def read_text(location: str) -> str:
         return f.read()
 
 
+def writable_dir(location: str | os.PathLike) -> None:
+    """Make sure the output folder `location` exists and takes files, before any work is done: a file
+    where the folder goes, a read-only or full file system end in one `OutputError` here instead of a
+    failure per task (or a traceback) later. URLs are left to their filesystem."""
+    text = str(location)
+    if is_url(text):
+        return
+    path = Path(text)
+    if path.exists() and not path.is_dir():
+        raise OutputError("exists and is not a folder; give an output folder", file=text)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=path, prefix=".feedlog-probe-")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise OutputError(f"cannot write into this folder ({exc.strerror or exc}); nothing was written",
+                          file=text) from None
+
+
 def _partial_name(target: str, token: str) -> str:
     parent, _, name = target.rstrip("/").rpartition("/") if is_url(target) else (
         str(Path(target).parent), "", Path(target).name)
@@ -97,19 +117,31 @@ def _partial_name(target: str, token: str) -> str:
 
 
 @contextmanager
+def _as_output_error(target: str) -> Iterator[None]:
+    """An OSError while writing `target` (full disk, read-only file system) as one `OutputError`."""
+    try:
+        yield
+    except OSError as exc:
+        raise OutputError(f"cannot write the output ({exc.strerror or exc}); nothing was written",
+                          file=target) from None
+
+
+@contextmanager
 def publish_dir(target: str, *, token: str = "") -> Iterator[Path]:
     """A local folder to fill; on success it replaces `target` (a folder) in one rename, else it is removed."""
     if not is_url(target):
         staging = Path(_partial_name(target, token))
-        staging.mkdir(parents=True)
+        with _as_output_error(target):
+            staging.mkdir(parents=True)
         try:
             yield staging
-            old = Path(_partial_name(target, token)) if os.path.exists(target) else None
-            if old is not None:
-                os.rename(target, old)  # the previous output stays whole until the new one is in place
-            os.rename(staging, target)
-            if old is not None:
-                shutil.rmtree(old)
+            with _as_output_error(target):
+                old = Path(_partial_name(target, token)) if os.path.exists(target) else None
+                if old is not None:
+                    os.rename(target, old)  # the previous output stays whole until the new one is in place
+                os.rename(staging, target)
+                if old is not None:
+                    shutil.rmtree(old)
         finally:
             if staging.exists():
                 shutil.rmtree(staging)
@@ -127,13 +159,15 @@ def publish_dir(target: str, *, token: str = "") -> Iterator[Path]:
 def publish_file(target: str, write: Callable[[Path], None], *, token: str = "") -> None:
     """`write(local_path)` then move the file into place as `target` (replacing it)."""
     if not is_url(target):
-        Path(target).parent.mkdir(parents=True, exist_ok=True)
         staging = Path(_partial_name(target, token))
         try:
-            write(staging)
-            os.replace(staging, target)
+            with _as_output_error(target):
+                Path(target).parent.mkdir(parents=True, exist_ok=True)
+                write(staging)
+                os.replace(staging, target)
         finally:
-            staging.unlink(missing_ok=True)
+            with suppress(OSError):
+                staging.unlink(missing_ok=True)
         return
     fs, path = _fs(target)
     with tempfile.TemporaryDirectory(prefix="feedlog-out-") as tmp:

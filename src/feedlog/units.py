@@ -17,6 +17,10 @@ NS_PER_S = 1_000_000_000
 # two times still fits int64 and INT64_MIN (what a NaN becomes in a cast) is never a time.
 MAX_TIME_S = 1e9
 MAX_ABS_T_NS = 2**62
+# Bound on a recorded value (a position, speed, angle or line number) in any unit a reader takes: no
+# machine comes near it (1e12 um is 1000 km), while a corrupt cell (1e20, 1e308) does, and a unit
+# factor (m -> mm, m/s -> mm/min) can never overflow a value within it.
+MAX_ABS_VALUE = 1e12
 
 # factor to the base unit of each dimension: length -> mm, time -> s, angle -> deg
 _LENGTH = {"mm": 1.0, "m": 1000.0, "um": 1e-3, "in": MM_PER_INCH, "inch": MM_PER_INCH}

@@ -95,13 +95,20 @@ def test_cli_batch_parallel_with_a_failure(rec_files, tmp_path, capsys):
     rec.attachments["program.ngc"] = b"G21 G90\nG1 X500 Y500 F100\nM2\n"  # another part's program
     write_recording(bad, rec)
     out = tmp_path / "out"
-    code = main(["align", str(rec_files[0]), str(rec_files[1]), str(bad), "-o", str(out), "-j", "2", "--json", "-q"])
-    assert code == 2  # a bad input, not a failed write
-    docs = json.loads(capsys.readouterr().out)
-    assert [Path(d["recording"]).stem for d in docs] == ["one", "two", "bad"]
-    assert docs[0]["cycle_time_s"] == pytest.approx(docs[1]["cycle_time_s"], abs=0.01)  # 1 kHz vs 250 Hz
-    assert "error" in docs[2] and "farther than their tolerance" in docs[2]["error"]
+    argv = ["align", str(rec_files[0]), str(rec_files[1]), str(bad), "-o", str(out), "-j", "2", "--json", "-q"]
+    assert main(argv) == 0  # a refused recording is a warning: the batch goes on
+    captured = capsys.readouterr()
+    doc = json.loads(captured.out)  # a summary: the blocks are in the output folders
+    assert (doc["aligned"], doc["refused"], doc["exit_code"]) == (2, 1, 0) and "blocks" not in captured.out
+    assert [(Path(d["recording"]).stem, d["outcome"]) for d in doc["not_aligned"]] == [("bad", "refused")]
+    assert "farther than their tolerance" in doc["not_aligned"][0]["error"] and doc["not_aligned"][0]["try"]
+    assert f"feedlog align: warning: {bad}: " in captured.err and "2 aligned, 1 refused" in captured.err
     assert (out / "two" / "blocks.parquet").exists() and not (out / "bad").exists()
+    # --strict: a refused recording fails the batch; outputs already there (no --overwrite) too
+    assert main([*argv, "--overwrite", "--strict"]) == 2
+    assert f"feedlog align: error: {bad}: " in capsys.readouterr().err
+    assert main(argv) == 2
+    assert "0 aligned, 1 refused, 2 with outputs already there" in capsys.readouterr().err
 
 
 def test_missing_program_is_an_error(tmp_path):

@@ -94,7 +94,7 @@ def test_hurco_shdr_in_machine_coordinates_aligns_with_an_estimated_offset(tmp_p
     assert any("aligned with an estimated work offset (-317.5" in w for w in report["warnings"])
 
 
-def test_many_recordings_end_in_an_aligned_failed_summary_with_what_to_try():
+def test_many_recordings_end_in_an_aligned_refused_summary_with_what_to_try():
     from feedlog.align.batch import BatchItem
     from feedlog.align.cli import summary
 
@@ -102,7 +102,7 @@ def test_many_recordings_end_in_an_aligned_failed_summary_with_what_to_try():
     items.append(BatchItem(recording="bad.mcap", outdir="o", ok=False,
                            error="the measured path never comes within 0.05 mm of the program's first points; x"))
     text = summary(items)
-    assert text.startswith("116 aligned, 1 failed\n  1 x the measured path never comes within")
+    assert text.startswith("116 aligned, 1 refused\n  1 x the measured path never comes within")
     assert "(e.g. bad.mcap)" in text and "--estimate-offset" in text
 
 

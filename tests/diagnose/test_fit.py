@@ -109,7 +109,8 @@ def test_a_material_error_halved_counts_though_it_drops_by_less_than_one_point()
     from feedlog.diagnose.fit import HeldOut
     from feedlog.diagnose.select import SelectConfig, judge
 
-    scorer = SimpleNamespace(units=[0], groups=[[0]], cases=[SimpleNamespace(name="r")])
+    scorer = SimpleNamespace(units=[0], groups=[[0]], cases=[SimpleNamespace(name="r")], data_size=100,
+                             data_unit="segments", data_s=30.0)
     hyp = Hypothesis(key="interpolator.lookahead_blocks", family="planner", lower=1, upper=400, scale="int",
                      baseline=48)
 
@@ -122,3 +123,8 @@ def test_a_material_error_halved_counts_though_it_drops_by_less_than_one_point()
     assert not judged(3.0, 2.2).accepted           # 0.8 of 3: neither
     assert not judged(0.9, 0.0).accepted           # nothing material to explain
     assert judged(3.0, 1.9).accepted               # one point and more
+    scorer.data_size = hyp.needs - 1                # too few segments to judge on, however good the fit
+    assert judged(3.0, 0.1).reasons == [f"too little data: {hyp.needs - 1} segments (30.00 s of motion), needs "
+                                        f"{hyp.needs} segments and 5 s"]
+    scorer.data_size, scorer.data_s = 100, 2.0       # ... or too short a stretch of motion
+    assert judged(3.0, 0.1).reasons[0].startswith("too little data: 100 segments (2.00 s of motion)")

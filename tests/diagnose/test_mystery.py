@@ -55,3 +55,33 @@ def test_the_demo_shows_the_mystery_machine_first(tmp_path, capsys):
     report = (out / "report.md").read_text()
     assert report.index("The mystery machine") < report.index("test_p001 (test)")
     assert (out / "diagnose" / "report.md").is_file() and (out / "diagnose" / "profile.toml").is_file()
+
+
+def _cut(source: Path, out: Path, start_s: float, seconds: float) -> Path:
+    """`seconds` of a recording from `start_s` after its first sample, every stream alike."""
+    from feedlog.ingest import read_recording
+    from feedlog.ingest.writer import write_recording
+
+    rec = read_recording(source)
+    t0 = min(int(s["t_ns"].iloc[0]) for s in rec.streams.values() if len(s))
+    lo, hi = t0 + int(start_s * 1e9), t0 + int((start_s + seconds) * 1e9)
+    rec.streams = {name: s[(s["t_ns"] >= lo) & (s["t_ns"] < hi)].reset_index(drop=True)
+                   for name, s in rec.streams.items()}
+    write_recording(out, rec)
+    return out
+
+
+@pytest.mark.parametrize(("start_s", "seconds"), [(6.0, 0.5), (5.0, 1.0)])
+def test_a_short_cut_is_too_little_data_not_a_cause(tmp_path, capsys, start_s, seconds):
+    """Issue #30: a 0.5 s cut of a mystery recording once gave "cause 1: sim.feed_override.override = 2"
+    (and a 1 s cut of 15 segments a blend tolerance): a second of motion cannot carry a cause."""
+    from feedlog.diagnose.hypothesis import MIN_DATA, MIN_SECONDS
+
+    cut = _cut(MYSTERY / "mystery_mix_001.mcap", tmp_path / "cut.mcap", start_s, seconds)
+    assert main(["diagnose", str(cut), "--profile", "linuxcnc-xyz", "-o", str(tmp_path / "dx"), "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("feedlog diagnose: error: too little data: "), err
+    motion_s = float(err[0].split(" segments (")[1].split(" s of motion")[0])
+    assert 0 < motion_s <= seconds < MIN_SECONDS and f"needs {MIN_DATA['timing']} segments and 5 s" in err[0]
+    assert not (tmp_path / "dx").exists()
+

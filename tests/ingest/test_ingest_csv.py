@@ -154,3 +154,33 @@ def test_bytes_that_are_not_utf8_are_a_bad_value_not_a_crash(tmp_path):
     with pytest.raises(IngestError, match=r"binary\.csv:3: 1 bad rows at lines 3; first: column 'x'"):
         read_csv(path, cmap)
     assert read_csv(path, cmap, strict=False).streams["axes"]["x_mm"].tolist() == [1.0, 3.0]
+
+
+@pytest.mark.parametrize("value", ["1e20", "-1e308", "1e13"])
+@pytest.mark.parametrize("column", ["motion.program-line", "motion.current-vel", "axis.x.pos-cmd"])
+def test_out_of_range_cells_name_file_and_line(tmp_path, capsys, value, column):
+    """A finite but absurd cell (issue #30: 1e20 and 1e308 imported with exit 0 after numpy's overflow
+    warning) is a bad row like NaN: an error naming file and line, or a counted skip with --lenient."""
+    lines = (FIX / "linuxcnc_trace.csv").read_text().splitlines(keepends=True)
+    header = lines[0].strip().split(",")
+    cells = lines[3].rstrip("\n").split(",")
+    cells[header.index(column)] = value
+    lines[3] = ",".join(cells) + "\n"
+    path = tmp_path / "big.csv"
+    path.write_text("".join(lines))
+    with pytest.raises(IngestError, match=rf"big\.csv:4: 1 bad rows at lines 4; first: column '{column}': "
+                                          rf"'{value}' is not a finite number within"):
+        read_csv(path, load_preset("linuxcnc-trace"))
+    assert main(["import", str(path), "--preset", "linuxcnc-trace", "-o", str(tmp_path / "o.mcap")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Warning" not in err and not (tmp_path / "o.mcap").exists()
+    rec = read_csv(path, load_preset("linuxcnc-trace"), strict=False)
+    assert rec.metadata["bad_rows"].startswith("1 bad rows at lines 4") and rec.metadata["rows"] == "5"
+    assert np.abs(rec.streams["axes"]["x_mm"]).max() < 1
+
+
+def test_large_but_real_values_still_import(tmp_path):
+    path = tmp_path / "far.csv"
+    path.write_text("t,x\n0,0\n0.001,999999999.5\n")  # a kilometre-long axis in um: unusual, not corrupt
+    rec = read_csv(path, ColumnMap(mapping=parse_map("t=t,x=x"), time_unit="s", length_unit="um"))
+    np.testing.assert_allclose(rec.streams["axes"]["x_mm"], [0, 999999.9995])

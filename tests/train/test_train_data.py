@@ -120,3 +120,23 @@ def test_program_table_checks():
         t.durations()
     with pytest.raises(ModelError, match="split must be one of"):
         ProgramTable("rec", blocks, split="validation")
+
+
+def test_align_output_glob_gives_the_recordings_not_the_dataset(tmp_path):
+    """`feedlog train aligned/*`: the shell passes align's dataset/ too; it repeats the recordings' tables."""
+    import pytest
+
+    from feedlog.errors import ModelError
+    from feedlog.train.load import expand_aligned
+
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "blocks.parquet").write_bytes(b"")
+    (tmp_path / "dataset" / "blocks" / "recording=a").mkdir(parents=True)
+    assert expand_aligned(sorted(tmp_path.iterdir())) == [tmp_path / "a", tmp_path / "b"]
+    assert expand_aligned([tmp_path]) == [tmp_path / "a", tmp_path / "b"]
+    with pytest.raises(ModelError, match="align's partitioned dataset; pass the folder align wrote"):
+        expand_aligned([tmp_path / "dataset"])
+    (tmp_path / "c").mkdir()
+    with pytest.raises(ModelError, match="holds no aligned recordings"):
+        expand_aligned([tmp_path / "a", tmp_path / "c"])

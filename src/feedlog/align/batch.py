@@ -40,6 +40,7 @@ class BatchItem:
     samples: int = 0
     task_s: float = 0.0
     exit_code: int = 0  # of the error: 2 bad input, 1 an output that could not be written
+    exists: bool = False  # not run: its outputs exist and --overwrite was not given
     notes: list[str] | None = None  # what align decided by itself (a line range, a work offset, lines only)
 
 
@@ -138,7 +139,7 @@ def align_many(recordings: list[str | Path], outdir: str | Path, *, program: str
     for label in labels:
         shown, result = storage.join(str(outdir), storage.stem(label)), outcome[label]
         if isinstance(result, str):
-            items.append(BatchItem(recording=label, outdir=shown, ok=False, exit_code=2,
+            items.append(BatchItem(recording=label, outdir=shown, ok=False, exit_code=2, exists=True,
                                    error=f"{result} exists; use --overwrite to replace it"))
         elif result.ok:
             result.value.outdir, result.value.task_s = shown, result.task_s

@@ -4,7 +4,13 @@ Writes OUTDIR/<recording stem>/points.parquet, blocks.parquet and report.json fo
 (docs/align.md), and the same tables as one partitioned dataset, OUTDIR/dataset/{blocks,points}/
 (docs/scaleout.md). Recordings and OUTDIR may be paths or fsspec URLs; `--scheduler` runs the
 recordings on a Dask cluster. `--json` prints, for one recording, {"recording", "outdir", "cycle_time_s",
-"blocks": [{block, line, t_start_ns, t_end_ns, duration_s}, ...]}; for several, a list of those.
+"blocks": [{block, line, t_start_ns, t_end_ns, duration_s}, ...]}; for several, a summary (`summary_doc`:
+counts and the recordings that were not aligned; each recording's detail is in its output folder).
+
+Several recordings: a recording refused for its data (off the path, no program, unreadable) is a warning
+and the others are still aligned. Exit code: 0 when at least one recording aligned and the rest were
+refused (`--strict`: 2 if any was refused), 2 when none aligned or outputs exist without --overwrite,
+1 when an output could not be written.
 """
 
 from __future__ import annotations
@@ -66,6 +72,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="skip unsupported program codes (reported in report.json) instead of failing")
     add_execution_arguments(parser)
     add_overwrite(parser, help="replace existing output files")
+    parser.add_argument("--strict", action="store_true",
+                        help="several recordings: exit with code 2 when any is refused (default: a warning)")
     add_quiet(parser, help="no progress bar")
 
 
@@ -77,28 +85,62 @@ def run(args: argparse.Namespace) -> int:
                          auto_lines=not args.whole_program, estimate_offset=args.estimate_offset,
                          auto_offset=not args.no_auto_offset,
                          dialect=args.dialect)
+    single = len(args.recordings) == 1
     items = align_many(args.recordings, args.out, program=args.program, profile=args.profile, config=config,
                        jobs=args.jobs, scheduler=args.scheduler, overwrite=args.overwrite, progress=not args.quiet,
-                       with_blocks=args.json)
+                       with_blocks=args.json and single)
     failed = [i for i in items if not i.ok]
-    if len(items) == 1 and failed:
+    if single and failed:
         error = FeedlogError(failed[0].error or "alignment failed")
         error.exit_code = failed[0].exit_code
         raise error
     for item in failed:
-        print(f"feedlog align: error: {item.recording}: {item.error}", file=sys.stderr)
+        kind = "warning" if outcome(item) == "refused" and not args.strict else "error"
+        print(f"feedlog align: {kind}: {item.recording}: {item.error}", file=sys.stderr)
     if args.json:
-        docs = [{"recording": i.recording, "outdir": i.outdir, "cycle_time_s": i.cycle_time_s, "blocks": i.blocks,
-                 **({"error": i.error} if not i.ok else {})} for i in items]
-        print(to_json(docs[0] if len(docs) == 1 else docs, indent=1))
+        doc = ({"recording": items[0].recording, "outdir": items[0].outdir, "cycle_time_s": items[0].cycle_time_s,
+                "blocks": items[0].blocks} if single else summary_doc(items, args.out, strict=args.strict))
+        print(to_json(doc, indent=1))
     else:
         for i in items:
             if i.ok:
                 notes = f" ({'; '.join(i.notes)})" if i.notes else ""
                 print(f"{i.recording}: cycle time {i.cycle_time_s:.3f} s -> {i.outdir}{notes}")
-    if len(items) > 1:
+    if not single:
         print(summary(items), file=sys.stderr if args.json else sys.stdout)
-    return min((i.exit_code for i in failed), default=0)  # 1 if any output could not be written
+    return exit_code(items, strict=args.strict)
+
+
+def outcome(item) -> str:
+    """aligned; refused (its data: off the path, no program, unreadable); exists (not run, outputs there);
+    not written (an output could not be written)."""
+    if item.ok:
+        return "aligned"
+    if item.exists:
+        return "exists"
+    return "not written" if item.exit_code == 1 else "refused"
+
+
+def exit_code(items, *, strict: bool = False) -> int:
+    """1 if an output could not be written; 2 if nothing aligned, outputs exist without --overwrite, or
+    (`strict`) a recording was refused; else 0: refused recordings of a batch are warnings."""
+    kinds = [outcome(i) for i in items]
+    if "not written" in kinds:
+        return 1
+    if "aligned" not in kinds or "exists" in kinds or (strict and "refused" in kinds):
+        return 2
+    return 0
+
+
+def summary_doc(items, outdir, *, strict: bool = False) -> dict:
+    """`--json` for several recordings: counts, where the outputs are, and each recording not aligned
+    with its reason (per-recording detail is in OUTDIR/<recording>/report.json and OUTDIR/dataset/)."""
+    kinds = [outcome(i) for i in items]
+    return {"outdir": str(outdir), "aligned": kinds.count("aligned"), "refused": kinds.count("refused"),
+            "exists": kinds.count("exists"), "not_written": kinds.count("not written"),
+            "exit_code": exit_code(items, strict=strict),
+            "not_aligned": [{"recording": i.recording, "outcome": k, "error": i.error, "try": hint(i.error)}
+                            for i, k in zip(items, kinds) if k != "aligned"]}
 
 
 # what an alignment error usually means, and what to try (first pattern found in the message wins)
@@ -112,17 +154,23 @@ HINTS = (
 )
 
 
+def hint(error: str | None) -> str | None:
+    return next((h for pattern, h in HINTS if pattern in (error or "")), None)
+
+
 def summary(items) -> str:
-    """`116 aligned, 1 failed` and, per distinct failure, how many, one example and what to try."""
-    failed = [i for i in items if not i.ok]
-    text = f"{len(items) - len(failed)} aligned, {len(failed)} failed"
+    """`116 aligned, 1 refused` and, per distinct failure, how many, one example and what to try."""
+    kinds = [outcome(i) for i in items]
+    text = ", ".join([f"{kinds.count('aligned')} aligned", f"{kinds.count('refused')} refused"]
+                     + [f"{kinds.count(k)} {shown}" for k, shown in (("exists", "with outputs already there"),
+                                                                      ("not written", "not written")) if k in kinds])
     groups: dict[str, list] = {}
-    for item in failed:
-        reason = (item.error or "alignment failed").split(";")[0]
-        groups.setdefault(reason, []).append(item)
+    for item in items:
+        if not item.ok:
+            reason = (item.error or "alignment failed").split(";")[0]
+            groups.setdefault(reason, []).append(item)
     for reason, members in groups.items():
-        hint = next((h for pattern, h in HINTS if pattern in (members[0].error or "")), None)
         text += f"\n  {len(members)} x {reason} (e.g. {members[0].recording})"
-        if hint:
-            text += f"\n    try: {hint}"
+        if hint(members[0].error):
+            text += f"\n    try: {hint(members[0].error)}"
     return text

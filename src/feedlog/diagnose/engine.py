@@ -26,7 +26,7 @@ from feedlog.diagnose.cases import Case, DiagnoseError, attached_profile, check_
 from feedlog.diagnose.evidence import Evidence, describe, gather, suggest
 from feedlog.diagnose.fit import Scorer
 from feedlog.diagnose.hypothesis import candidates
-from feedlog.diagnose.select import Judged, SelectConfig, Selection, select
+from feedlog.diagnose.select import Judged, SelectConfig, Selection, select, too_little_data
 from feedlog.errors import FeedlogError
 from feedlog.recording import Recording
 from feedlog.profile import MachineProfile, load_profile
@@ -235,13 +235,20 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
     hyps = [replace(h, seeds=suggest(ev, h.key, h.baseline)) for h in candidates(prof, cases, families=cfg.families)]
     selections: dict[str, Selection] = {}
     scorers: dict[str, Scorer] = {}
-    for level in LEVELS:
+    built: dict[str, Scorer] = {}
+    build_s: dict[str, float] = {}
+    for level in LEVELS:  # every level's data first: too little of it everywhere is refused before any fit
         t1 = time.perf_counter()
-        level_hyps = [h for h in hyps if h.level == level]
         try:
-            scorer = Scorer(prof, cases, level, min_segment_s=cfg.min_segment_s)
+            built[level] = Scorer(prof, cases, level, min_segment_s=cfg.min_segment_s)
         except FeedlogError as exc:
             raise DiagnoseError(f"cannot simulate the recordings' programs on profile {prof.name!r}: {exc}") from None
+        build_s[level] = time.perf_counter() - t1
+    _enough_data(built, hyps)
+    for level in LEVELS:
+        t1 = time.perf_counter() - build_s[level]
+        level_hyps = [h for h in hyps if h.level == level]
+        scorer = built[level]
         if not scorer.units:
             continue
         scorers[level] = scorer
@@ -277,6 +284,23 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
     laps["total"] = time.perf_counter() - t0
     dx.timings_s = {k: round(v, 3) for k, v in laps.items()}
     return dx
+
+
+def _enough_data(scorers: dict[str, Scorer], hyps) -> None:
+    """Refuse (DiagnoseError) when no level holds the data any of its hypotheses needs: too little data
+    is said, not fitted."""
+    short = []
+    for level, scorer in scorers.items():
+        needs = [h.needs for h in hyps if h.level == level]
+        if not needs or not scorer.units:
+            continue
+        why = too_little_data(scorer, min(needs))
+        if why is None:
+            return
+        short.append(why.removeprefix("too little data: ") + ("" if level == "timing" else f" ({level})"))
+    if short:
+        raise DiagnoseError(f"too little data: {'; '.join(short)}: record more of the program (longer or more "
+                            "recordings) before naming a cause")
 
 
 def _noise_floor(scorers: dict[str, Scorer], cfg: DiagnoseConfig, cases: Sequence[Case]) -> dict[str, Any]:

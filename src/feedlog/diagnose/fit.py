@@ -74,6 +74,9 @@ class Scorer:
         if level == "line":
             self.line_model = [model_line_offsets(c, profile) for c in self.cases]
         lengths = [self._length(i) for i in range(len(self.cases))]
+        self.data_size = sum(lengths)   # what the level is judged on, in `data_unit`s, over data_s of motion
+        self.data_unit = {"timing": "segments", "feedback": "samples", "line": "blocks"}[level]
+        self.data_s = float(sum(c.cycle_s for c, n in zip(self.cases, lengths) if n > 0))
         self.weights = [s.weight if self.level == "timing" else np.ones(n) for s, n in
                         zip(self.segments or [None] * len(lengths), lengths)]
         self.units = self._units(lengths)

@@ -26,6 +26,12 @@ from feedlog.profile import MachineProfile
 
 SCALES = ("log", "linear", "int", "choice")
 LEVELS = ("timing", "feedback", "line")
+# The least data a cause is judged on: so many of the level's units (timing: segments, line: blocks,
+# feedback: samples) and MIN_SECONDS of motion. Below that a parameter fits the noise of a handful of
+# blocks (a 0.5 s cut once "found" a feed override of 2, a 1 s cut of 15 segments a blend tolerance);
+# two programs at 5 Hz (11 long segments over 20 s) still carry an axis limit.
+MIN_DATA = {"timing": 8, "line": 8, "feedback": 1000}
+MIN_SECONDS = 5.0
 
 # family name -> "module:function(profile, cases) -> list[Hypothesis]". One line per family.
 FAMILIES: dict[str, str] = {
@@ -53,6 +59,7 @@ class Hypothesis:
     predicts: str = ""              # the residual pattern this cause produces
     also: dict[str, Any] = field(default_factory=dict)  # keys set together with it (e.g. a switch)
     seeds: tuple[float, ...] = ()   # values the data points at (evidence.suggest): added to the search grid
+    min_data: int | None = None     # the least data it is judged on (the level's units); None: MIN_DATA[level]
 
     def __post_init__(self) -> None:
         keys.split(self.key)
@@ -71,6 +78,11 @@ class Hypothesis:
     def kind(self) -> str:
         """'parameter' (a value of something the model runs) or 'mechanism' (switches one on)."""
         return "mechanism" if self.switches_on else "parameter"
+
+    @property
+    def needs(self) -> int:
+        """The least data (segments, blocks or samples of its level) this cause is judged on."""
+        return MIN_DATA[self.level] if self.min_data is None else self.min_data
 
     @property
     def unit(self) -> str:

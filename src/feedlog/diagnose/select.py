@@ -19,7 +19,10 @@ is accepted only if all of these hold:
 - **harmless**: no recording's held-out error grows by `min_effect` (a global parameter fitted to what
   one recording does differently must not be "found" at the others' expense);
 - **not contradicted** by the evidence the data gives without any simulation
-  (`evidence.contradicts`).
+  (`evidence.contradicts`);
+- **enough data**: the level holds at least the hypothesis' minimum (`Hypothesis.needs`: 8 segments or
+  blocks, 1000 feedback samples) over `MIN_SECONDS` (5 s) of motion; `engine` refuses the whole
+  diagnosis when no level has that much.
 
 The best is the one with the least held-out loss; among accepted candidates of its family whose
 held-out losses lie closer than noise alone moves them (`noise_spread`), the one that fits all the data
@@ -41,7 +44,7 @@ import numpy as np
 
 from feedlog.diagnose.evidence import Evidence, contradicts
 from feedlog.diagnose.fit import HeldOut, Scorer, _grid, fit, held_out, refine
-from feedlog.diagnose.hypothesis import Hypothesis
+from feedlog.diagnose.hypothesis import MIN_SECONDS, Hypothesis
 
 PRIORITY = ("overrides", "axis_limits", "path_limits", "planner", "dwell", "feedback", "logger")
 SCREEN_KEEP = 5        # hypotheses fully cross-validated per step
@@ -157,6 +160,9 @@ def judge(held: HeldOut, scorer: Scorer, cfg: SelectConfig, error: Callable[[np.
           evidence: Evidence | None) -> Judged:
     units = list(range(len(scorer.units)))
     j = Judged(held=held, error_before=error(held.before, units), error_after=error(held.after, units))
+    short = too_little_data(scorer, held.hyp.needs)
+    if short:
+        j.reasons.append(short)
     if evidence is not None and held.hyp.baseline is not None:
         j.veto = contradicts(evidence, held.hyp.key, held.hyp.baseline, held.value)
         if j.veto:
@@ -174,6 +180,14 @@ def judge(held: HeldOut, scorer: Scorer, cfg: SelectConfig, error: Callable[[np.
     if harm:
         j.reasons.append(harm)
     return j
+
+
+def too_little_data(scorer: Scorer, needs: int) -> str | None:
+    """Why the level's data is too little for a cause that needs `needs` of its units (None when it is not)."""
+    if scorer.data_size >= needs and scorer.data_s >= MIN_SECONDS:
+        return None
+    return (f"too little data: {scorer.data_size} {scorer.data_unit} ({scorer.data_s:.2f} s of motion), needs "
+            f"{needs} {scorer.data_unit} and {MIN_SECONDS:g} s")
 
 
 def _harm(held: HeldOut, scorer: Scorer, cfg: SelectConfig,

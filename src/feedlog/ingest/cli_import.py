@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 
 from feedlog.cli_options import add_output, add_overwrite, add_quiet
@@ -48,6 +49,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--machine", help="machine name for the session metadata")
     parser.add_argument("--notes", help="free text for the session metadata")
     add_quiet(parser, help="print only warnings, not the recording's summary")
+    parser.add_argument("--json", action="store_true", help="print the summary and the warnings as JSON")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -67,18 +69,22 @@ def run(args: argparse.Namespace) -> int:
     recording.metadata.update(run_checks(recording))
     write_recording(args.out, recording, overwrite=args.overwrite, compression=args.compression)
     recording.source = args.out
+    warnings = {key: recording.metadata[key] for key in WARNINGS if key in recording.metadata}
+    if args.json:  # one document: the summary `feedlog info --json` gives, and the warnings
+        print(json.dumps({**summarize(recording), "warnings": warnings}, indent=2, default=str))
+        return 0
     if not args.quiet:
         print(format_summary(summarize(recording)))
         print(mapping_line(recording))
-    for key in WARNING_KEYS:
-        if key in recording.metadata:
-            print(f"warning: {key}: {recording.metadata[key]}")
+    for key, text in warnings.items():
+        print(f"warning: {key}: {text}")
     return 0
 
 
-WARNING_KEYS = ("bad_rows", "bad_records", "bad_frames", "unknown_ids", "short_frames", "incomplete_samples",
-                "recovered", "unavailable", "unit_check", "unit_check_requested_feed", "position_jumps",
-                "quantised", "program_lines")
+# metadata an import sets when it skipped or could not check something: printed as warnings
+WARNINGS = ("bad_rows", "bad_records", "bad_frames", "unknown_ids", "short_frames", "incomplete_samples",
+            "recovered", "unavailable", "unit_check", "unit_check_requested_feed", "position_jumps",
+            "quantised", "program_lines")
 
 
 def mapping_line(recording) -> str:

@@ -2,7 +2,8 @@
 
 A `ColumnMap` (a preset or `--map`) names the time column and the value columns with their units.
 Fast path: pyarrow parses only the mapped columns, typed, on all cores. If anything is wrong (a row
-with the wrong number of fields, a value that is not a finite number, an empty cell, a time beyond
+with the wrong number of fields, a value that is not a finite number within +-MAX_ABS_VALUE (1e12: a
+corrupt 1e20 is not a position), an empty cell, a time beyond
 int64 nanoseconds, time going backwards) the file is read again in a diagnostic pass that knows every
 row's line number: strict mode (the default) raises `IngestError` naming the file, the first bad line
 and the count; lenient mode drops and counts the bad rows and lists their lines in
@@ -31,8 +32,8 @@ import pyarrow.csv as pacsv
 
 from feedlog.errors import IngestError
 from feedlog.ingest.mapping import ColumnMap, build_streams, time_to_ns
-from feedlog.units import MAX_ABS_T_NS, time_factor
 from feedlog.recording import Recording
+from feedlog.units import MAX_ABS_T_NS, MAX_ABS_VALUE, time_factor
 
 _OFFSET = re.compile(r"(Z|[+-]\d\d:?\d\d)$")
 SHOW_LINES = 10  # bad line numbers quoted in messages
@@ -165,8 +166,8 @@ def _fast_read(path: Path, header_line: int, names: list[str], used: dict[str, s
     if invalid or any(table.column(source).null_count for source in set(used.values())):
         return None
     floats = [table.column(source) for source in set(used.values()) if pa.types.is_floating(table.column(source).type)]
-    if any(not pc.all(pc.is_finite(column)).as_py() for column in floats if len(column)):
-        return None  # NaN or infinite values: the diagnostic pass names their lines
+    if any(not pc.all(pc.less_equal(pc.abs(column), MAX_ABS_VALUE)).as_py() for column in floats if len(column)):
+        return None  # NaN, infinite or out-of-range values (1e20): the diagnostic pass names their lines
     return table
 
 
@@ -262,8 +263,8 @@ def _diagnostic_read(path: Path, header_line: int, names: list[str], used: dict[
             if cmap.decimal == ",":
                 cells = cells.str.replace(",", ".", regex=False)
             values = pd.to_numeric(cells, errors="coerce").to_numpy(np.float64)
-            ok = np.isfinite(values)
-            kind = "finite number"
+            ok = np.abs(values) <= MAX_ABS_VALUE  # False for NaN
+            kind = f"finite number within +-{MAX_ABS_VALUE:g}"
             if target == "t":
                 values, ok = _times(values, cmap)
                 kind = "time (a finite number within +-146 years)"

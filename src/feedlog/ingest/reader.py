@@ -121,6 +121,9 @@ def check_version(meta: dict[str, str], source: str, where: str | None = None) -
 def read_recording(path: str | os.PathLike, *, recover: bool = False) -> Recording:
     """Read a feedlog recording. Strict unless `recover`: then a cut-off file yields what it holds."""
     source = str(path)
+    if Path(path).is_dir():
+        raise IngestError("is a folder, not a recording file (give the .mcap files in it, e.g. FOLDER/*.mcap)",
+                          file=source)
     if not Path(path).is_file():
         raise IngestError("no such recording file", file=source)
     collector = _Collector(source)

@@ -130,9 +130,11 @@ class RecordingWriter:
             self._guard(self._start, metadata or {}, attachments or {})
         except OutputError:  # not even the header fits: nothing recorded, no file left
             self._closed = True
-            self._file.close()
+            with contextlib.suppress(OSError):  # the buffer that did not fit fails again on close
+                self._file.close()
             self.path.unlink(missing_ok=True)
-            raise
+            raise OutputError(f"cannot write the recording ({self._failed.reason}); nothing was written",
+                              file=str(self.path)) from None
 
     # -- public API ----------------------------------------------------------------------------------
     def write(self, stream: str, table: pd.DataFrame | pa.Table | pa.RecordBatch | dict) -> None:
@@ -200,7 +202,11 @@ class RecordingWriter:
                 self._guard(self._finish)
         finally:
             self._closed = True
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError as exc:  # after a failed write (already sealed) the unwritten buffer fails again
+                if self._failed is None:
+                    raise OutputError(f"write failed on close ({exc.strerror or exc})", file=str(self.path)) from None
 
     @property
     def samples_written(self) -> int:

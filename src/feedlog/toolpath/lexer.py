@@ -148,8 +148,9 @@ def lex(text: str, *, file: str, lenient: bool = False, first_line: int = 0) -> 
 
     flow = np.zeros(0, dtype=np.int64)
     if bad_value.any():
-        # O-word control flow (o100 sub, o100 if ...) shows up as letters without numbers
-        o_lines = np.unique(wline[wletter == ord("O") - _A])
+        # O-word control flow (o100 sub, o100 if ...) shows up as letters without numbers after an O
+        # word with one (a bare O, as in "X4O" for X40, is a malformed word)
+        o_lines = np.unique(wline[(wletter == ord("O") - _A) & ~bad_value])
         flow = np.setdiff1d(np.intersect1d(o_lines, wline[bad_value]), skip)
         for i in flow.tolist():
             if not lenient:
@@ -160,7 +161,8 @@ def lex(text: str, *, file: str, lenient: bool = False, first_line: int = 0) -> 
             i = bad_lines[0]
             k = np.flatnonzero(bad_value & (wline == i))[0]
             word = bytes(b[wstart[k]:wend[k]]).decode("ascii", "replace")
-            raise fail(i, "malformed word (a letter needs a decimal number)", word)
+            oh = "; the letter O where a zero was meant?" if word[:1] in "Oo" else ""
+            raise fail(i, f"malformed word (a letter needs a decimal number{oh})", word)
     big = out_of_range(values, MAX_WORD)
     if big.any():
         big &= ~np.isin(wline, np.r_[flow, skip])

@@ -2,7 +2,8 @@
 
 Programs come from CAM posts, editors and controllers: a UTF-8 BOM is skipped, CR LF (Windows) and a
 lone CR (old Mac files) count as line ends, as editors show them, and a UTF-16 file is refused with a
-message that says so instead of a wall of "unsupported character" errors. Bytes that are not UTF-8
+message that says so instead of a wall of "unsupported character" errors, and so is a binary file (a NUL
+byte in its first 8 KiB: a recording given as the program). Bytes that are not UTF-8
 (latin-1 comments) become U+FFFD, which only comments may hold.
 """
 
@@ -28,6 +29,15 @@ def _looks_like_path(source: str) -> bool:
         return False
 
 
+def _refuse_binary(head: bytes, label: str) -> None:
+    """Text never holds a NUL byte; a recording, an archive or an image given as the program does."""
+    nul = head.find(b"\0", 0, 8192)
+    if nul >= 0:
+        what = " (an MCAP file: a recording?)" if head.startswith(b"\x89MCAP") else ""
+        raise ProgramError(f"not a text part program: the file holds binary data, a NUL byte here{what}",
+                           file=label, line=head.count(b"\n", 0, nul) + 1)
+
+
 def read_source(source: str | Path, name: str | None) -> tuple[str, Path | None, str]:
     """(text with "\n" line ends, path or None, name for messages). Old Mac files end lines with a
     lone CR and Windows files with CR LF: both count as line ends, as editors show them."""
@@ -41,6 +51,7 @@ def read_source(source: str | Path, name: str | None) -> tuple[str, Path | None,
         if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
             raise ProgramError("the file is UTF-16 text (it starts with a UTF-16 byte-order mark); save the "
                                "part program as ASCII or UTF-8", file=label, line=1)
+        _refuse_binary(raw, label)
         text, path_out = raw.decode("utf-8-sig", errors="replace"), path
     else:
         text, path_out, label = source.removeprefix("\ufeff"), None, name or "<string>"
@@ -111,6 +122,7 @@ def _file_chunks(handle, label: str, chunk_bytes: int) -> Iterator[str]:
                 if buf.startswith((b"\xff\xfe", b"\xfe\xff")):
                     raise ProgramError("the file is UTF-16 text (it starts with a UTF-16 byte-order mark); save "
                                        "the part program as ASCII or UTF-8", file=label, line=1)
+                _refuse_binary(buf, label)
                 buf = buf.removeprefix(b"\xef\xbb\xbf")
             cut = _cut(buf, final)
             if cut == 0 and not final:

@@ -16,8 +16,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from feedlog.atomic import atomic_outputs
 from feedlog.errors import ModelError
 from feedlog.execution import TaskRunner
+from feedlog.storage import writable_dir
 from feedlog.train.augment import simulated_tables
 from feedlog.train.checkpoint import save_checkpoint
 from feedlog.train.dataset import TARGET, ProgramTable, fingerprint
@@ -84,7 +86,10 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
     if not test:
         raise ModelError(f"no held-out recording runs on a trained machine ({', '.join(sorted(machines))})")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    writable_dir(out)  # refused before minutes of training, not after
+    there = [p for p in [out / f"{n}.pt" for n in models] + [out / RESULTS_CSV, out / RESULTS_MD] if p.exists()]
+    if there and not overwrite:
+        raise ModelError(f"{there[0]} exists; refusing to overwrite it (--overwrite replaces it)")
     sim_train: list[ProgramTable | None] = []
     sim_test: list[ProgramTable | None] = [None] * len(test)
     if "hybrid" in models:
@@ -168,12 +173,14 @@ def _write(results: pd.DataFrame, block_preds: dict[str, pd.DataFrame], out: Pat
     for name in (RESULTS_CSV, RESULTS_MD):
         if (out / name).exists() and not overwrite:
             raise ModelError(f"{out / name} exists; refusing to overwrite it")
-    results.to_csv(out / RESULTS_CSV, index=False)
-    (out / RESULTS_MD).write_text(format_results(results, markdown=True) + "\n")
     pred_dir = out / PREDICTIONS_DIR
-    pred_dir.mkdir(exist_ok=True)
-    for name, table in block_preds.items():
-        table.to_parquet(pred_dir / f"{name}.parquet", index=False)
+    writable_dir(pred_dir)
+    names = list(block_preds)
+    with atomic_outputs(out / RESULTS_CSV, out / RESULTS_MD, *(pred_dir / f"{n}.parquet" for n in names)) as paths:
+        results.to_csv(paths[0], index=False)
+        paths[1].write_text(format_results(results, markdown=True) + "\n")
+        for name, path in zip(names, paths[2:]):
+            block_preds[name].to_parquet(path, index=False)
 
 
 def model_columns(results: pd.DataFrame) -> list[str]:

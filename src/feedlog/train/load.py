@@ -117,10 +117,26 @@ def _attach_program_columns(blocks, text: str, name: str, profile):
     return with_program_columns(blocks, program, profile)
 
 
+def is_align_dataset(path: Path) -> bool:
+    """align's OUTDIR/dataset/ (the same tables as the recordings' folders, partitioned): a shell glob
+    `aligned/*` passes it along with the recordings' folders."""
+    from feedlog.dataset import DATASET
+
+    return path.name == DATASET and (path / "blocks").is_dir() and not (path / "blocks.parquet").is_file()
+
+
 def expand_aligned(paths: Iterable[str | Path]) -> list[Path]:
-    """Aligned folders from the given paths: a folder with blocks.parquet, or a folder of such folders."""
+    """Aligned folders from the given paths: a folder with blocks.parquet, or a folder of such folders.
+    align's dataset/ folder among several paths is skipped (it repeats their tables)."""
+    paths = list(map(Path, paths))
+    datasets = [p for p in paths if is_align_dataset(p)]
+    if datasets and len(datasets) == len(paths):
+        raise ModelError(f"{datasets[0]}: this is align's partitioned dataset; pass the folder align wrote "
+                         f"({datasets[0].parent}) or its recording folders ({datasets[0].parent}/*)")
     out: list[Path] = []
-    for p in map(Path, paths):
+    for p in paths:
+        if p in datasets:
+            continue
         if (p / "blocks.parquet").is_file():
             out.append(p)
         elif p.is_dir():

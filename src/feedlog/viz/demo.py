@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 from feedlog.errors import FeedlogError
+from feedlog.cli_options import add_output
 from feedlog.execution import add_arguments as add_execution_arguments
 from feedlog.viz.overlay import save_view
 from feedlog.viz.mystery import Mystery, diagnose_mystery
@@ -31,7 +32,8 @@ OUTPUTS = ("report.md", "cycle_times.json", "plots", "rerun", "models", "diagnos
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default: {DEFAULT_OUT})")
+    add_output(parser, type=Path, default=DEFAULT_OUT, metavar="OUTDIR",
+               help=f"output folder (default: {DEFAULT_OUT}); an earlier demo's outputs there are replaced")
     parser.add_argument("--recordings", type=Path, default=None,
                         help="recordings folder (default: the bundled recordings/)")
     parser.add_argument("--json", action="store_true", help="print the cycle-time table as JSON rows only")
