@@ -876,3 +876,21 @@ def needs_sinumerik_interpreter(text: str) -> bool:
         if line.error is None and not line.plain:
             return True
     return False
+
+
+def sinumerik_program(text: str, path: Path | None, label: str, *, interp=None,
+                      lenient: bool = False) -> tuple[Program | None, str | None]:
+    """load_program's hook: (program, None) when the program needs the front-end and it read it;
+    (None, None) when the line-by-line translation reads it (plain programs); (None, note) when the
+    front-end refused it and `lenient` asks for the translation's reading instead."""
+    if not needs_sinumerik_interpreter(text):
+        return None, None
+    try:
+        program = interpret_sinumerik(path if path is not None else text, name=label, options=interp)
+    except ProgramError as exc:
+        if not lenient:
+            raise
+        return None, (f"the Sinumerik front-end refused it ({exc}); read leniently line by line, skipping what "
+                      "that cannot read")
+    program.metadata["dialect"] = "sinumerik"
+    return program, None
