@@ -321,7 +321,7 @@ def test_load_program_routes_sinumerik_programs(tmp_path):
 
 _STATEMENTS = [
     "G0 X{a} Y{b}", "G1 F100 X{a} Z{b}", "G91 X{a}", "G90", "R{i}={a}", "R{i}=R{j}+{a}", "R{i}=R{j}/{b}",
-    "X=R{i}", "Y=IC({a})", "IF R{i}>{a} GOTOF L{j}", "IF R{i}<{a} GOTOB L{j}", "L{j}: G1 X{b}", "GOTOF L{i}",
+    "X=R{i}", "Y=IC({a})", "IF R{i}>{a} GOTOF LB{j}", "IF R{i}<{a} GOTOB LB{j}", "LB{j}: G1 X{b}", "GOTOF LB{i}",
     "LOOP", "ENDLOOP", "FOR R{i}={a} TO {b}", "ENDFOR", "WHILE R{i}<{b}", "ENDWHILE", "REPEAT", "UNTIL R{i}>={a}",
     "IF R{i}=={a}", "ELSE", "ENDIF", "CYCLE81({b}, 0, 1, -{a})", "MCALL CYCLE82(10, 0, 1, -2, , 0.1)", "MCALL",
     "TRANS X{a}", "AROT RPL={b}", "ATRANS Y{a}", "G2 X{a} Y{b} CR={a}", "G3 X{a} Y{b} I{a} J{b}", "DEF REAL V{i}={a}",
@@ -329,18 +329,53 @@ _STATEMENTS = [
 ]
 
 
-@settings(max_examples=150, deadline=None, derandomize=True,
+_SIMPLE = [s for s in _STATEMENTS if s.split()[0] not in ("LOOP", "ENDLOOP", "FOR", "ENDFOR", "WHILE", "ENDWHILE",
+                                                           "REPEAT", "UNTIL", "ELSE", "ENDIF")
+           and not s.startswith("IF R{i}==")]
+_WRAPS = [("IF R{i}=={a}", None, "ENDIF"), ("IF R{i}<{a}", "ELSE", "ENDIF"), ("FOR R{i}={a} TO {b}", None, "ENDFOR"),
+          ("WHILE R{i}<{b}", None, "ENDWHILE"), ("REPEAT", None, "UNTIL R{i}>={a}"), ("LOOP", None, "ENDLOOP")]
+_FILL = st.fixed_dictionaries({"i": st.integers(0, 3), "j": st.integers(0, 3), "a": st.integers(-20, 20),
+                               "b": st.integers(0, 20)})
+
+
+_FUZZ_SUBS = {"SUB0": "G91 G1 X1\nM17\n", "SUB1": "PROC SUB1\nDEF INT K\nFOR K=1 TO 2\nG1 Y=K\nENDFOR\nRET\n",
+              "SUB2": "R3=R3+1\nIF R3<3 GOTOF LB9\nSUB0\nLB9: M17\n", "SUB3": "SUB3\n"}
+
+
+@st.composite
+def _programs(draw, depth=0):
+    """Mostly well-nested programs, so that most run; a few structure errors stay in (depth 0 lists
+    may end early or carry a stray keyword)."""
+    out = []
+    for _ in range(draw(st.integers(0, 6))):
+        if depth < 3 and draw(st.integers(0, 3)) == 0:
+            head, middle, tail = draw(st.sampled_from(_WRAPS))
+            f = draw(_FILL)
+            out.append(head.format(**f))
+            out += draw(_programs(depth + 1))
+            if middle:
+                out.append(middle)
+                out += draw(_programs(depth + 1))
+            out.append(tail.format(**f))
+        else:
+            out.append(draw(st.sampled_from(_SIMPLE)).format(**draw(_FILL)))
+    if depth == 0 and draw(st.integers(0, 9)) == 0:
+        out.insert(draw(st.integers(0, len(out))), draw(st.sampled_from(["ENDIF", "ELSE", "ENDFOR", "UNTIL R1>0"])))
+    return out
+
+
+@settings(max_examples=300, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
-@given(st.lists(st.tuples(st.sampled_from(_STATEMENTS), st.integers(0, 3), st.integers(0, 3),
-                          st.integers(-20, 20), st.integers(0, 20)), max_size=25))
-def test_fuzz_random_programs_give_a_table_or_one_program_error(items):
-    text = "\n".join(s.format(i=i, j=j, a=a, b=b) for s, i, j, a, b in items) + "\n"
+@given(_programs())
+def test_fuzz_random_programs_give_a_table_or_one_program_error(lines):
+    text = "G1 F100\n" + "\n".join(lines) + "\n"
     try:
-        p = run(text, max_blocks=2000)
+        p = run(text, max_blocks=2000, subprograms=_FUZZ_SUBS)
     except ProgramError as exc:
-        assert exc.line is not None
+        assert exc.line is not None and "main.mpf" in str(exc)
         return
-    assert len(p.blocks) >= 0 and {"file", "line", "stack"} <= set(p.blocks.columns)
+    assert {"file", "line", "stack"} <= set(p.blocks.columns)
+    assert np.isfinite(p.blocks[["x_mm", "y_mm", "z_mm"]].to_numpy()).all()
 
 
 @settings(max_examples=150, deadline=None, derandomize=True)

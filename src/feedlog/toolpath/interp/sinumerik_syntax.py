@@ -455,10 +455,12 @@ def _parse(line: SLine, c: Cursor) -> None:
         line.n = int(m.group(1) or m.group(2))
         c.pos = m.end()
     name = c.ident()
-    if name is not None and _LABEL.match(name):
+    if name is not None:
         after = c.pos + len(name)
         rest = t[after:].lstrip(" ")
         if rest.startswith(":") and not rest.startswith(":="):
+            if not _LABEL.match(name):
+                raise InterpError(f"label {name}: a label begins with two letters or underscores")
             line.label = name
             c.pos = t.index(":", after) + 1
             name = c.ident()
