@@ -385,3 +385,24 @@ def test_fuzz_character_soup(text):
         run(text, max_blocks=2000)
     except ProgramError:
         pass
+
+
+def test_proc_save_restores_the_callers_modal_state_and_frame():
+    """Job Planning, "SAVE attribute": at the end of a subprogram defined with PROC ... SAVE the modal G
+    functions and the frame of the caller are in force again."""
+    subs = {"INC": "PROC INC SAVE\nG91 G1 X1\nTRANS X100\nRET\n", "NOSAVE": "PROC NOSAVE\nG91\nRET\n"}
+    p = run("G90 G0 X0 F100\nINC\nX5\nNOSAVE\nX5\nM30\n", subprograms=subs)
+    assert [m[:2] for m in moves(p)] == [("rapid", 0), ("linear", 1), ("rapid", 5), ("rapid", 10)]
+    assert p.blocks[p.blocks["kind"] == "rapid"]["wx_mm"].tolist() == [0, 0, 0]
+
+
+def test_g53_moves_in_machine_coordinates_for_one_block():
+    p = run("TRANS X50\nG0 X10\nG53 X10\nX10\nM30\n")
+    b = p.blocks[p.blocks["kind"] == "rapid"]
+    assert (b["x_mm"] + b["wx_mm"]).tolist() == [60, 10, 60]
+
+
+def test_words_without_effect_on_the_path_are_warned_and_other_cycles_stay_with_the_translation():
+    p = run("R1=1\nG642 ADIS=0.5 G1 F100 X=R1 TRAORI\nM30\n")
+    assert any("ADIS" in w for w in p.warnings) and any("TRAORI" in w for w in p.warnings)
+    assert not needs_sinumerik_interpreter("G0 X0\nCYCLE800(1,\"TC1\",0,57,0,0,0,0,0,0,0,0,0,1)\nG1 X1 F10\n")

@@ -120,7 +120,7 @@ class Frame:
     vars: dict = field(default_factory=dict)
     types: dict = field(default_factory=dict)
     for_end: dict = field(default_factory=dict)
-    mcall_after: bool = False
+    saved: tuple | None = None       # the caller's modal state, for PROC ... SAVE
 
 
 class SinumerikInterpreter:
@@ -228,8 +228,12 @@ class SinumerikInterpreter:
                               "(the limit is interpreter option max_blocks)")
         if line.ignored:
             for word in line.ignored:
-                self._warn(f"ignored:{word}", f"{word} (dynamics, look-ahead or display setting) does not change the "
-                           "programmed path: ignored (the machine profile models the dynamics)")
+                if word == "TRAORI":
+                    self._warn("ignored:TRAORI", "TRAORI (5-axis transformation) ignored: the axes are read as "
+                               "programmed, as the line translation reads them")
+                    continue
+                self._warn(f"ignored:{word}", f"{word} (dynamics, look-ahead, override or display setting) does not "
+                           "change the programmed path: ignored (the machine profile models the dynamics)")
         if line.control is not None:
             self._control(line)
         else:
@@ -385,6 +389,8 @@ class SinumerikInterpreter:
                       repeat_left=(repeat or 1) - 1, args=args)
         if sub.proc is None and args:
             raise InterpError(f"{name} is called with arguments but has no PROC line with parameters")
+        if sub.proc is not None and "SAVE" in sub.proc[3]:
+            frame.saved = self._modal()
         self.frames.append(frame)
         self._enter_vars(frame, sub.proc, args)
         self.file, self.index = sub, sub.start
@@ -418,8 +424,21 @@ class SinumerikInterpreter:
             return
         self.frames.pop()
         self.file, self.index = frame.ret_file, frame.ret_index
-        if frame.mcall_after:
-            pass
+        if frame.saved is not None:
+            self._restore(frame.saved)
+
+    def _modal(self) -> tuple:
+        m = self.m
+        return (self.motion, self.incremental, m.plane, m.inch, self.metric_feed_only, m.control, m.feed_mode,
+                list(self.trans), self.rot, self.settable, m.origin_index)
+
+    def _restore(self, saved: tuple) -> None:
+        """PROC ... SAVE: the modal G functions and the frame of the caller come back at the return."""
+        m = self.m
+        (self.motion, self.incremental, m.plane, inch, self.metric_feed_only, m.control, m.feed_mode,
+         self.trans, self.rot, self.settable, m.origin_index) = saved
+        m._units(inch)
+        self._frame_to_machine()
 
     # -- blocks ---------------------------------------------------------------------------------------
     def _record(self, line: SLine, m_list: list, comment: str) -> None:
@@ -874,6 +893,9 @@ def needs_sinumerik_interpreter(text: str) -> bool:
     for i, raw in enumerate(text.split("\n")):
         line = parse_line(raw, i + 1, names)
         if line.error is None and not line.plain:
+            if line.control is None and line.call is not None and line.call[0].startswith("CYCLE") \
+                    and line.call[0] not in CALL_CYCLES and all(item[0] != "set" for item in line.items):
+                continue     # other cycles: the translation drops them with a note, as before
             return True
     return False
 

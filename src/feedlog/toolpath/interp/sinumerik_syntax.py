@@ -39,7 +39,9 @@ IGNORED = frozenset(("SOFT", "BRISK", "DRIVE", "FFWON", "FFWOF", "COMPCAD", "COM
                      "DISPLON", "SAVE", "G601", "G602", "G603", "G450", "G451", "TRAFOOF", "ORIWKS", "ORIMKS",
                      "ORIAXES", "ORIVECT", "WAITM", "WORKPIECE", "CYCLE832", "SBLOF", "SBLON", "ACC", "OFFN",
                      "CUT2D", "CUT2DF", "CDON", "CDOF", "CDOF2", "DIAMOF", "BTAN", "BAUTO", "BNAT", "ETAN",
-                     "EAUTO", "ENAT", "G40"))
+                     "EAUTO", "ENAT", "G40", "TRAORI"))
+# address words with no effect on the programmed path (look-ahead distances, overrides, spindle positioning)
+IGNORED_WORDS = frozenset(("ADIS", "ADISPOS", "OVR", "SPOS", "SPOSA", "FA"))
 FUNCTIONS = {
     "SIN": 1, "COS": 1, "TAN": 1, "ASIN": 1, "ACOS": 1, "ATAN2": 2, "SQRT": 1, "ABS": 1, "POT": 1, "TRUNC": 1,
     "ROUND": 1, "ROUNDUP": 1, "LN": 1, "EXP": 1, "MINVAL": 2, "MAXVAL": 2, "BOUND": 3,
@@ -602,12 +604,14 @@ def _proc(c: Cursor) -> tuple:
                 if c.take(")"):
                     break
                 c.expect(",", f"between the parameters of PROC {name}")
+    attrs = []
     while not c.at_end():      # SAVE, DISPLOF, SBLOF, ...
         attr = c.ident()
         if attr is None:
             raise InterpError(f"unexpected {c.text[c.pos:c.pos + 12]!r} after PROC {name}")
         c.pos += len(attr)
-    return ("PROC", name, params)
+        attrs.append(attr)
+    return ("PROC", name, params, tuple(attrs))
 
 
 def _value(c: Cursor, address: str):
@@ -687,6 +691,9 @@ def _block(line: SLine, c: Cursor) -> None:
             if is_set and not (name in EQ_ADDRESSES or (len(name) == 1 and name in ADDRESSES)):
                 raise InterpError(f"unknown name {name} (assignment to an undeclared variable?)")
             w = _word(c, name)
+            if w.address in IGNORED_WORDS:
+                line.ignored.append(w.address)
+                continue
             if w.address == "P" and line.call is not None:
                 if callable(w.value) or w.value < 1 or w.value != int(w.value):
                     raise InterpError("P repeat count must be a whole number 1 or more")
