@@ -406,3 +406,15 @@ def test_words_without_effect_on_the_path_are_warned_and_other_cycles_stay_with_
     p = run("R1=1\nG642 ADIS=0.5 G1 F100 X=R1 TRAORI\nM30\n")
     assert any("ADIS" in w for w in p.warnings) and any("TRAORI" in w for w in p.warnings)
     assert not needs_sinumerik_interpreter("G0 X0\nCYCLE800(1,\"TC1\",0,57,0,0,0,0,0,0,0,0,0,1)\nG1 X1 F10\n")
+
+
+def test_a_plain_real_program_reads_alike_through_the_front_end_and_the_line_translation():
+    """The bundled real program (tests/fixtures/ingest/real/sinumerik_part.mpf: G500 G54 in one block,
+    T="..", D1, CYCLE832, G642, X=80, SOFT, CR=, MSG) run through the front-end gives the motion the line
+    translation gives (its usual path), row for row."""
+    f = ROOT / "tests/fixtures/ingest/real/sinumerik_part.mpf"
+    a, b = load_program(f), interpret_sinumerik(f)
+    cols = ["x_mm", "y_mm", "z_mm", "cx_mm", "cy_mm", "feed_mm_min", "line"]
+    assert a.motion["kind"].tolist() == b.motion["kind"].tolist()
+    assert np.allclose(a.motion[cols].to_numpy(float), b.motion[cols].to_numpy(float), equal_nan=True)
+    assert any("CYCLE832" in w for w in b.warnings) and any("G54 selected" in w for w in b.warnings)

@@ -217,6 +217,8 @@ class SinumerikInterpreter:
     def _line(self, line: SLine) -> None:
         if line.error:
             raise InterpError(line.error)
+        if line.ignored:
+            self._ignored(line.ignored)
         if line.empty:
             if line.comment:
                 self._record(line, [], line.comment)
@@ -226,18 +228,20 @@ class SinumerikInterpreter:
         if self.blocks > self.max_blocks:
             raise InterpError(f"more than {self.max_blocks} blocks executed: a runaway loop? "
                               "(the limit is interpreter option max_blocks)")
-        if line.ignored:
-            for word in line.ignored:
+        if line.control is not None:
+            self._control(line)
+        else:
+            self._block(line)
+
+    def _ignored(self, words: list) -> None:
+        if words:
+            for word in words:
                 if word == "TRAORI":
                     self._warn("ignored:TRAORI", "TRAORI (5-axis transformation) ignored: the axes are read as "
                                "programmed, as the line translation reads them")
                     continue
                 self._warn(f"ignored:{word}", f"{word} (dynamics, look-ahead, override or display setting) does not "
                            "change the programmed path: ignored (the machine profile models the dynamics)")
-        if line.control is not None:
-            self._control(line)
-        else:
-            self._block(line)
 
     def _end_of_file(self) -> None:
         if len(self.frames) > 1:
@@ -518,9 +522,7 @@ class SinumerikInterpreter:
         groups: dict[str, int] = {}
 
         def group(name: str, code: int) -> None:
-            if name in groups and groups[name] != code:
-                raise InterpError(f"G{groups[name]} and G{code} of the same group in one block")
-            groups[name] = code
+            groups[name] = code     # two of one group in a block: the last one holds (`G500 G54`, real programs)
 
         for code in gs:
             if code in (0, 1, 2, 3):
