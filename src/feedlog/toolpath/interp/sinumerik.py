@@ -14,6 +14,7 @@ polar coordinates and other cycles are refused with file and line.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -39,6 +40,10 @@ _AXES = "XYZABC"
 _PLANE_AXIS = {170: 2, 180: 1, 190: 0}   # the tool (drilling) axis of each plane
 _MODAL_M = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "spindle", 4: "spindle", 5: "spindle",
             6: "toolchange"}
+
+
+_SIMPLE_LINE = re.compile(r"\s*(?:/?\s*N\d+\s*)?(?:[GMXYZABCIJKFSTDHE]\s*=?\s*[-+]?(?:\d+\.?\d*|\.\d+)\s*)*(?:;.*)?\r?",
+                          re.IGNORECASE)
 
 
 class SFile:
@@ -462,7 +467,8 @@ class SinumerikInterpreter:
                 self._assign(item[1], _value(item[2], self))
             elif item[0] == "msg":
                 v = _value(item[1], self)
-                msgs.append(v if isinstance(v, str) else _fmt_num(v))
+                if v != "":        # MSG() clears the message
+                    msgs.append(v if isinstance(v, str) else _fmt_num(v))
             else:
                 w = item[1]
                 v = _value(w.value, self)
@@ -822,7 +828,7 @@ class SinumerikInterpreter:
             if vari == 1:
                 to(safe, True)
                 dwell(dts)
-                reached = d * (rfp - current)
+                reached = d * (rfp - current) * f          # mm
                 ahead = min(0.6, reached / 50.0) if reached < 30.0 else 0.6
                 to(current + d * ahead / f, True)
             else:
@@ -893,6 +899,8 @@ def needs_sinumerik_interpreter(text: str) -> bool:
     variables, control flow, calls, cycles, frames, AC/IC."""
     names: set[str] = set()
     for i, raw in enumerate(text.split("\n")):
+        if _SIMPLE_LINE.fullmatch(raw):
+            continue        # address letters with numbers and a comment: plain, without parsing
         line = parse_line(raw, i + 1, names)
         if line.error is None and not line.plain:
             if line.control is None and line.call is not None and line.call[0].startswith("CYCLE") \
