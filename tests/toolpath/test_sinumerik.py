@@ -418,3 +418,18 @@ def test_a_plain_real_program_reads_alike_through_the_front_end_and_the_line_tra
     assert a.motion["kind"].tolist() == b.motion["kind"].tolist()
     assert np.allclose(a.motion[cols].to_numpy(float), b.motion[cols].to_numpy(float), equal_nan=True)
     assert any("CYCLE832" in w for w in b.warnings) and any("G54 selected" in w for w in b.warnings)
+
+
+def test_subprogram_errors_name_the_subprogram_file_and_line(tmp_path):
+    subs = tmp_path / "lib"
+    subs.mkdir()
+    (subs / "POCKET.SPF").write_text("PROC POCKET(REAL D)\nG1 Z=-D\nWHILE D>0\nD=D-1\nM17\n")
+    (tmp_path / "main.mpf").write_text("G1 F100\nPOCKET(3)\nM30\n")
+    from feedlog.toolpath.interp import InterpOptions
+    with pytest.raises(ProgramError, match=r"POCKET.SPF:3: WHILE without its ENDWHILE"):
+        load_program(tmp_path / "main.mpf", interp=InterpOptions(search_path=(subs,)))
+    (subs / "POCKET.SPF").write_text("PROC POCKET(REAL D)\nG1 Z=-D/0\nM17\n")
+    with pytest.raises(ProgramError, match=r"POCKET.SPF:2: division by zero \(called from main.mpf:2\)"):
+        load_program(tmp_path / "main.mpf", interp=InterpOptions(search_path=(subs,)))
+    with pytest.raises(ProgramError, match=r"main.mpf:2: POCKET takes 1 parameter\(s\), called with 2 \[POCKET"):
+        run("G1 F100\nPOCKET(3, 4)\nM30\n", subprograms={"POCKET": "PROC POCKET(REAL D)\nM17\n"})

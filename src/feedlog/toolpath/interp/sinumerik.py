@@ -400,8 +400,8 @@ class SinumerikInterpreter:
             raise InterpError(f"{name} is called with arguments but has no PROC line with parameters")
         if sub.proc is not None and "SAVE" in sub.proc[3]:
             frame.saved = self._modal()
-        self.frames.append(frame)
         self._enter_vars(frame, sub.proc, args)
+        self.frames.append(frame)
         self.file, self.index = sub, sub.start
 
     def _enter_vars(self, frame: Frame, proc, args: list) -> None:
