@@ -433,3 +433,9 @@ def test_subprogram_errors_name_the_subprogram_file_and_line(tmp_path):
         load_program(tmp_path / "main.mpf", interp=InterpOptions(search_path=(subs,)))
     with pytest.raises(ProgramError, match=r"main.mpf:2: POCKET takes 1 parameter\(s\), called with 2 \[POCKET"):
         run("G1 F100\nPOCKET(3, 4)\nM30\n", subprograms={"POCKET": "PROC POCKET(REAL D)\nM17\n"})
+
+
+def test_a_move_before_any_motion_code_is_warned_and_taken_as_g0():
+    p = run("X10 Y5\nG1 F100 X0\nM30\n")
+    assert moves(p) == [("rapid", 10, 5, 0), ("linear", 0, 5, 0)]
+    assert any("initial motion code is machine data" in w for w in p.warnings)

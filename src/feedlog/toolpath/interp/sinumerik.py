@@ -149,7 +149,7 @@ class SinumerikInterpreter:
         self.index = 0
         self.seq = 0
         self.blocks = 0
-        self.motion = 0                  # G0 after power-on (machine data; the manuals' default)
+        self.motion: int | None = None   # the initial motion code is machine data: warned, then G0
         self.incremental = False
         self.metric_feed_only = False    # G70/G71: geometry in the unit, feeds stay in mm
         self.trans = [0.0, 0.0, 0.0]     # programmable frame, mm
@@ -659,6 +659,10 @@ class SinumerikInterpreter:
         arc_words = [a for a in ("I", "J", "K", "CR", "TURN") if a in words]
         moved = False
         if axes or arc_words:
+            if self.motion is None:
+                self._warn("initial-motion", "axes moved before any G0/G1/G2/G3: the initial motion code is machine "
+                           "data; taken as G0")
+                self.motion = 0
             motion = self.motion
             if arc_words and motion not in (2, 3):
                 raise InterpError(f"{arc_words[0]} with G{motion} (I, J, K, CR and TURN belong to G2/G3)")
