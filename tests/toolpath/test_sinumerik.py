@@ -439,3 +439,29 @@ def test_a_move_before_any_motion_code_is_warned_and_taken_as_g0():
     p = run("X10 Y5\nG1 F100 X0\nM30\n")
     assert moves(p) == [("rapid", 10, 5, 0), ("linear", 0, 5, 0)]
     assert any("initial motion code is machine data" in w for w in p.warnings)
+
+
+def test_cycles_drill_along_the_planes_tool_axis():
+    """Programming Guide Cycles: the drilling axis is the one normal to the plane (G19: X)."""
+    p = run("G19 G0 X30 Y5 Z5 F100\nCYCLE81(30, 20, 1, 10)\nM30\n")
+    assert [m[1] for m in moves(p)] == [30, 21, 10, 30]
+    assert {m[2:] for m in moves(p)} == {(5, 5)}
+
+
+_FLIP_PROGRAM = ("DEF INT I\nDEF REAL D=2.5\nR1=0 G17 G90 G0 Z10 F200 S1000 M3\nTRANS X10\nFOR I=1 TO 3\n"
+                 "  IF I==2 GOTOF SK\n  G1 X=I*5 Y=R1\n  SK: R1=R1+D\nENDFOR\nMCALL CYCLE81(10, 0, 1, -3)\n"
+                 "X20 Y20\nMCALL\nAROT RPL=30\nG2 X30 Y0 CR=20\nWHILE R1>0\n R1=R1-5\n L7\nENDWHILE\n"
+                 "CYCLE83(10, 0, 1, -20, , -5, , 2, 0, 0, 1, 1)\nM30\n")
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.lists(st.tuples(st.integers(0, len(_FLIP_PROGRAM) - 1), st.integers(1, 255)), min_size=1, max_size=4))
+def test_fuzz_bit_flipped_program(flips):
+    """A program using most features, with a few bytes changed: a table or one ProgramError."""
+    data = bytearray(_FLIP_PROGRAM.encode())
+    for at, xor in flips:
+        data[at] ^= xor
+    try:
+        run(data.decode("utf-8", errors="replace"), max_blocks=5000, subprograms={"L7": "G91 G1 Z-1\nG90\nM17\n"})
+    except ProgramError as exc:
+        assert exc.line is not None
