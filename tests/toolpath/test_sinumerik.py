@@ -315,6 +315,8 @@ def test_load_program_routes_sinumerik_programs(tmp_path):
     with pytest.raises(ProgramError, match="bad.mpf:3"):
         load_program(bad)
     assert needs_sinumerik_interpreter("X=IC(2)") and not needs_sinumerik_interpreter("N10 G1 X=80 F200\n")
+    lenient = load_program("R1=2\nG1 F100 X=R1\nG41 X5\nM30\n", dialect="sinumerik", lenient=True)
+    assert lenient.warnings[0].startswith("the Sinumerik front-end refused it (<string>:3: G41")
 
 
 # -- fuzzing ----------------------------------------------------------------------------------------------
