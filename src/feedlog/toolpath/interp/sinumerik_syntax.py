@@ -366,6 +366,9 @@ class Cursor:
             if m.group(2) is not None:
                 v = finite(v * 10.0 ** int(m.group(2)))
             return v
+        if ch == "$":
+            m = re.compile(r"\$[A-Z0-9_]*").match(t, p)
+            raise InterpError(f"system variable {m.group(0)} is not known to feedlog (its value is machine state)")
         name = self.ident()
         if name is None:
             raise InterpError(f"unexpected character {ch!r} in an expression")
@@ -387,8 +390,6 @@ class Cursor:
             if len(args) != FUNCTIONS[name] or any(a is None for a in args):
                 raise InterpError(f"{name} takes {FUNCTIONS[name]} argument(s)")
             return _apply(_FUNCS[name], args)
-        if name.startswith("$") or t[p - 1:p] == "$":
-            raise InterpError(f"system variable {name} is not known to feedlog")
         raise InterpError(f"unknown name {name} in an expression (not a DEF variable, R parameter or function)")
 
     def arguments(self, name: str) -> list:
