@@ -16,6 +16,7 @@ from pathlib import Path
 from feedlog.errors import ProgramError
 from feedlog.toolpath.dialects import DIALECTS, detect, translate
 from feedlog.toolpath.interp import InterpOptions, interpret, needs_interpreter
+from feedlog.toolpath.interp.sinumerik import sinumerik_program
 from feedlog.toolpath.parser import parse_program
 from feedlog.toolpath.program import Program
 from feedlog.toolpath.source import read_source
@@ -34,6 +35,11 @@ def load_program(source: str | Path | Program, *, lenient: bool = False, dialect
         raise ProgramError(f"unknown G-code dialect {dialect!r}; known: {', '.join(DIALECTS)}", file=name)
     text, path, label = read_source(source, name)
     translation = translate(text, dialect, name=path or label)
+    if translation.dialect == "sinumerik":   # parameters, control flow, calls, cycles, frames: its own front-end
+        program, refused = sinumerik_program(text, path, label, interp=interp, lenient=lenient)
+        if program is not None:
+            return program
+        translation.notes[:0] = [refused] if refused else []
     native = translation.dialect == "rs274ngc" and dialect in ("auto", "rs274ngc")
     body = text if native else (translation.text if "\n" in translation.text else translation.text + "\n")
     program = None
