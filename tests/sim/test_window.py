@@ -13,7 +13,7 @@ import pytest
 from feedlog.errors import SimulationError
 from feedlog.sim import simulate
 from feedlog.sim.window import WindowedSimulation, simulate_windowed
-from feedlog.toolpath import parse_program
+from feedlog.toolpath import load_program, parse_program
 from feedlog.toolpath.synthetic import tangent_arc
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -22,7 +22,7 @@ MANIFEST = tomllib.loads((ROOT / "recordings" / "manifest.toml").read_text())["r
 
 def assert_same(program, profile, *, mechanisms=None, window=16, series=True, **kw):
     """Windowed against `simulate`: cycle time within 1e-9 s, block table and series equal."""
-    ref = simulate(program if hasattr(program, "blocks") else parse_program(program, lenient=True), profile,
+    ref = simulate(program if hasattr(program, "blocks") else load_program(program, lenient=True), profile,
                    mechanisms=mechanisms)
     res, blocks, samples = simulate_windowed(program, profile, mechanisms=mechanisms, window=window,
                                              series=series, **kw)

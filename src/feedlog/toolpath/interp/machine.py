@@ -117,7 +117,7 @@ class Machine:
              feed: float | None = None) -> None:
         self.emitted += 1
         if kind <= K_ARC_CCW:
-            self.last_move = (end, self._offsets())
+            self.last_move = (tuple(end), self._offsets())
         if self.comp.queue:      # rows keep their order behind moves cutter compensation still holds
             self.comp.hold(kind, end, centre, turns if kind == K_ARC_CCW else -turns, dwell=dwell)
             return
@@ -139,7 +139,7 @@ class Machine:
             return self.pos
         end, offsets = self.last_move
         if offsets == self._offsets():
-            return end
+            return list(end)
         machine = self._machine_of(end, offsets)
         if offsets[4] != self.inch:
             k = MM_PER_INCH if offsets[4] else INCH_PER_MM

@@ -722,7 +722,7 @@ class SinumerikInterpreter:
     # -- frames --------------------------------------------------------------------------------------
     def _frame_to_machine(self) -> None:
         m = self.m
-        mach = m._machine_of(m.pos)
+        mach = m._machine_of(m.pos, m._offsets())
         f = INCH_PER_MM if m.inch else 1.0
         for k in range(3):
             m.origin[k] = self.trans[k] * f
