@@ -112,6 +112,8 @@ def parse_line(raw: str, number: int) -> Line:
             r.pos += 1
         if r.pos == start:
             raise InterpError("bad format unsigned integer after N")
+        if r.pos - start > 9:   # beyond +-1e9, as the vectorised parser bounds every number
+            raise InterpError(f"N number out of range (beyond 1e9): N{code[start:start + 12]}...")
         value = float(code[start:r.pos])
         if r.peek() == ".":
             r.pos += 1
