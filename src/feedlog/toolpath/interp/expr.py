@@ -97,8 +97,15 @@ def _exp(x: float) -> float:
         raise InterpError("calculation resulted in 'infinity'") from None
 
 
+INT_MIN, INT_MAX = -2**31, 2**31 - 1
+
+
 def _round(x: float) -> float:
-    return float(int(x + (-0.5 if x < 0.0 else 0.5)))
+    """LinuxCNC's ROUND: (int)(x +- 0.5), a C int: beyond its range the x86 conversion gives INT_MIN."""
+    v = x + (-0.5 if x < 0.0 else 0.5)
+    if not INT_MIN <= v < INT_MAX + 1:
+        return float(INT_MIN)
+    return float(int(v))
 
 
 FUNCTIONS = {
