@@ -33,6 +33,9 @@ def load_program(source: str | Path | Program, *, lenient: bool = False, dialect
     if dialect not in DIALECTS:
         raise ProgramError(f"unknown G-code dialect {dialect!r}; known: {', '.join(DIALECTS)}", file=name)
     text, path, label = read_source(source, name)
+    front_end = _fanuc_front_end(source, text, path, label, dialect, lenient, interp)
+    if front_end is not None:
+        return front_end
     translation = translate(text, dialect, name=path or label)
     native = translation.dialect == "rs274ngc" and dialect in ("auto", "rs274ngc")
     body = text if native else (translation.text if "\n" in translation.text else translation.text + "\n")
@@ -60,6 +63,26 @@ def load_program(source: str | Path | Program, *, lenient: bool = False, dialect
     if translation.notes:
         program.warnings[:0] = translation.notes
         program.metadata["dialect_changes"] = translation.notes
+    return program
+
+
+def _fanuc_front_end(source, text: str, path, label: str, dialect: str, lenient: bool,
+                     interp: InterpOptions | None) -> Program | None:
+    """A Fanuc / Hurco program with macro B, subprograms or canned cycles through the macro front-end
+    (toolpath.interp.fanuc); None when the line translation reads it (plain programs, other dialects).
+    With `lenient`, a program the front-end refuses falls back to the translation (warned)."""
+    from feedlog.toolpath.interp.fanuc import interpret_fanuc, use_front_end
+    detected = detect(text, path or label) if dialect == "auto" else dialect
+    if not use_front_end(text, dialect, detected):
+        return None
+    try:
+        program = interpret_fanuc(source if path is not None else text, name=label, options=interp)
+    except ProgramError:
+        if not lenient:
+            raise
+        return None
+    program.path = path
+    program.metadata["dialect"] = "hurco" if dialect == "hurco" else "fanuc"
     return program
 
 
