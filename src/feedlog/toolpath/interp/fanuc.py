@@ -68,7 +68,7 @@ REFUSED = {
     950: "G95 feed per revolution depends on the spindle speed; not simulated",
 }
 _LABEL = re.compile(r"^\s*/?\s*[Nn]\s*(\d+)")
-_PROGRAM = re.compile(r"^\s*[Oo:]\s*(\d+)")
+_PROGRAM = re.compile(r"^\s*[Oo:]\s*(\d+)\s*(?:\([^)]*\)\s*)*(?:;.*)?$")
 
 
 @dataclass
@@ -106,9 +106,9 @@ class FanucFile:
             self.lines.pop()
         self.parsed: list = [None] * len(self.lines)
         self.programs: list[ProgramText] = []
-        starts = [(i, int(m.group(1))) for i, raw in enumerate(self.lines) if (m := _PROGRAM.match(raw))
-                  and raw.split("(")[0].strip()[1:].strip().isdigit()]
-        if starts and any(raw.split("(")[0].strip() not in ("", "%") for raw in self.lines[:starts[0][0]]):
+        starts = [(i, int(m.group(1))) for i, raw in enumerate(self.lines) if (m := _PROGRAM.match(raw))]
+        if starts and any(raw.split("(")[0].split(";")[0].strip() not in ("", "%")
+                          for raw in self.lines[:starts[0][0]]):
             self.programs.append(ProgramText(None, self, 0, starts[0][0]))
         elif not starts:
             self.programs.append(ProgramText(None, self, 0, len(self.lines)))
@@ -369,7 +369,11 @@ class FanucInterpreter:
         while len(rows) < until_rows and not self.finished:
             prog = self.program
             if self.index >= prog.end:
-                self._end_of_program()
+                try:
+                    self._end_of_program()
+                except InterpError as exc:
+                    self.seq = prog.end
+                    raise self._error(str(exc)) from None
                 continue
             f = prog.file
             self.file = f
@@ -591,10 +595,12 @@ class FanucInterpreter:
                 if abs(code - value * 10) > 1e-3:
                     raise InterpError(f"G code out of range (G{value:g})")
                 g_codes.append(code)
-            elif letter == "M":
+            elif letter == "M" and not any(w[0] == "G" and abs(w[1] - 65) < 1e-6 for w in words):
                 if abs(value - round(value)) > 1e-6:
                     raise InterpError(f"non-integer M code (M{value:g})")
                 m_codes.append(int(round(value)))
+            elif letter == "M":
+                m_codes.append(value)
             else:
                 if letter in letters:
                     if 650 in g_codes and letter in "IJK":
@@ -611,12 +617,16 @@ class FanucInterpreter:
         if 650 in g_codes:
             if len(g_codes) > 1:
                 raise InterpError("G65 must stand alone with its P, L and arguments")
-            self._record(line, m_codes)
+            self._record(line, [])
             if "P" not in letters:
                 raise InterpError("G65 without P (the macro's program number)")
             number = _integer(letters.pop("P"), "G65 P")
             repeats = _integer(letters.pop("L", 1.0), "G65 L")
             args = {}
+            if len(m_codes) > 1:
+                raise InterpError("two M arguments on a G65 block")
+            if m_codes:
+                args[ARGUMENTS["M"]] = next(v for k, v, _ in words if k == "M")
             for letter, value in letters.items():
                 if letter not in ARGUMENTS:
                     raise InterpError(f"{letter} is not a G65 argument address")
@@ -747,9 +757,31 @@ class FanucInterpreter:
         enhance(b, self.m.motion_mode, self.m.plane)
         self._record(line, m_codes)
         self._track_z(b)
+        if b.motion in (20, 30) and "r" not in b.v and not self.m.comp.side:
+            self._arc_radius_check(b)
         if self.m.execute(b):
             self.metadata.setdefault("end_line", self.seq)
             self._finish()
+
+    def _arc_radius_check(self, b) -> None:
+        """Fanuc's arc check (parameter 3410): the end radius may differ from the start radius by at most
+        the tolerance, with no relative allowance (LinuxCNC also allows 0.1 %). The tolerance is the
+        interpreter's (InterpOptions.arc_tolerance_mm / _inch; LinuxCNC's defaults, which accept
+        4-decimal inch rounding)."""
+        m = self.m
+        u, w = {170: (0, 1), 180: (2, 0), 190: (1, 2)}[m.plane]
+        if not m.incremental and b.g.get("nonmodal") == 530:
+            return
+        end = m._ends(b)
+        offs = {0: b.v.get("i", 0.0), 1: b.v.get("j", 0.0), 2: b.v.get("k", 0.0)}
+        cu, cw = m.pos[u] + offs[u], m.pos[w] + offs[w]
+        r0 = math.hypot(m.pos[u] - cu, m.pos[w] - cw)
+        r1 = math.hypot(end[u] - cu, end[w] - cw)
+        tol = m.arc_tol_inch if m.inch else m.arc_tol_mm
+        if abs(r1 - r0) > tol:
+            unit = "in" if m.inch else "mm"
+            raise InterpError(f"radius to end of arc differs from radius to start by {abs(r1 - r0):.5g} {unit} "
+                              f"(r1={r0:.4f} r2={r1:.4f}; tolerance {tol:.4g} {unit}, settable: --arc-tolerance)")
 
     def _track_z(self, b) -> None:
         if b.motion in (0, 10, 20, 30) and "z" in b.v:
@@ -761,9 +793,10 @@ class FanucInterpreter:
         """K0: the cycle's data are stored, nothing moves (Fanuc)."""
         m = self.m
         rest = [c for c in g if c not in CYCLES]
+        keep = [(k.lower(), v) for k, v in letters.items() if k in "FST"]
         self._record(line, passed_m)
-        if rest or passed_m:
-            b = build([("g", c / 10.0) for c in rest] + [("m", float(c)) for c in passed_m], None)
+        if rest or passed_m or keep:
+            b = build([("g", c / 10.0) for c in rest] + [("m", float(c)) for c in passed_m] + keep, None)
             enhance(b, -1, m.plane)
             m.execute(b)
         else:
