@@ -374,3 +374,21 @@ def test_the_bundled_fanuc_programs_still_read_as_before():
             continue
         p = load_program(path, lenient=True)
         assert p.metadata.get("interpreter") != "feedlog.toolpath.interp.fanuc"
+
+
+def test_haas_m97_local_subprogram():
+    """Haas mill manual, M97 local subprogram call: M97 P1000 L2 runs the block N1000 of the same program
+    to its M99 twice, then the caller goes on after the M97 block."""
+    p = run("O00001\nG0 X0 Y0\nM97 P1000 L2\nG0 X50.\nM30\nN1000 G91 G0 Y10.\nG90\nM99\n")
+    e = ends(p)
+    assert e.tolist() == [[0, 0, 0], [0, 10, 0], [0, 20, 0], [50, 20, 0]]
+    assert p.motion["stack"].tolist() == ["", "prog.nc:3", "prog.nc:3", ""]
+    assert p.motion["line"].tolist() == [2, 6, 6, 4]
+
+
+def test_g10_l2_sets_a_work_offset_and_no_warning_is_given():
+    p = run("G10 L2 P2 X100. Y10.\nG55 G0 X1 Y1\nM30\n")
+    assert machine_xy(p).tolist() == [[101, 11]]
+    assert not any("G55" in w for w in p.warnings)
+    with pytest.raises(ProgramError, match=r"prog.nc:1: G10 L2 P0"):
+        run("G10 L2 P0 X1.\nM30\n")

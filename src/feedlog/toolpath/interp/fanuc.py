@@ -16,11 +16,8 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-
-import pandas as pd
 
 from feedlog.errors import ProgramError
 from feedlog.toolpath.interp.block import build, enhance, refuse
@@ -30,6 +27,7 @@ from feedlog.toolpath.interp.errors import InterpError
 from feedlog.toolpath.interp.fanuc_syntax import FLine, parse_line
 from feedlog.toolpath.interp.machine import INCH_PER_MM, MM_PER_INCH, Machine, rotate
 from feedlog.toolpath.interp.params import Parameters
+from feedlog.toolpath.interp.runner import Interpreter, SourceFile
 from feedlog.toolpath.interp.tools import ToolTable
 from feedlog.toolpath.program import Program
 from feedlog.toolpath.source import read_source
@@ -95,16 +93,11 @@ class ProgramText:
         return index
 
 
-class FanucFile:
+class FanucFile(SourceFile):
     """A file's lines, parsed on first use, and the programs it holds (split at `O` numbers)."""
 
     def __init__(self, name: str, text: str, path: Path | None) -> None:
-        self.name = name
-        self.path = path
-        self.lines = text.split("\n")
-        if self.lines and self.lines[-1] == "":
-            self.lines.pop()
-        self.parsed: list = [None] * len(self.lines)
+        super().__init__(name, text, path)
         self.programs: list[ProgramText] = []
         starts = [(i, int(m.group(1))) for i, raw in enumerate(self.lines) if (m := _PROGRAM.match(raw))]
         if starts and any(raw.split("(")[0].split(";")[0].strip() not in ("", "%")
@@ -132,6 +125,7 @@ class Frame:
     call_line: int = 0
     call_file: str = ""
     repeats: int = 1
+    start: int = 0                              # where a repeat starts again (M97: the N line)
     loops: list = field(default_factory=list)   # (id, index of the WHILE/DO line)
 
 
@@ -216,6 +210,9 @@ class FanucInterpreter:
                                "dialect_front_end": "fanuc macro B"}
         if main.number is not None:
             self.metadata["program_number"] = main.number
+        title = next((m.group(1).strip() for raw in self.main.lines if (m := re.search(r"\(([^()]*)\)", raw))), None)
+        if title:
+            self.metadata["title"] = title
         self.rotation: tuple | None = None          # G68: (saved origin, centre, angle)
         self.extended: int | None = None            # G54.1 P in force
         self.unknown_extended: set[int] = set()
@@ -352,17 +349,7 @@ class FanucInterpreter:
         raise InterpError(f"program O{number} not found (in this file, nor as O{number:04d}[.nc] in {where})")
 
     # -- the loop -----------------------------------------------------------------------------------
-    def batches(self, batch_rows: int = 1 << 16) -> Iterator:
-        start = (0.0,) * 6
-        while not self.finished:
-            self._run(batch_rows)
-            if self.canon.rows or self.finished:
-                first_end = self.canon.rows[-1][3:9] if self.canon.rows else None
-                table = self.canon.table(start)
-                if first_end is not None:
-                    start = tuple(first_end)
-                if len(table) or self.finished:
-                    yield table
+    batches = Interpreter.batches      # the same batching of the block table as the RS274/NGC loop
 
     def _run(self, until_rows: int) -> None:
         rows = self.canon.rows
@@ -503,7 +490,7 @@ class FanucInterpreter:
         if frame.repeats > 1:
             frame.repeats -= 1
             frame.loops = []
-            self.index = frame.program.start
+            self.index = frame.start
             return
         self.frames.pop()
         self._stack_key = -1
@@ -518,6 +505,7 @@ class FanucInterpreter:
             caller.loops = [(m, at) for m, at in caller.loops if at < self.index]
 
     def _call(self, kind: str, number: int, repeats: int, args: dict | None) -> None:
+        """M98 / G65 (program `number`) or M97 (Haas: sequence number `number` of this program)."""
         level = sum(1 for f in self.frames if f.kind == "g65")
         if len(self.frames) > MAX_M98_LEVEL + (0 if kind == "m98" else 0):
             raise InterpError(f"subprogram / macro calls nested more than {MAX_M98_LEVEL} deep")
@@ -525,9 +513,10 @@ class FanucInterpreter:
             raise InterpError(f"G65 macro calls nested more than {MAX_G65_LEVEL - 1} deep (Fanuc's local levels)")
         if repeats < 1:
             return                                   # L0: the call is not made
-        prog = self._find_program(number)
+        prog = self.program if kind == "m97" else self._find_program(number)
+        start = prog.label(number) if kind == "m97" else prog.start
         frame = Frame(kind, prog, ret_program=self.program, ret_index=self.index, call_line=self.seq,
-                      call_file=self.file.name, repeats=repeats)
+                      call_file=self.file.name, repeats=repeats, start=start)
         self.frames.append(frame)
         self._stack_key = -1
         if kind == "g65":
@@ -537,7 +526,7 @@ class FanucInterpreter:
             self.V.locals.append(local)
         self.program = prog
         self.file = prog.file
-        self.index = prog.start
+        self.index = start
 
     def _finish(self) -> None:
         self.finished = True
@@ -636,30 +625,33 @@ class FanucInterpreter:
         call = None
         returning = 99 in m_codes
         ret_label = None
-        if 98 in m_codes:
+        if 98 in m_codes or 97 in m_codes:
+            code = 98 if 98 in m_codes else 97
+            if 98 in m_codes and 97 in m_codes:
+                raise InterpError("M97 and M98 on one block")
             if "P" not in letters:
-                raise InterpError("M98 without P (the subprogram's number)")
-            p = _integer(letters.pop("P"), "M98 P")
+                raise InterpError(f"M{code} without P (the {'subprogram' if code == 98 else 'sequence'} number)")
+            p = _integer(letters.pop("P"), f"M{code} P")
             if "L" in letters:
-                times = _integer(letters.pop("L"), "M98 L")
-            elif p > 9999:                      # Fanuc: M98 P0005 1234 = O1234 five times
+                times = _integer(letters.pop("L"), f"M{code} L")
+            elif p > 9999 and code == 98:       # Fanuc: M98 P0005 1234 = O1234 five times
                 times, p = p // 10000, p % 10000
             else:
                 times = 1
-            call = (p, times)
-            m_codes.remove(98)
+            call = (p, times, "m98" if code == 98 else "m97")
+            m_codes.remove(code)
         if returning:
             ret_label = letters.pop("P", None)
             m_codes.remove(99)
         if g_codes or letters or m_codes or not (call or returning):
             self._machine_block(line, g_codes, letters, points, m_codes)
         else:
-            self._record(line, [98] if call else [99])
+            self._record(line, [int(call[2][1:])] if call else [99])
             self.m.emit_none()
         if self.finished:
             return
         if call is not None:
-            self._call("m98", call[0], call[1], None)
+            self._call(call[2], call[0], call[1], None)
         elif returning:
             self._return(ret_label)
 
@@ -736,6 +728,17 @@ class FanucInterpreter:
             raise InterpError("work offsets cannot change under G68 rotation (G69 first)")
         if self.extended is not None and any(c in g for c in (540, 550, 560, 570, 580, 590)):
             self._leave_extended()
+        if 100 in g and letters.get("L") == 2:
+            p = _integer(letters.get("P", 0.0), "G10 L2 P")
+            if p == 0:
+                raise InterpError("G10 L2 P0 (the external work offset) is not simulated")
+            if not 1 <= p <= 6:
+                raise InterpError(f"G10 L2 P{p}: P1-P6 (G54-G59)")
+            if "R" in letters:
+                raise InterpError("G10 L2 with R (rotation) is not a Fanuc offset")
+            if m.incremental:
+                raise InterpError("G10 L2 in G91 (incremental offsets) is not read")
+            self.written_systems.add(p)
         if 100 in g and letters.get("L") == 20:
             self._g10_l20(letters)
             g.remove(100)
@@ -961,19 +964,10 @@ def interpret_fanuc(source: str | Path, *, name: str | None = None, options=None
     """A Fanuc / Haas / Hurco macro B program through the front-end, as one block table (the columns of
     `interp.interpret`). `options`: an `InterpOptions` (search path for `O####` files, tool table,
     parameter file, arc tolerances, max_blocks)."""
-    from feedlog.toolpath.interp.run import InterpOptions
-    o = options or InterpOptions(**{k: (tuple(v) if k == "search_path" else v) for k, v in kw.items()})
-    search = ([base_dir] if base_dir is not None else []) + list(o.search_path)
-    extra = {} if o.max_blocks is None else {"max_blocks": o.max_blocks}
-    it = FanucInterpreter(source, name=name, search_path=search, tool_table=o.tool_table,
-                          parameter_file=o.parameter_file, arc_tolerance_mm=o.arc_tolerance_mm,
-                          arc_tolerance_inch=o.arc_tolerance_inch, **extra)
-    batches = list(it.batches())
-    blocks = batches[0] if len(batches) == 1 else pd.concat(batches, ignore_index=True)
-    meta = dict(it.metadata)
-    meta["interpreter"] = "feedlog.toolpath.interp.fanuc"
-    meta["blocks_executed"] = it.blocks
-    return Program(blocks=blocks, path=it.main.path, warnings=list(it.warnings), metadata=meta)
+    from feedlog.toolpath.interp.run import interpret
+    program = interpret(source, name=name, options=options, base_dir=base_dir, engine=FanucInterpreter, **kw)
+    program.metadata["interpreter"] = "feedlog.toolpath.interp.fanuc"
+    return program
 
 
 _MACRO = re.compile(r"#|\bIF\s*\[|\bGOTO|\bWHILE\s*\[|\bEND\s*[123]\b|\bDO\s*[123]\b|M\s*0*9[89](?!\d)|"

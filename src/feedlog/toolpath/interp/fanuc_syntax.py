@@ -23,6 +23,7 @@ line executes.
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass, field
 
 from feedlog.toolpath.interp.errors import InterpError
@@ -170,20 +171,9 @@ def _bcd(x):                                       # binary -> BCD
     return float(out)
 
 
-def _lt(a, b):
-    return 1.0 if _z(a) < _z(b) else 0.0
-
-
-def _le(a, b):
-    return 1.0 if _z(a) <= _z(b) else 0.0
-
-
-def _gt(a, b):
-    return 1.0 if _z(a) > _z(b) else 0.0
-
-
-def _ge(a, b):
-    return 1.0 if _z(a) >= _z(b) else 0.0
+def _compare(op):
+    """GT GE LT LE: a vacant operand counts as 0."""
+    return lambda a, b: 1.0 if op(_z(a), _z(b)) else 0.0
 
 
 def _div(a, b):
@@ -191,8 +181,9 @@ def _div(a, b):
 
 
 NAMESPACE = {"_z": _z, "_f": finite, "_div": _div, "_mod": _mod, "_pow": _pow, "_and": _and, "_or": _or,
-             "_xor": _xor, "_eq": _veq, "_ne": lambda a, b: 1.0 - _veq(a, b), "_lt": _lt, "_le": _le,
-             "_gt": _gt, "_ge": _ge, "_atan2": _atan2,
+             "_xor": _xor, "_eq": _veq, "_ne": lambda a, b: 1.0 - _veq(a, b),
+             "_lt": _compare(operator.lt), "_le": _compare(operator.le), "_gt": _compare(operator.gt),
+             "_ge": _compare(operator.ge), "_atan2": _atan2,
              "_SIN": lambda x: math.sin(math.radians(_z(x))), "_COS": lambda x: math.cos(math.radians(_z(x))),
              "_TAN": _tan, "_ASIN": _asin, "_ACOS": _acos, "_ATAN": _atan1, "_SQRT": _sqrt, "_SQR": _sqrt,
              "_ABS": lambda x: abs(_z(x)), "_ROUND": _round, "_RND": _round, "_FIX": _fix, "_FUP": _fup,
@@ -467,18 +458,13 @@ def parse_line(raw: str, number: int) -> FLine:
         line.target = _loop_id(t)
         _end(t)
         return line
-    if t.at("DO") and t.peek(2).isdigit():
-        t.pos += 2
-        line.kind = "do"
-        line.target = _loop_id(t)
-        _end(t)
-        return line
-    if t.at("END") and t.peek(3).isdigit():
-        t.pos += 3
-        line.kind = "end"
-        line.target = _loop_id(t)
-        _end(t)
-        return line
+    for word in ("DO", "END"):
+        if t.at(word) and t.peek(len(word)).isdigit():
+            t.pos += len(word)
+            line.kind = word.lower()
+            line.target = _loop_id(t)
+            _end(t)
+            return line
     while t.pos < len(code):
         c = t.peek()
         if c == "#":
