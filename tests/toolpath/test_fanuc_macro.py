@@ -392,3 +392,22 @@ def test_g10_l2_sets_a_work_offset_and_no_warning_is_given():
     assert not any("G55" in w for w in p.warnings)
     with pytest.raises(ProgramError, match=r"prog.nc:1: G10 L2 P0"):
         run("G10 L2 P0 X1.\nM30\n")
+
+
+def test_routing_keeps_safety_lines_plain_and_names_extended_offsets(tmp_path, capsys):
+    """A plain Fanuc program whose safety line cancels rotation (G69) stays on the line translation; an
+    undeclared program with G54.1 goes to the front-end (also when streamed), and the summary names
+    the extended offset."""
+    import json
+
+    from feedlog.cli import main
+    from feedlog.toolpath.load import stream_dialect
+    plain = tmp_path / "safe.nc"
+    plain.write_text("%\nO1\nG17 G40 G49 G80 G69\nG0 X1. Y1.\nG28 G91 Z0\nM30\n%\n")
+    assert load_program(plain).metadata.get("interpreter") != "feedlog.toolpath.interp.fanuc"
+    ext = tmp_path / "ext.nc"
+    ext.write_text("#7001 = 100.\nG54.1 P1 G0 X1\nM30\n")
+    assert stream_dialect(ext) == "fanuc"
+    assert main(["program", str(ext), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["work_offsets"] == [{"coord_system": "G54.1 P1", "offset": {"wx_mm": 100.0}, "blocks": 1}]

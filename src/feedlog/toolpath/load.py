@@ -101,4 +101,6 @@ def stream_dialect(path: str | Path, dialect: str = "auto") -> str:
             head = fh.read(STREAM_HEAD).decode("utf-8", errors="replace")
     except OSError:
         return "rs274ngc"     # the reader says what is wrong with the path
-    return detect(head, path)
+    detected = detect(head, path)
+    from feedlog.toolpath.interp.fanuc import looks_macro_b
+    return "fanuc" if detected == "rs274ngc" and looks_macro_b(head) else detected

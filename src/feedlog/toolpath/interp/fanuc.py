@@ -970,8 +970,8 @@ def interpret_fanuc(source: str | Path, *, name: str | None = None, options=None
     return program
 
 
-_MACRO = re.compile(r"#|\bIF\s*\[|\bGOTO|\bWHILE\s*\[|\bEND\s*[123]\b|\bDO\s*[123]\b|M\s*0*9[89](?!\d)|"
-                    r"G\s*0*65(?![\d.])|G\s*0*54\s*\.\s*1|G\s*0*6[89](?![\d.])|G\s*0*5[12](?![\d.])|"
+_MACRO = re.compile(r"#|\bIF\s*\[|\bGOTO|\bWHILE\s*\[|\bEND\s*[123]\b|\bDO\s*[123]\b|M\s*0*9[789](?!\d)|"
+                    r"G\s*0*65(?![\d.])|G\s*0*54\s*\.\s*1|G\s*0*68(?![\d.])|"
                     r"G\s*0*(?:7[346]|8[1-9])(?![\d.])", re.IGNORECASE)
 _STRIP = re.compile(r"\([^)\n]*\)")
 
@@ -979,18 +979,19 @@ _STRIP = re.compile(r"\([^)\n]*\)")
 def needs_macro(text: str) -> bool:
     """Whether a Fanuc-style program uses what the line translation cannot read: variables, macro
     statements, subprogram and macro calls, canned cycles (Fanuc's K
-    repeats and P in milliseconds), G52, G54.1, G68."""
+    repeats and P in milliseconds), G54.1, G68 (a G69 alone, as in safety lines, is plain)."""
     return _MACRO.search(_STRIP.sub(" ", text)) is not None
 
 
 _MACRO_ONLY = re.compile(r"\bIF\s*\[.*\]\s*(?:GOTO|THEN)|\bGOTO\s*[\d#\[]|\bWHILE\s*\[.*\]\s*DO\s*[123]|"
-                         r"^\s*(?:N\d+\s*)?END\s*[123]\s*$|M\s*0*98\s*P|G\s*0*65\s*P",
+                         r"^\s*(?:N\d+\s*)?END\s*[123]\s*$|M\s*0*9[78]\s*P|G\s*0*65\s*P|"
+                         r"G\s*0*54\s*\.\s*1|G\s*0*68(?![\d.])",
                          re.IGNORECASE | re.MULTILINE)
 
 
 def looks_macro_b(text: str) -> bool:
     """Whether an undeclared program is Fanuc-style: macro B statements (`IF [..] GOTO`, `WHILE [..] DO 1`,
-    `END 1`), `M98 P` / `G65 P` calls. RS274/NGC has none of these (its O-words take a keyword: `o100 while`,
+    `END 1`), `M98 P` / `G65 P` calls, `G54.1`, `G68`. RS274/NGC has none of these (its O-words take a keyword: `o100 while`,
     `o<x> call`; feedlog's RS274/NGC interpreter does not read M98)."""
     return _MACRO_ONLY.search(_STRIP.sub(" ", text)) is not None
 
