@@ -411,3 +411,15 @@ def test_routing_keeps_safety_lines_plain_and_names_extended_offsets(tmp_path, c
     assert main(["program", str(ext), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["work_offsets"] == [{"coord_system": "G54.1 P1", "offset": {"wx_mm": 100.0}, "blocks": 1}]
+
+
+@settings(max_examples=300, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(st.text(max_size=120), st.binary(max_size=60))
+def test_random_text_gives_a_table_or_one_program_error(text, raw):
+    """Any characters (unicode digits, control bytes, half statements) inside and around macro calls."""
+    from feedlog.toolpath.interp import InterpOptions
+    for body in (text, raw.decode("latin-1"), "#1=" + text, "G65 P1 " + text + "\nM30\nO1\n" + text + "\nM99\n"):
+        try:
+            run(body, options=InterpOptions(max_blocks=2000))
+        except ProgramError as exc:
+            assert exc.file == "prog.nc" and exc.line is not None

@@ -65,8 +65,8 @@ REFUSED = {
     120: "G12 circular pocket (Haas) is not read", 130: "G13 circular pocket (Haas) is not read",
     950: "G95 feed per revolution depends on the spindle speed; not simulated",
 }
-_LABEL = re.compile(r"^\s*/?\s*[Nn]\s*(\d+)")
-_PROGRAM = re.compile(r"^\s*[Oo:]\s*(\d+)\s*(?:\([^)]*\)\s*)*(?:;.*)?$")
+_LABEL = re.compile(r"^\s*/?\s*[Nn]\s*([0-9]+)")
+_PROGRAM = re.compile(r"^\s*[Oo:]\s*([0-9]+)\s*(?:\([^)]*\)\s*)*(?:;.*)?$")
 
 
 @dataclass

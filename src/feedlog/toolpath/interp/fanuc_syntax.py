@@ -32,6 +32,10 @@ from feedlog.toolpath.interp.expr import div, finite
 MAX_LINE = 256 * 64
 
 
+def _digit(c: str) -> bool:
+    return len(c) == 1 and "0" <= c <= "9"
+
+
 def _z(x):
     return 0.0 if x is None else x
 
@@ -225,11 +229,11 @@ class Text:
         if self.peek() in "+-":
             self.pos += 1
         digits = 0
-        while self.peek().isdigit() or self.peek() == ".":
+        while _digit(self.peek()) or self.peek() == ".":
             self.pos += 1
             digits += 1
         token = self.text[start:self.pos]
-        if not any(ch.isdigit() for ch in token) or token.count(".") > 1:
+        if not any(_digit(ch) for ch in token) or token.count(".") > 1:
             raise InterpError(f"bad number {self.text[start:start + 10] or '(nothing)'!r}")
         try:
             return float(token)
@@ -244,7 +248,7 @@ class Text:
             return f"V.get({self.bracket()})"
         if c == "#":
             return f"V.get({self.variable()})"
-        if c.isdigit() or c == ".":
+        if _digit(c) or c == ".":
             return f"V.get({self.number()!r})"
         raise InterpError("variable number expected after '#'")
 
@@ -266,7 +270,7 @@ class Text:
         if c == "+":
             self.pos += 1
             return self.operand()
-        if c.isdigit() or c == ".":
+        if _digit(c) or c == ".":
             return repr(self.number())
         if c.isalpha():
             return self.function()
@@ -405,17 +409,17 @@ def parse_line(raw: str, number: int) -> FLine:
     t = Text(code)
     if t.peek() == "/":
         t.pos += 1
-    if t.peek() in ("O", ":") and (t.peek(1).isdigit()):
+    if t.peek() in ("O", ":") and (_digit(t.peek(1))):
         t.pos += 1
         line.kind = "program"
         line.program = int(t.number())
         if t.pos < len(code):   # `O1000 G0 X0` is not read: a program number stands alone
             raise InterpError("an O program number must stand alone on its line")
         return line
-    if t.peek() == "N" and t.peek(1).isdigit():
+    if t.peek() == "N" and _digit(t.peek(1)):
         t.pos += 1
         start = t.pos
-        while t.peek().isdigit():
+        while _digit(t.peek()):
             t.pos += 1
         line.n = int(code[start:t.pos])
     if t.pos >= len(code):
@@ -459,7 +463,7 @@ def parse_line(raw: str, number: int) -> FLine:
         _end(t)
         return line
     for word in ("DO", "END"):
-        if t.at(word) and t.peek(len(word)).isdigit():
+        if t.at(word) and _digit(t.peek(len(word))):
             t.pos += len(word)
             line.kind = word.lower()
             line.target = _loop_id(t)
@@ -497,7 +501,7 @@ def _assignments(t: Text, line: FLine) -> None:
 
 def _loop_id(t: Text) -> int:
     start = t.pos
-    while t.peek().isdigit():
+    while _digit(t.peek()):
         t.pos += 1
     if t.pos == start:
         raise InterpError("loop number expected after DO / END")
