@@ -423,3 +423,17 @@ def test_random_text_gives_a_table_or_one_program_error(text, raw):
             run(body, options=InterpOptions(max_blocks=2000))
         except ProgramError as exc:
             assert exc.file == "prog.nc" and exc.line is not None
+
+
+def test_g53_with_known_offsets_goes_to_machine_coordinates_and_keeps_the_modal_motion(tmp_path):
+    """Fanuc G53: machine coordinates for one block, at rapid, the modal G01 stays for the next block.
+    With the offsets known (a parameter file: G54 = X10 Y20 Z-100), G53 Z0 is program Z 100."""
+    var = tmp_path / "m.var"
+    var.write_text("5221 10.0\n5222 20.0\n5223 -100.0\n")
+    from feedlog.toolpath.interp import InterpOptions
+    p = run("#1 = 1\nG1 F100 X1 Y1 Z1\nG53 Z0\nG53 X0 Y0\nX2\nM30\n", options=InterpOptions(parameter_file=var))
+    m = p.motion
+    assert m["kind"].tolist() == ["linear", "rapid", "rapid", "linear"]
+    assert ends(p).tolist() == [[1, 1, 1], [1, 1, 100], [-10, -20, 100], [2, -20, 100]]
+    with pytest.raises(ProgramError, match=r"prog.nc:1: G10 L10 \(tool offset memory\)"):
+        run("G10 L10 P1 R5.\nM30\n")

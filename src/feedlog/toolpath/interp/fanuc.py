@@ -747,7 +747,9 @@ class FanucInterpreter:
                 self._record(line, m_codes)
                 m.emit_none()
                 return
-        if 280 in g or (530 in g and not self.params.loaded):
+        if 100 in g and letters.get("L", 2) not in (2, 20):
+            raise InterpError(f"G10 L{letters['L']:g} (tool offset memory) is not read; G10 L2 and L20 are")
+        if 280 in g or 530 in g:
             self._reference(line, g, letters, passed_m, m_codes)
             return
         self._execute(line, g, letters, passed_m, m_codes)
@@ -816,10 +818,11 @@ class FanucInterpreter:
         m.motion_mode = motion
 
     def _reference(self, line, g, letters, passed_m, m_codes) -> None:
-        """G28 (via an intermediate point to the reference position) and G53 when the machine's frame is
-        not known: the intermediate move is made; Z goes up to the highest Z the program reached (the
-        retract both are written for); X, Y and rotary axes stay (noted). With a parameter file G53/G28
-        go through the machine model (LinuxCNC's meaning, the reference position from #5161-#5166)."""
+        """G28 (via an intermediate point to the reference position) and G53 (machine coordinates, one
+        block, at rapid; the modal motion code stays) when the machine's frame is not known: the
+        intermediate move is made; Z goes up to the highest Z the program reached (the retract both are
+        written for); X, Y and rotary axes stay (noted). With a parameter file G53/G28 go through the
+        machine model (the machine's frame from the offsets, G28's reference position from #5161-#5166)."""
         m = self.m
         code = 280 if 280 in g else 530
         if code == 280 and self.params.loaded:
@@ -838,6 +841,12 @@ class FanucInterpreter:
         if code == 280 and axes:
             b = build([(k.lower(), v) for k, v in axes.items()], None)
             m.traverse(m._ends(b))
+        if code == 530 and self.params.loaded:
+            if axes:
+                m.traverse(m._ends(build([("g", 53.0)] + [(k.lower(), v) for k, v in axes.items()], None)))
+            else:
+                m.emit_none()
+            return
         if "Z" in axes:
             top = self.z_top if self.z_top is not None else m.pos[2]
             end = list(m.pos)
