@@ -437,3 +437,11 @@ def test_g53_with_known_offsets_goes_to_machine_coordinates_and_keeps_the_modal_
     assert ends(p).tolist() == [[1, 1, 1], [1, 1, 100], [-10, -20, 100], [2, -20, 100]]
     with pytest.raises(ProgramError, match=r"prog.nc:1: G10 L10 \(tool offset memory\)"):
         run("G10 L10 P1 R5.\nM30\n")
+
+
+def test_g30_and_dropped_modes_with_their_own_words():
+    """G91 G30 Z0 (tool-change position) is read like G28 without a known frame; G05.1 Q1 and Haas
+    G187 P1 E0.01 are dropped with their words (noted), the block's path is unchanged."""
+    p = run("G0 X5 Y5 Z30.\nG05.1 Q1\nG187 P1 E0.01\nG1 Z-1 F100\n#1 = 0\nG91 G30 Z0\nG90 X#1\nM30\n")
+    assert ends(p).tolist()[-2:] == [[5, 5, 30], [0, 5, 30]]
+    assert any("G05.1" in w for w in p.warnings) and any("G187" in w for w in p.warnings)

@@ -50,7 +50,6 @@ REFUSED = {
     160: "G16 polar coordinates (Fanuc) are not read",
     270: "G27 reference position check goes to the machine's reference point: not simulated",
     290: "G29 return from the reference point is not simulated",
-    300: "G30 second reference position is a place in the machine's frame the program does not know",
     310: "G31 skip function ends where a signal trips: the motion is not known from the program",
     370: "G37 tool length measurement ends where the probe trips: not simulated",
     390: "G39 corner offset circular interpolation is not read",
@@ -667,15 +666,18 @@ class FanucInterpreter:
             else:
                 self._note(f"M{c} (machine function) recorded, no motion")
         g = []
+        dropped = False
         for code in g_codes:
             if code in DROPPED_G:
                 self._note(f"{DROPPED_G[code]} dropped: it does not move the programmed path")
-                if code == 51 or code == 80:
-                    letters.pop("Q", None) if code == 51 else letters.pop("P", None)
+                dropped = True
                 continue
             if code in REFUSED:
                 raise InterpError(REFUSED[code])
             g.append(code)
+        if dropped and not any(c in (0, 10, 20, 30, 40, 100) or c in CYCLES or c == 760 for c in g):
+            for k in "PQRE":            # the dropped code's own settings (G05.1 Q1, G08 P1, G187 P1 E0.01)
+                letters.pop(k, None)
         motions = [c for c in g if c in (0, 10, 20, 30) or c in CYCLES or c == 800 or c == 760]
         if 800 in motions and len(motions) > 1:   # `G0 G80`: G80 cancels the cycle (another group in Fanuc)
             g.remove(800)
@@ -718,7 +720,7 @@ class FanucInterpreter:
             self._note("H without G43 not read")
         if "E" in letters:
             raise InterpError("E words are not read")
-        if 541 in g or (any(c in (540,) for c in g) and "P" in letters):
+        if 541 in g or (540 in g and "P" in letters and cycle_motion is None and 40 not in g):
             self._select_extended(g, letters)
         if 680 in g or 690 in g:
             self._rotation(line, g, letters, passed_m)
@@ -749,7 +751,7 @@ class FanucInterpreter:
                 return
         if 100 in g and letters.get("L", 2) not in (2, 20):
             raise InterpError(f"G10 L{letters['L']:g} (tool offset memory) is not read; G10 L2 and L20 are")
-        if 280 in g or 530 in g:
+        if 280 in g or 300 in g or 530 in g:
             self._reference(line, g, letters, passed_m, m_codes)
             return
         self._execute(line, g, letters, passed_m, m_codes)
@@ -818,19 +820,22 @@ class FanucInterpreter:
         m.motion_mode = motion
 
     def _reference(self, line, g, letters, passed_m, m_codes) -> None:
-        """G28 (via an intermediate point to the reference position) and G53 (machine coordinates, one
+        """G28 / G30 (via an intermediate point to the first / second reference position) and G53 (machine coordinates, one
         block, at rapid; the modal motion code stays) when the machine's frame is not known: the
         intermediate move is made; Z goes up to the highest Z the program reached (the retract both are
         written for); X, Y and rotary axes stay (noted). With a parameter file G53/G28 go through the
-        machine model (the machine's frame from the offsets, G28's reference position from #5161-#5166)."""
+        machine model (the machine's frame from the offsets, the reference positions from #5161-#5166 and
+        #5181-#5186)."""
         m = self.m
-        code = 280 if 280 in g else 530
-        if code == 280 and self.params.loaded:
+        code = 280 if 280 in g else 300 if 300 in g else 530
+        if code in (280, 300) and self.params.loaded:
             self._execute(line, g, letters, passed_m, m_codes)
             return
         if m.comp.side:
             raise InterpError(f"G{code // 10} with cutter radius compensation on")
-        rest = [c for c in g if c not in (280, 530, 0, 10)]
+        if code == 300 and "P" in letters and letters.pop("P") != 2:
+            raise InterpError("G30 P3/P4 (third and fourth reference positions) are not read")
+        rest = [c for c in g if c not in (280, 300, 530, 0, 10)]
         axes = {k: v for k, v in letters.items() if k in "XYZABC"}
         other = {k: v for k, v in letters.items() if k not in "XYZABC"}
         self._execute(line, rest, other, passed_m, m_codes)
@@ -838,7 +843,7 @@ class FanucInterpreter:
         src = m.line_src
         if rows and rows[-1][0] == K_NONE and rows[-1][1] == src:
             rows.pop()
-        if code == 280 and axes:
+        if code in (280, 300) and axes:
             b = build([(k.lower(), v) for k, v in axes.items()], None)
             m.traverse(m._ends(b))
         if code == 530 and self.params.loaded:
