@@ -445,3 +445,22 @@ def test_g30_and_dropped_modes_with_their_own_words():
     p = run("G0 X5 Y5 Z30.\nG05.1 Q1\nG187 P1 E0.01\nG1 Z-1 F100\n#1 = 0\nG91 G30 Z0\nG90 X#1\nM30\n")
     assert ends(p).tolist()[-2:] == [[5, 5, 30], [0, 5, 30]]
     assert any("G05.1" in w for w in p.warnings) and any("G187" in w for w in p.warnings)
+
+
+def test_front_end_agrees_with_the_line_translation_on_the_bundled_hurco_program():
+    """The real Hurco program (inch, G91 G28 Z0, G43 H, G64 P, G4 P in ms, I/J arcs) read both ways:
+    the same moves, lines, feeds and dwells; the front-end also makes G28's (zero-length) move to the
+    intermediate point, as the control does."""
+    path = Path(__file__).resolve().parents[2] / "tests" / "fixtures" / "ingest" / "real" / "hurco_part.nc"
+    a = load_program(path, dialect="hurco")
+    assert a.metadata["interpreter"] != "feedlog.toolpath.interp.fanuc"
+    b = interpret_fanuc(path)
+    mb = b.motion
+    lines = mb["line"].to_numpy()
+    g28 = np.isin(lines, [4, 28]) & np.r_[lines[1:] == lines[:-1], False]    # the first of the line's two
+    assert g28.sum() == 2 and (mb["length_mm"][g28] == 0).all()
+    ma, mb = a.motion.reset_index(drop=True), mb[~g28].reset_index(drop=True)
+    cols = ["line", "x_mm", "y_mm", "z_mm", "cx_mm", "cy_mm", "feed_mm_min", "tool_z_mm"]
+    assert (ma["kind"].astype(str) == mb["kind"].astype(str)).all()
+    np.testing.assert_allclose(ma[cols].to_numpy(dtype=float), mb[cols].to_numpy(dtype=float), atol=1e-9)
+    assert a.blocks["dwell_s"].sum() == b.blocks["dwell_s"].sum() == pytest.approx(0.3)

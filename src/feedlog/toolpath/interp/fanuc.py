@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from feedlog.errors import ProgramError
+from feedlog.toolpath.dialects import _highest_z
 from feedlog.toolpath.interp.block import build, enhance, refuse
 from feedlog.toolpath.interp.canon import K_NONE, Canon, Source
 from feedlog.toolpath.interp.codes import CYCLES, M_GROUP
@@ -217,7 +218,7 @@ class FanucInterpreter:
         self.unknown_extended: set[int] = set()
         self.last = {"D": None, "H": None, "M": None, "N": None, "T": None, "B": None, "E": None}
         self.g01 = 0
-        self.z_top = None
+        self.z_top = _highest_z(self.main.lines)   # the rule of the line translation (dialects.py) ...
         self._stack_key = -1
         self._stack_str = ""
         self.written_systems: set[int] = set()
@@ -791,6 +792,7 @@ class FanucInterpreter:
                               f"(r1={r0:.4f} r2={r1:.4f}; tolerance {tol:.4g} {unit}, settable: --arc-tolerance)")
 
     def _track_z(self, b) -> None:
+        """... and the highest Z reached so far (Z words from variables are not in the text)."""
         if b.motion in (0, 10, 20, 30) and "z" in b.v:
             z = b.v["z"] + (self.m.pos[2] if self.m.incremental else 0.0)
             self.z_top = z if self.z_top is None else max(self.z_top, z)
@@ -822,8 +824,9 @@ class FanucInterpreter:
     def _reference(self, line, g, letters, passed_m, m_codes) -> None:
         """G28 / G30 (via an intermediate point to the first / second reference position) and G53 (machine coordinates, one
         block, at rapid; the modal motion code stays) when the machine's frame is not known: the
-        intermediate move is made; Z goes up to the highest Z the program reached (the retract both are
-        written for); X, Y and rotary axes stay (noted). With a parameter file G53/G28 go through the
+        intermediate move is made; Z goes up to the program's highest Z (the highest Z word of its text,
+        as the line translation takes it, or the highest Z reached when that is higher: the retract both
+        are written for); X, Y and rotary axes stay (noted). With a parameter file G53/G28 go through the
         machine model (the machine's frame from the offsets, the reference positions from #5161-#5166 and
         #5181-#5186)."""
         m = self.m
@@ -858,7 +861,7 @@ class FanucInterpreter:
             end[2] = max(top, m.pos[2])
             m.traverse(end)
             self._note(f"G{code // 10} Z: the machine's reference / frame is not known (no parameter file): Z "
-                       "retracts to the highest Z the program reached so far, as a rapid")
+                       "retracts to the program's highest Z (its text's, or the highest reached), as a rapid")
         others = [a for a in axes if a != "Z"]
         if others:
             self._note(f"G{code // 10} {'/'.join(others)}: a place in the machine's frame the program does not "
