@@ -241,9 +241,6 @@ class FanucInterpreter:
         self.notes.setdefault(what, []).append(self.seq)
 
     # -- system variables -----------------------------------------------------------------------
-    def _units(self) -> float:
-        return INCH_PER_MM if self.m.inch else 1.0
-
     def system_get(self, n: int) -> float | None:
         m = self.m
         if 4001 <= n <= 4022 or 4201 <= n <= 4222:
@@ -254,7 +251,8 @@ class FanucInterpreter:
                      7: {0: 40.0, 1: 42.0, 2: 41.0}.get(m.comp.side or 0, 40.0), 8: 43.0 if m.tlo_on else 49.0,
                      9: motion / 10.0 if motion in CYCLES else 80.0, 10: 99.0 if m.retract_r_plane else 98.0,
                      11: 50.0, 12: 61.0 if m.control == 1 else 64.0, 13: 97.0,
-                     14: 54.1 if self.extended else 53.0 + m.origin_index, 15: 40.0, 16: 68.0 if self.rotation else 69.0,
+                     14: 54.1 if self.extended else 53.0 + m.origin_index, 15: 40.0,
+                     16: 68.0 if self.rotation else 69.0,
                      17: 15.0, 18: 40.1, 19: 25.0, 20: 160.0, 21: 50.1, 22: 54.2}
             return table.get(group)
         if 4101 <= n <= 4130 or 4301 <= n <= 4330:
@@ -822,13 +820,13 @@ class FanucInterpreter:
         m.motion_mode = motion
 
     def _reference(self, line, g, letters, passed_m, m_codes) -> None:
-        """G28 / G30 (via an intermediate point to the first / second reference position) and G53 (machine coordinates, one
-        block, at rapid; the modal motion code stays) when the machine's frame is not known: the
-        intermediate move is made; Z goes up to the program's highest Z (the highest Z word of its text,
-        as the line translation takes it, or the highest Z reached when that is higher: the retract both
-        are written for); X, Y and rotary axes stay (noted). With a parameter file G53/G28 go through the
-        machine model (the machine's frame from the offsets, the reference positions from #5161-#5166 and
-        #5181-#5186)."""
+        """G28 / G30 (via an intermediate point to the first / second reference position) and G53
+        (machine coordinates, one block, at rapid; the modal motion code stays) when the machine's frame
+        is not known: the intermediate move is made; Z goes up to the program's highest Z (the highest Z
+        word of its text, as the line translation takes it, or the highest Z reached when that is
+        higher: the retract both are written for); X, Y and rotary axes stay (noted). With a parameter
+        file they go through the machine model (the machine's frame from the offsets, the reference
+        positions from #5161-#5166 and #5181-#5186)."""
         m = self.m
         code = 280 if 280 in g else 300 if 300 in g else 530
         if code in (280, 300) and self.params.loaded:
@@ -1008,8 +1006,8 @@ _MACRO_ONLY = re.compile(r"\bIF\s*\[.*\]\s*(?:GOTO|THEN)|\bGOTO\s*[\d#\[]|\bWHIL
 
 def looks_macro_b(text: str) -> bool:
     """Whether an undeclared program is Fanuc-style: macro B statements (`IF [..] GOTO`, `WHILE [..] DO 1`,
-    `END 1`), `M98 P` / `G65 P` calls, `G54.1`, `G68`. RS274/NGC has none of these (its O-words take a keyword: `o100 while`,
-    `o<x> call`; feedlog's RS274/NGC interpreter does not read M98)."""
+    `END 1`), `M98 P` / `G65 P` calls, `G54.1`, `G68`. RS274/NGC has none of these (its O-words take a
+    keyword: `o100 while`, `o<x> call`; feedlog's RS274/NGC interpreter does not read M98)."""
     return _MACRO_ONLY.search(_STRIP.sub(" ", text)) is not None
 
 
