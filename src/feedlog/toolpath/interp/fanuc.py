@@ -737,11 +737,11 @@ class FanucInterpreter:
                 raise InterpError(f"G10 L2 P{p}: P1-P6 (G54-G59)")
             if "R" in letters:
                 raise InterpError("G10 L2 with R (rotation) is not a Fanuc offset")
-            if m.incremental:
+            if (m.incremental and 900 not in g) or 910 in g:
                 raise InterpError("G10 L2 in G91 (incremental offsets) is not read")
             self.written_systems.add(p)
         if 100 in g and letters.get("L") == 20:
-            self._g10_l20(letters)
+            self._g10_l20(letters, (m.incremental and 900 not in g) or 910 in g)
             g.remove(100)
             letters.clear()
             if not g and not passed_m:
@@ -904,7 +904,7 @@ class FanucInterpreter:
         m.pos = m._relative(machine)
         self.extended = None          # the machine then selects the G5x code of the block
 
-    def _g10_l20(self, letters: dict) -> None:
+    def _g10_l20(self, letters: dict, incremental: bool) -> None:
         if "P" not in letters:
             raise InterpError("G10 L20 without P")
         p = _integer(letters["P"], "G10 L20 P")
@@ -915,7 +915,7 @@ class FanucInterpreter:
         for k, a in enumerate("XYZABC"):
             if a in letters:
                 value = letters[a] * (f if k < 3 else 1.0)
-                if self.m.incremental:
+                if incremental:             # G91: added to the offset in force (Fanuc)
                     value += self.V.extended.get(base + k) or 0.0
                 self.V.extended[base + k] = value
         if self.extended == p:
