@@ -464,3 +464,16 @@ def test_front_end_agrees_with_the_line_translation_on_the_bundled_hurco_program
     assert (ma["kind"].astype(str) == mb["kind"].astype(str)).all()
     np.testing.assert_allclose(ma[cols].to_numpy(dtype=float), mb[cols].to_numpy(dtype=float), atol=1e-9)
     assert a.blocks["dwell_s"].sum() == b.blocks["dwell_s"].sum() == pytest.approx(0.3)
+
+
+def test_nested_loops_and_goto_out_of_a_loop():
+    """Fanuc 0i-MF manual, WHILE: DO numbers 1-3 nest three deep and may be used again after their END;
+    a GOTO may leave a loop (not enter one). A 2 x 3 grid of moves from two nested loops, a third level
+    that runs once, then a loop left by GOTO at its second pass, then DO 1 used again."""
+    text = ("#1 = 0\nWHILE [#1 LT 2] DO 1\n#2 = 0\nWHILE [#2 LT 3] DO 2\n#3 = 0\nWHILE [#3 LT 1] DO 3\n"
+            "G0 X#1 Y#2\n#3 = #3 + 1\nEND 3\n#2 = #2 + 1\nEND 2\n#1 = #1 + 1\nEND 1\n"
+            "#4 = 0\nWHILE [#4 LT 10] DO 1\n#4 = #4 + 1\nIF [#4 EQ 2] GOTO 100\nG0 Z#4\nEND 1\n"
+            "N100 #5 = 0\nWHILE [#5 LT 2] DO 1\n#5 = #5 + 1\nG0 Z[10 + #5]\nEND 1\nM30\n")
+    e = ends(run(text))
+    assert e[:6, :2].tolist() == [[0, 0], [0, 1], [0, 2], [1, 0], [1, 1], [1, 2]]
+    assert e[6:, 2].tolist() == [1, 11, 12]

@@ -222,6 +222,7 @@ class FanucInterpreter:
         self._stack_key = -1
         self._stack_str = ""
         self.written_systems: set[int] = set()
+        self._loop_ends: dict[tuple, int] = {}     # (program, WHILE/DO line) -> its END line
 
     # -- places ---------------------------------------------------------------------------------
     def _stack(self) -> str:
@@ -420,9 +421,25 @@ class FanucInterpreter:
         if abs(n - round(n)) > 1e-6 or not 0 <= n <= 99999:
             raise InterpError(f"GOTO {n:g}: not a sequence number (0-99999)")
         index = self.program.label(int(round(n)))
-        frame = self.frames[-1]
-        frame.loops = [(m, at) for m, at in frame.loops if at < index]
+        self._leave_loops(self.frames[-1], index)
         self.index = index
+
+    def _leave_loops(self, frame: Frame, index: int) -> None:
+        """A jump to line `index` leaves the loops it lands outside of (a GOTO may leave a loop)."""
+        keep = []
+        for m, at in frame.loops:
+            key = (id(frame.program), at)
+            end = self._loop_ends.get(key)
+            if end is None:
+                saved = self.program
+                self.program = frame.program
+                try:
+                    end = self._loop_ends[key] = self._find_end(m, at)
+                finally:
+                    self.program = saved
+            if at < index <= end:
+                keep.append((m, at))
+        frame.loops = keep
 
     def _loop_start(self, line: FLine, i: int) -> None:
         frame = self.frames[-1]
@@ -499,8 +516,7 @@ class FanucInterpreter:
         self.index = frame.ret_index
         if p_label is not None:
             self.index = self.program.label(int(round(p_label)))
-            caller = self.frames[-1]
-            caller.loops = [(m, at) for m, at in caller.loops if at < self.index]
+            self._leave_loops(self.frames[-1], self.index)
 
     def _call(self, kind: str, number: int, repeats: int, args: dict | None) -> None:
         """M98 / G65 (program `number`) or M97 (Haas: sequence number `number` of this program)."""
