@@ -521,7 +521,7 @@ class FanucInterpreter:
     def _call(self, kind: str, number: int, repeats: int, args: dict | None) -> None:
         """M98 / G65 (program `number`) or M97 (Haas: sequence number `number` of this program)."""
         level = sum(1 for f in self.frames if f.kind == "g65")
-        if len(self.frames) > MAX_M98_LEVEL + (0 if kind == "m98" else 0):
+        if len(self.frames) > MAX_M98_LEVEL:           # the main program's frame + 10 calls
             raise InterpError(f"subprogram / macro calls nested more than {MAX_M98_LEVEL} deep")
         if kind == "g65" and level >= MAX_G65_LEVEL - 1:
             raise InterpError(f"G65 macro calls nested more than {MAX_G65_LEVEL - 1} deep (Fanuc's local levels)")
