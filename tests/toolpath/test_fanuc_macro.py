@@ -477,3 +477,12 @@ def test_nested_loops_and_goto_out_of_a_loop():
     e = ends(run(text))
     assert e[:6, :2].tolist() == [[0, 0], [0, 1], [0, 2], [1, 0], [1, 1], [1, 2]]
     assert e[6:, 2].tolist() == [1, 11, 12]
+
+
+def test_lenient_falls_back_to_the_line_translation_with_a_warning(tmp_path):
+    bad = tmp_path / "bad.nc"
+    bad.write_text("O1\n#1 = 1\nG0 X1\nG31 X5 F100\nG0 X2\nM30\n")
+    with pytest.raises(ProgramError, match=r"bad.nc:4: G31"):
+        load_program(bad, dialect="fanuc")
+    p = load_program(bad, dialect="fanuc", lenient=True)
+    assert "the Fanuc macro front-end refused it" in p.warnings[0] and "bad.nc:4" in p.warnings[0]

@@ -33,7 +33,7 @@ def load_program(source: str | Path | Program, *, lenient: bool = False, dialect
     if dialect not in DIALECTS:
         raise ProgramError(f"unknown G-code dialect {dialect!r}; known: {', '.join(DIALECTS)}", file=name)
     text, path, label = read_source(source, name)
-    front_end = _fanuc_front_end(source, text, path, label, dialect, lenient, interp)
+    front_end, front_end_refused = _fanuc_front_end(source, text, path, label, dialect, lenient, interp)
     if front_end is not None:
         return front_end
     translation = translate(text, dialect, name=path or label)
@@ -59,6 +59,8 @@ def load_program(source: str | Path | Program, *, lenient: bool = False, dialect
         program.path = path
     if program.metadata.get("interpreter") is None and needs_interpreter(body):
         program.warnings.insert(0, refused)
+    if front_end_refused:
+        program.warnings.insert(0, front_end_refused)
     program.metadata["dialect"] = translation.dialect
     if translation.notes:
         program.warnings[:0] = translation.notes
@@ -67,23 +69,24 @@ def load_program(source: str | Path | Program, *, lenient: bool = False, dialect
 
 
 def _fanuc_front_end(source, text: str, path, label: str, dialect: str, lenient: bool,
-                     interp: InterpOptions | None) -> Program | None:
-    """A Fanuc / Hurco program with macro B, subprograms or canned cycles through the macro front-end
-    (toolpath.interp.fanuc); None when the line translation reads it (plain programs, other dialects).
-    With `lenient`, a program the front-end refuses falls back to the translation (warned)."""
+                     interp: InterpOptions | None) -> tuple[Program | None, str | None]:
+    """(program, None): a Fanuc / Hurco program with macro B, subprograms or canned cycles through the
+    macro front-end (toolpath.interp.fanuc); (None, None) when the line translation reads it (plain
+    programs, other dialects); with `lenient`, (None, why) for a program the front-end refuses: the
+    translation then reads it, warned."""
     from feedlog.toolpath.interp.fanuc import interpret_fanuc, use_front_end
     detected = detect(text, path or label) if dialect == "auto" else dialect
     if not use_front_end(text, dialect, detected):
-        return None
+        return None, None
     try:
         program = interpret_fanuc(source if path is not None else text, name=label, options=interp)
-    except ProgramError:
+    except ProgramError as exc:
         if not lenient:
             raise
-        return None
+        return None, f"the Fanuc macro front-end refused it ({exc}); read leniently by the line translation"
     program.path = path
     program.metadata["dialect"] = "hurco" if dialect == "hurco" else "fanuc"
-    return program
+    return program, None
 
 
 STREAM_HEAD = 1 << 20   # bytes of a file that decide its dialect for a streamed read
