@@ -486,3 +486,15 @@ def test_lenient_falls_back_to_the_line_translation_with_a_warning(tmp_path):
         load_program(bad, dialect="fanuc")
     p = load_program(bad, dialect="fanuc", lenient=True)
     assert "the Fanuc macro front-end refused it" in p.warnings[0] and "bad.nc:4" in p.warnings[0]
+
+
+def test_g65_argument_specification_ii_and_output_commands():
+    """Fanuc 0i-MF manual, argument specification II: A B C then up to ten sets of I J K, the n-th set in
+    #(4+3n) #(5+3n) #(6+3n); a set closes when a letter repeats or comes out of order (I1 K3 J4 -> the
+    J opens set 2). DPRNT/POPEN/PCLOS (external output) move nothing."""
+    text = ("G65 P9 A1. I4. J5. K6. I7. K9. J11. I13.\nM30\nO9\nPOPEN\nDPRNT[X#24[44]]\nPCLOS\n"
+            "G0 X#4 Y#5 Z#6\nG0 X#7 Y#8 Z#9\nG0 X#10 Y#11 Z#13\nG0 X#1\nM99\n")
+    p = run(text)
+    e = ends(p)
+    assert e.tolist() == [[4, 5, 6], [7, 5, 9], [7, 11, 13], [1, 11, 13]]
+    assert any("DPRNT" in w for w in p.warnings)

@@ -400,6 +400,8 @@ class FanucInterpreter:
                     self._loop_start(line, i)
                 elif kind == "end":
                     self._loop_end(line)
+                elif kind == "output":
+                    self._note(f"{line.target} (external output) ignored: it moves nothing")
             except InterpError as exc:
                 raise self._error(str(exc), raw) from None
 
@@ -598,16 +600,14 @@ class FanucInterpreter:
                 if abs(code - value * 10) > 1e-3:
                     raise InterpError(f"G code out of range (G{value:g})")
                 g_codes.append(code)
-            elif letter == "M" and not any(w[0] == "G" and abs(w[1] - 65) < 1e-6 for w in words):
+            elif letter == "M" and not _is_g65(words):
                 if abs(value - round(value)) > 1e-6:
                     raise InterpError(f"non-integer M code (M{value:g})")
                 m_codes.append(int(round(value)))
             elif letter == "M":
                 m_codes.append(value)
             else:
-                if letter in letters:
-                    if 650 in g_codes and letter in "IJK":
-                        raise InterpError("G65 argument specification II (repeated I J K) is not read")
+                if letter in letters and not (letter in "IJK" and _is_g65(words)):
                     raise InterpError(f"multiple {letter} words on one block")
                 letters[letter] = value
                 points[letter] = point
@@ -625,16 +625,9 @@ class FanucInterpreter:
                 raise InterpError("G65 without P (the macro's program number)")
             number = _integer(letters.pop("P"), "G65 P")
             repeats = _integer(letters.pop("L", 1.0), "G65 L")
-            args = {}
             if len(m_codes) > 1:
                 raise InterpError("two M arguments on a G65 block")
-            if m_codes:
-                args[ARGUMENTS["M"]] = next(v for k, v, _ in words if k == "M")
-            for letter, value in letters.items():
-                if letter not in ARGUMENTS:
-                    raise InterpError(f"{letter} is not a G65 argument address")
-                args[ARGUMENTS[letter]] = value
-            self._call("g65", number, repeats, args)
+            self._call("g65", number, repeats, _arguments(words))
             return
         call = None
         returning = 99 in m_codes
@@ -981,6 +974,36 @@ class FanucInterpreter:
         if not g and not letters and not passed_m:
             self._record(line, passed_m)
             m.emit_none()
+
+
+def _is_g65(words: list) -> bool:
+    return any(w[0] == "G" and abs(w[1] - 65.0) < 1e-6 for w in words)
+
+
+def _arguments(words: list) -> dict[int, float]:
+    """G65 arguments -> local variables, in the block's order. Specification I: A=#1 B=#2 C=#3 I=#4 ...
+    Z=#26 (ARGUMENTS). Specification II: up to ten sets of I J K, the n-th set (n = 0..9) in
+    #(4+3n), #(5+3n), #(6+3n); a set ends when a letter comes again or out of I, J, K order. The two may
+    be mixed: an argument given later for the same variable wins (D of specification I is #7, as is I
+    of the second set)."""
+    args: dict[int, float] = {}
+    pos = {"I": 0, "J": 1, "K": 2}
+    group, last = 0, -1
+    for letter, value, _ in words:
+        if letter in ("G", "P", "L"):
+            continue
+        if letter in pos:
+            if pos[letter] <= last:
+                group += 1
+                if group > 9:
+                    raise InterpError("more than ten I J K argument sets on a G65 block")
+            last = pos[letter]
+            args[4 + 3 * group + pos[letter]] = value
+            continue
+        if letter not in ARGUMENTS:
+            raise InterpError(f"{letter} is not a G65 argument address")
+        args[ARGUMENTS[letter]] = value
+    return args
 
 
 def _integer(value: float, what: str) -> int:

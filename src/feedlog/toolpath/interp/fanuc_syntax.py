@@ -359,7 +359,7 @@ def compile_code(code: str):
 @dataclass(slots=True)
 class FLine:
     """A parsed block. `kind`: "" (NC words and/or assignments), "if_goto", "if_then", "goto", "while",
-    "do", "end", "program" (an O number), "percent", "blank"."""
+    "do", "end", "program" (an O number), "percent", "blank", "output" (POPEN PCLOS DPRNT BPRNT)."""
 
     number: int
     kind: str = ""
@@ -424,6 +424,10 @@ def parse_line(raw: str, number: int) -> FLine:
         line.n = int(code[start:t.pos])
     if t.pos >= len(code):
         line.kind = "blank"
+        return line
+    if any(t.at(word) for word in ("POPEN", "PCLOS", "DPRNT", "BPRNT")):
+        line.kind = "output"              # external output commands: nothing the machine moves
+        line.target = code[t.pos:t.pos + 5]
         return line
     if t.at("IF[") or t.at("IF#"):
         t.pos += 2
