@@ -498,3 +498,12 @@ def test_g65_argument_specification_ii_and_output_commands():
     e = ends(p)
     assert e.tolist() == [[4, 5, 6], [7, 5, 9], [7, 11, 13], [1, 11, 13]]
     assert any("DPRNT" in w for w in p.warnings)
+
+
+def test_an_error_in_a_subprogram_file_names_that_file_its_line_and_the_caller(tmp_path):
+    (tmp_path / "O2000.nc").write_text("O2000\n#1 = 0\n#2 = 1 / #1\nM99\n")
+    main = tmp_path / "main.nc"
+    main.write_text("O1000\nG0 X0\nG0 Y0\nM98 P2000\nM30\n")
+    with pytest.raises(ProgramError, match=r"divide by zero \(called from main.nc:4\)") as info:
+        load_program(main, dialect="fanuc")
+    assert info.value.file.endswith("O2000.nc") and info.value.line == 3
