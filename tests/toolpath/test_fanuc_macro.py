@@ -263,6 +263,7 @@ def test_arc_radius_tolerance_accepts_4_decimal_inch_rounding_and_is_settable():
     ("DO 4\nEND 4\nM30\n", 1, r"DO/END number must be 1, 2 or 3"),
     ("M98 P100\nM30\nO100\nM98 P100\nM99\n", 4, r"nested more than 10 deep"),
     ("G65 P100\nM30\nO100\nG65 P100\nM99\n", 4, r"G65 macro calls nested more than 4 deep"),
+    ("G66 P77 Z-1\nM30\n", 1, r"program O77 not found"),
     ("M98 P9999\nM30\n", 1, r"program O9999 not found"),
     ("G0 X[1 +\nM30\n", 1, r"value expected"),
     ("O100\nG0 X1\nM99\n", 3, None),
@@ -507,3 +508,16 @@ def test_an_error_in_a_subprogram_file_names_that_file_its_line_and_the_caller(t
     with pytest.raises(ProgramError, match=r"divide by zero \(called from main.nc:4\)") as info:
         load_program(main, dialect="fanuc")
     assert info.value.file.endswith("O2000.nc") and info.value.line == 3
+
+
+def test_g66_modal_macro_call_after_every_move():
+    """Fanuc 0i-MF manual, modal call (G66): after G66 P9110 Z-10 R2 F100 every block that moves calls
+    O9110 with those arguments (here a drilling macro), the macro's own moves do not call it again;
+    G67 cancels."""
+    text = ("G0 X0 Y0 Z20.\nG66 P9110 Z-10. R2. F100.\nG0 X10.\nY10.\nG67\nG0 X50.\nM30\n"
+            "O9110\nG0 Z#18\nG1 Z#26 F#9\nG0 Z20.\nM99\n")
+    p = run(text)
+    e = ends(p)
+    assert e.tolist() == [[0, 0, 20], [10, 0, 20], [10, 0, 2], [10, 0, -10], [10, 0, 20],
+                          [10, 10, 20], [10, 10, 2], [10, 10, -10], [10, 10, 20], [50, 10, 20]]
+    assert p.motion["stack"].tolist()[2:5] == ["prog.nc:3"] * 3 and p.motion["stack"].tolist()[6] == "prog.nc:4"

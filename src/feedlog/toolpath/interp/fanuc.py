@@ -59,8 +59,7 @@ REFUSED = {
     470: "G45-G48 tool position offsets are not read", 480: "G45-G48 tool position offsets are not read",
     510: "G51 scaling is not read", 511: "G51.1 programmable mirror image is not read",
     600: "G60 single direction positioning is not read",
-    660: "G66 modal macro calls are not read", 661: "G66.1 modal macro calls are not read",
-    670: "G67 (modal macro call cancel): modal macro calls are not read",
+    661: "G66.1 (modal macro call for every block) is not read",
     870: "G87 back boring is not simulated",
     120: "G12 circular pocket (Haas) is not read", 130: "G13 circular pocket (Haas) is not read",
     950: "G95 feed per revolution depends on the spindle speed; not simulated",
@@ -118,7 +117,7 @@ class FanucFile(SourceFile):
 
 @dataclass
 class Frame:
-    kind: str                       # "main", "m98", "g65"
+    kind: str                       # "main", "m98", "m97", "g65", "g66"
     program: ProgramText
     ret_program: ProgramText | None = None
     ret_index: int = 0
@@ -222,6 +221,7 @@ class FanucInterpreter:
         self._stack_key = -1
         self._stack_str = ""
         self.written_systems: set[int] = set()
+        self.modal_call: tuple | None = None         # G66: (program, repeats, arguments)
         self._loop_ends: dict[tuple, int] = {}     # (program, WHILE/DO line) -> its END line
 
     # -- places ---------------------------------------------------------------------------------
@@ -511,7 +511,7 @@ class FanucInterpreter:
             return
         self.frames.pop()
         self._stack_key = -1
-        if frame.kind == "g65":
+        if frame.kind in ("g65", "g66"):
             self.V.locals.pop()
         self.program = frame.ret_program
         self.file = self.program.file
@@ -522,10 +522,10 @@ class FanucInterpreter:
 
     def _call(self, kind: str, number: int, repeats: int, args: dict | None) -> None:
         """M98 / G65 (program `number`) or M97 (Haas: sequence number `number` of this program)."""
-        level = sum(1 for f in self.frames if f.kind == "g65")
+        level = sum(1 for f in self.frames if f.kind in ("g65", "g66"))
         if len(self.frames) > MAX_M98_LEVEL:           # the main program's frame + 10 calls
             raise InterpError(f"subprogram / macro calls nested more than {MAX_M98_LEVEL} deep")
-        if kind == "g65" and level >= MAX_G65_LEVEL - 1:
+        if kind in ("g65", "g66") and level >= MAX_G65_LEVEL - 1:
             raise InterpError(f"G65 macro calls nested more than {MAX_G65_LEVEL - 1} deep (Fanuc's local levels)")
         if repeats < 1:
             return                                   # L0: the call is not made
@@ -535,7 +535,7 @@ class FanucInterpreter:
                       call_file=self.file.name, repeats=repeats, start=start)
         self.frames.append(frame)
         self._stack_key = -1
-        if kind == "g65":
+        if kind in ("g65", "g66"):
             local = [None] * 34
             for k, v in (args or {}).items():
                 local[k] = v
@@ -617,18 +617,28 @@ class FanucInterpreter:
         if m_codes:
             self.last["M"] = float(m_codes[-1])
         # macro calls and subprograms
-        if 650 in g_codes:
+        if 650 in g_codes or 660 in g_codes:
+            code = 65 if 650 in g_codes else 66
             if len(g_codes) > 1:
-                raise InterpError("G65 must stand alone with its P, L and arguments")
+                raise InterpError(f"G{code} must stand alone with its P, L and arguments")
             self._record(line, [])
             if "P" not in letters:
-                raise InterpError("G65 without P (the macro's program number)")
-            number = _integer(letters.pop("P"), "G65 P")
-            repeats = _integer(letters.pop("L", 1.0), "G65 L")
+                raise InterpError(f"G{code} without P (the macro's program number)")
+            number = _integer(letters.pop("P"), f"G{code} P")
+            repeats = _integer(letters.pop("L", 1.0), f"G{code} L")
             if len(m_codes) > 1:
-                raise InterpError("two M arguments on a G65 block")
-            self._call("g65", number, repeats, _arguments(words))
+                raise InterpError(f"two M arguments on a G{code} block")
+            if code == 65:
+                self._call("g65", number, repeats, _arguments(words))
+            else:                       # G66: the call is made after every later block that moves
+                self._find_program(number)
+                self.modal_call = (number, repeats, _arguments(words))
+                self.m.emit_none()
             return
+        if 670 in g_codes:
+            g_codes.remove(670)
+            self.modal_call = None
+        moves = self.modal_call is not None and any(k in letters for k in "XYZABC")
         call = None
         returning = 99 in m_codes
         ret_label = None
@@ -656,6 +666,12 @@ class FanucInterpreter:
             self._record(line, [int(call[2][1:])] if call else [99])
             self.m.emit_none()
         if self.finished:
+            return
+        if moves and not any(f.kind == "g66" for f in self.frames):   # not from inside the called macro
+            if call is not None or returning:
+                raise InterpError("M98/M99 on a block that makes a G66 modal macro call")
+            number, repeats, args = self.modal_call
+            self._call("g66", number, repeats, dict(args))
             return
         if call is not None:
             self._call(call[2], call[0], call[1], None)
@@ -1025,7 +1041,7 @@ def interpret_fanuc(source: str | Path, *, name: str | None = None, options=None
 
 
 _MACRO = re.compile(r"#|\bIF\s*\[|\bGOTO|\bWHILE\s*\[|\bEND\s*[123]\b|\bDO\s*[123]\b|M\s*0*9[789](?!\d)|"
-                    r"G\s*0*65(?![\d.])|G\s*0*54\s*\.\s*1|G\s*0*68(?![\d.])|"
+                    r"G\s*0*6[56](?![\d.])|G\s*0*54\s*\.\s*1|G\s*0*68(?![\d.])|"
                     r"G\s*0*(?:7[346]|8[1-9])(?![\d.])", re.IGNORECASE)
 _STRIP = re.compile(r"\([^)\n]*\)")
 
@@ -1038,14 +1054,14 @@ def needs_macro(text: str) -> bool:
 
 
 _MACRO_ONLY = re.compile(r"\bIF\s*\[.*\]\s*(?:GOTO|THEN)|\bGOTO\s*[\d#\[]|\bWHILE\s*\[.*\]\s*DO\s*[123]|"
-                         r"^\s*(?:N\d+\s*)?END\s*[123]\s*$|M\s*0*9[78]\s*P|G\s*0*65\s*P|"
+                         r"^\s*(?:N\d+\s*)?END\s*[123]\s*$|M\s*0*9[78]\s*P|G\s*0*6[56]\s*P|"
                          r"G\s*0*54\s*\.\s*1|G\s*0*68(?![\d.])",
                          re.IGNORECASE | re.MULTILINE)
 
 
 def looks_macro_b(text: str) -> bool:
     """Whether an undeclared program is Fanuc-style: macro B statements (`IF [..] GOTO`, `WHILE [..] DO 1`,
-    `END 1`), `M98 P` / `G65 P` calls, `G54.1`, `G68`. RS274/NGC has none of these (its O-words take a
+    `END 1`), `M98 P` / `G65 P` / `G66 P` calls, `G54.1`, `G68`. RS274/NGC has none of these (its O-words take a
     keyword: `o100 while`, `o<x> call`; feedlog's RS274/NGC interpreter does not read M98)."""
     return _MACRO_ONLY.search(_STRIP.sub(" ", text)) is not None
 
