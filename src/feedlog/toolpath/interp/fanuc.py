@@ -959,6 +959,9 @@ class FanucInterpreter:
                 m.pos = m._relative(machine)
                 self.rotation = None
             if 680 not in g:
+                if not g and not letters and not passed_m:
+                    self._record(line, [])
+                    m.emit_none()
                 return
         g.remove(680)
         if m.plane != 170 and 170 not in g:
