@@ -589,7 +589,6 @@ class FanucInterpreter:
         self._nc(line, words)
 
     def _nc(self, line: FLine, words: list) -> None:
-        m = self.m
         g_codes = []
         letters: dict[str, float] = {}
         points: dict[str, bool] = {}
