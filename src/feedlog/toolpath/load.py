@@ -34,6 +34,9 @@ def load_program(source: str | Path | Program, *, lenient: bool = False, dialect
     if dialect not in DIALECTS:
         raise ProgramError(f"unknown G-code dialect {dialect!r}; known: {', '.join(DIALECTS)}", file=name)
     text, path, label = read_source(source, name)
+    front_end, front_end_refused = _fanuc_front_end(source, text, path, label, dialect, lenient, interp)
+    if front_end is not None:
+        return front_end
     translation = translate(text, dialect, name=path or label)
     if translation.dialect == "sinumerik":   # parameters, control flow, calls, cycles, frames: its own front-end
         program, refused = sinumerik_program(text, path, label, interp=interp, lenient=lenient)
@@ -62,11 +65,34 @@ def load_program(source: str | Path | Program, *, lenient: bool = False, dialect
         program.path = path
     if program.metadata.get("interpreter") is None and needs_interpreter(body):
         program.warnings.insert(0, refused)
+    if front_end_refused:
+        program.warnings.insert(0, front_end_refused)
     program.metadata["dialect"] = translation.dialect
     if translation.notes:
         program.warnings[:0] = translation.notes
         program.metadata["dialect_changes"] = translation.notes
     return program
+
+
+def _fanuc_front_end(source, text: str, path, label: str, dialect: str, lenient: bool,
+                     interp: InterpOptions | None) -> tuple[Program | None, str | None]:
+    """(program, None): a Fanuc / Hurco program with macro B, subprograms or canned cycles through the
+    macro front-end (toolpath.interp.fanuc); (None, None) when the line translation reads it (plain
+    programs, other dialects); with `lenient`, (None, why) for a program the front-end refuses: the
+    translation then reads it, warned."""
+    from feedlog.toolpath.interp.fanuc import interpret_fanuc, use_front_end
+    detected = detect(text, path or label) if dialect == "auto" else dialect
+    if not use_front_end(text, dialect, detected):
+        return None, None
+    try:
+        program = interpret_fanuc(source if path is not None else text, name=label, options=interp)
+    except ProgramError as exc:
+        if not lenient:
+            raise
+        return None, f"the Fanuc macro front-end refused it ({exc}); read leniently by the line translation"
+    program.path = path
+    program.metadata["dialect"] = "hurco" if dialect == "hurco" else "fanuc"
+    return program, None
 
 
 STREAM_HEAD = 1 << 20   # bytes of a file that decide its dialect for a streamed read
@@ -84,4 +110,6 @@ def stream_dialect(path: str | Path, dialect: str = "auto") -> str:
             head = fh.read(STREAM_HEAD).decode("utf-8", errors="replace")
     except OSError:
         return "rs274ngc"     # the reader says what is wrong with the path
-    return detect(head, path)
+    detected = detect(head, path)
+    from feedlog.toolpath.interp.fanuc import looks_macro_b
+    return "fanuc" if detected == "rs274ngc" and looks_macro_b(head) else detected

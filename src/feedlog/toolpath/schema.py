@@ -61,7 +61,8 @@ OFFSET_COLUMNS: dict[str, object] = {
     "wa_deg": np.float64,
     "wb_deg": np.float64,
     "wc_deg": np.float64,
-    "coord_system": np.int8,   # active coordinate system: 1 = G54 ... 6 = G59, 7-9 = G59.1-G59.3
+    "coord_system": np.int8,   # active coordinate system: 1 = G54 ... 6 = G59, 7-9 = G59.1-G59.3,
+                               # 10-57 = Fanuc's G54.1 P1-P48
 }
 
 # per-block geometry features (toolpath.features), one row per motion block

@@ -76,6 +76,11 @@ def _extents(program: Program) -> dict[str, list[float]]:
 SYSTEM_NAMES = ("", "G54", "G55", "G56", "G57", "G58", "G59", "G59.1", "G59.2", "G59.3")
 
 
+def system_name(code: int) -> str:
+    """The block table's `coord_system` as a G code (10 and up: Fanuc's G54.1 P1, P2, ...)."""
+    return SYSTEM_NAMES[code] if 0 <= code < len(SYSTEM_NAMES) else f"G54.1 P{code - 9}"
+
+
 def _offset_counts(program: Program) -> dict[tuple, int]:
     """Motion blocks per (work offset, coordinate system), in order of first use; empty when every
     offset is 0 or the table has none."""
@@ -87,7 +92,7 @@ def _offset_counts(program: Program) -> dict[tuple, int]:
 
 
 def _offset_list(counts: dict[tuple, int]) -> list[dict[str, Any]]:
-    return [{"coord_system": SYSTEM_NAMES[int(key[-1])],
+    return [{"coord_system": system_name(int(key[-1])),
              "offset": {c: float(v) for c, v in zip(WORK_OFFSET_COLUMNS, key[:-1]) if v != 0},
              "blocks": n} for key, n in counts.items()]
 

@@ -58,14 +58,15 @@ def needs_interpreter(text: str | bytes) -> bool:
 
 
 def interpret(source: str | Path, *, name: str | None = None, options: InterpOptions | None = None,
-              base_dir: Path | None = None, **kw) -> Program:
+              base_dir: Path | None = None, engine=Interpreter, **kw) -> Program:
     """The whole program through the interpreter, as one block table. `options` (or the same names as
     keywords: search_path, tool_table, parameter_file, ...) say what else it reads; `base_dir` is searched
-    for subroutine files first when the program is text (a file's own folder always is)."""
+    for subroutine files first when the program is text (a file's own folder always is). `engine`: the
+    front-end that reads the program (interp.fanuc.FanucInterpreter for Fanuc macro B)."""
     o = options or InterpOptions(**{k: (tuple(v) if k == "search_path" else v) for k, v in kw.items()})
     search = ([base_dir] if base_dir is not None else []) + list(o.search_path)
     extra = {} if o.max_blocks is None else {"max_blocks": o.max_blocks}
-    it = Interpreter(source, name=name, search_path=search, tool_table=o.tool_table,
+    it = engine(source, name=name, search_path=search, tool_table=o.tool_table,
                      parameter_file=o.parameter_file, arc_tolerance_mm=o.arc_tolerance_mm,
                      arc_tolerance_inch=o.arc_tolerance_inch, **extra)
     batches = list(it.batches())
