@@ -10,6 +10,7 @@ or a stream asking for a sequence the buffer no longer holds gets an `OUT_OF_RAN
 Faults the tests inject: `stall_at_seq` (the stream stops sending for `stall_s` once, so a small buffer
 overruns under it: the agent then sends `OUT_OF_RANGE` and ends the stream), `drop_at_seq` (the stream
 sends half a part and the connection is cut, once), `probe_body` (serve these bytes as the probe).
+`/current?at=SEQ` answers the state at a sequence the buffer still holds.
 Run as a script (`python -m tests.ingest.mtconnect_test_agent REC.mcap PORT`) it serves until killed.
 """
 
@@ -101,6 +102,7 @@ class ReplayAgent:
         self.lock = threading.Lock()
         self.buffer: collections.deque = collections.deque(maxlen=buffer_size)   # (seq, item, t_ns, text)
         self.latest: dict[str, tuple[int, str, int, str]] = {}
+        self.history: list[tuple[int, str, int, str]] = []    # every observation (for current?at=)
         self.next_seq = 1
         self.stall_at_seq: int | None = None
         self.stall_s = 0.0
@@ -141,6 +143,7 @@ class ReplayAgent:
         with self.lock:
             entry = (self.next_seq, item, t_ns, text)
             self.buffer.append(entry)
+            self.history.append(entry)
             self.latest[item] = entry
             self.next_seq += 1
 
@@ -237,6 +240,12 @@ class ReplayAgent:
                 if what == "current":
                     with agent.lock:
                         entries = sorted(agent.latest.values())
+                        if "at" in query:  # the state at a sequence the buffer holds
+                            at = int(query["at"])
+                            if not agent.first_seq() <= at < agent.next_seq:
+                                return self._send(400, agent._error("OUT_OF_RANGE", "'at' outside the buffer"))
+                            state = {e[1]: e for e in agent.history[:at]}   # sequences start at 1
+                            entries = sorted(state.values())
                     return self._send(200, agent._streams(entries))
                 if what != "sample":
                     return self._send(400, agent._error("UNSUPPORTED", f"{what}"))
@@ -245,6 +254,11 @@ class ReplayAgent:
                     count = int(query.get("count", 100))
                 except ValueError:
                     return self._send(400, agent._error("INVALID_REQUEST", "from and count are integers"))
+                if "interval" not in query and agent.stall_at_seq is not None and start > agent.stall_at_seq:
+                    agent.stall_at_seq = None      # a slow answer to a poll: the buffer moves on meanwhile
+                    agent.events.append(("stall", start, agent.first_seq()))
+                    time.sleep(agent.stall_s)
+                    return self._send(400, agent._error("OUT_OF_RANGE", f"'from' must be >= {agent.first_seq()}"))
                 with agent.lock:
                     out_of_range = start < agent.first_seq() or start > agent.next_seq
                 if out_of_range:

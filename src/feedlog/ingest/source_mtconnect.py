@@ -200,6 +200,13 @@ class Pivot:
                 events.append((self._clamp("events", t), self.plan.events[obs.item], obs.value))
         return self._frames(rows, events)
 
+    def forget(self) -> None:
+        """After a gap: no value is known until it arrives again."""
+        for values in self.held.values():
+            for column in values:
+                values[column] = np.nan
+        self.dirty.clear()
+
     def release(self) -> dict[str, pd.DataFrame]:
         """The rows held back (the latest time's)."""
         rows: dict[str, list[tuple]] = {}
@@ -322,7 +329,8 @@ class AgentReader(threading.Thread):
                 except _Resync as exc:
                     resync = exc.reason
         except Exception as exc:  # noqa: BLE001 - handed to the main loop, which ends the recording
-            self._put(("fatal", exc))
+            if not self.stop_event.is_set():  # (closing the connection to stop breaks reads in any way)
+                self._put(("fatal", exc))
 
     def _path(self, what: str) -> str:
         return f"/{self.device}/{what}" if self.device else f"/{what}"
@@ -360,8 +368,7 @@ class AgentReader(threading.Thread):
             raise _Resync("the agent restarted (new instanceId)")
         first = doc.header_int("firstSequence")
         if first is not None and first > self.next_seq:
-            self._put(("gap", Gap(first - self.next_seq, "buffer overrun (firstSequence beyond the next wanted)")))
-            self.next_seq = first
+            raise _Resync("buffer overrun (firstSequence beyond the next sequence wanted)")
         fresh = [o for o in doc.observations if o.sequence >= self.next_seq]
         doc.observations = fresh
         nxt = doc.header_int("nextSequence")
@@ -371,7 +378,9 @@ class AgentReader(threading.Thread):
         return len(fresh)
 
     def _resync(self, reason: str) -> None:
-        """After an overrun or a restart: continue from the oldest sequence the agent still holds."""
+        """After an overrun or a restart: continue from the oldest sequence the agent still holds,
+        starting from the state the agent had there (`current?at=SEQ`): values that changed inside
+        the gap must not be carried over from before it."""
         response = self.client.get(self._path("current"))  # AgentUnreachable: run() retries
         doc = parse_streams(response.body, where=self.client.url + self._path("current"))
         if doc.errors:
@@ -380,12 +389,24 @@ class AgentReader(threading.Thread):
         instance = doc.header.get("instanceId", "")
         first = doc.header_int("firstSequence") or 1
         if instance and instance != self.instance:
-            self._put(("gap", Gap(-1, reason)))
+            lost = -1
             self.instance = instance
-            self.next_seq = first
         elif first > self.next_seq:
-            self._put(("gap", Gap(first - self.next_seq, reason)))
-            self.next_seq = first
+            lost = first - self.next_seq
+        else:
+            return                      # nothing was lost after all: resume where we were
+        self._put(("gap", Gap(lost, reason)))
+        self.next_seq = first
+        path = self._path(f"current?at={first}")
+        state = None
+        try:
+            at = self.client.get(path)
+            if at.status == 200:
+                state = parse_streams(at.body, where=self.client.url + path)
+                state = None if state.errors else state
+        except IngestError:
+            state = None                # an agent without `at`: the state is unknown until values arrive
+        self._put(("state", state))
 
 
 # -- the recorder --------------------------------------------------------------------------------------
@@ -442,21 +463,30 @@ class _Session:
         self.last_obs_ns: int | None = None
         self.open_gaps: list[Gap] = []
         self.held_since: float | None = None
+        self.resume_state: StreamsDocument | None = None
 
     def document(self, doc: StreamsDocument, *, counted: bool = True, stamp_ns: int | None = None) -> None:
-        default = _header_time(doc) or time.time_ns()
-        times = observation_times(doc.observations, default)
-        if stamp_ns is not None:  # /current: the held state, stamped when the agent answered
+        """Observations -> rows. `counted`: new sequences (not the /current state); `stamp_ns`: the
+        state's observations are stamped no earlier than this (the time the state held)."""
+        times = observation_times(doc.observations, _header_time(doc) or time.time_ns())
+        if stamp_ns is not None:
             times = np.maximum(times, stamp_ns)
         if counted:
             self.stats.observations += len(doc.observations)
-        if len(times) and self.open_gaps:
-            self._close_gaps(int(times.min()))
-        self._write(self.pivot.feed(doc.observations, times))
-        if self.pivot.dirty and self.held_since is None:
-            self.held_since = time.monotonic()
+        if len(times) and self.open_gaps and counted:  # a gap ends with the first new observation
+            end = int(times.min())
+            self._close_gaps(end)
+            if self.resume_state is not None:  # the state where the agent resumed: it held at `end`
+                state, self.resume_state = self.resume_state, None
+                self._feed(state.observations, np.full(len(state.observations), end, dtype=np.int64))
+        self._feed(doc.observations, times)
         if len(times):
             self.last_obs_ns = max(int(times.max()), self.last_obs_ns or int(times.max()))
+
+    def _feed(self, observations: list[Observation], times: np.ndarray) -> None:
+        self._write(self.pivot.feed(observations, times))
+        if self.pivot.dirty and self.held_since is None:
+            self.held_since = time.monotonic()
         self.stats.unavailable_rows = self.pivot.unavailable_rows
         self.stats.bad_values = self.pivot.bad_values
         self.stats.late_observations = self.pivot.late
@@ -464,8 +494,20 @@ class _Session:
     def gap(self, gap: Gap) -> None:
         if gap.lost > 0:
             self.stats.sequences_lost += gap.lost
-        self.open_gaps.append(gap)
+        if self.open_gaps:  # nothing new arrived since the last gap (a resync that lost the race): one gap
+            last = self.open_gaps[-1]
+            self.open_gaps[-1] = Gap(-1 if -1 in (last.lost, gap.lost) else last.lost + gap.lost, last.reason)
+        else:
+            self.open_gaps.append(gap)
         self.writer.dropped_frames = self.stats.sequences_lost
+        self._write(self.pivot.release())   # rows before the gap are complete; the held values no longer hold
+        self.held_since = None
+        self.pivot.forget()
+
+    def state(self, doc: StreamsDocument | None) -> None:
+        """The agent's state at the sequence the recording resumes from after a gap (None: the agent
+        could not say): applied when the first new observation arrives, at its time."""
+        self.resume_state = doc if doc is not None and doc.observations else None
 
     def _close_gaps(self, end_ns: int) -> None:
         start = self.last_obs_ns if self.last_obs_ns is not None else end_ns
@@ -530,7 +572,7 @@ def record_agent(url: str, out, *, device: str | None = None, interval_ms: int =
     if not 1 <= interval_ms <= 600_000:
         raise IngestError(f"--interval-ms {interval_ms} must be from 1 to 600000")
     client = AgentClient(url, timeout_s=max(10.0, 3 * interval_ms / 1000))
-    probe_path = f"/{device}/probe" if device else "/probe"
+    probe_path = "/probe"   # every device: a wrong --device is answered with the list of the right ones
     devices = parse_probe(_get(client, probe_path), where=client.url + probe_path)
     dev = choose_device(devices, device, client.url + probe_path)
     plan = plan_items(dev, client.url + probe_path)
@@ -617,6 +659,8 @@ def _handle(item, session: _Session, stats: Stats) -> BaseException | None:
         session.document(value)
     elif kind == "gap":
         session.gap(value)
+    elif kind == "state":
+        session.state(value)
     elif kind == "reconnect":
         stats.reconnects += 1
     elif kind == "fatal":

@@ -1,0 +1,262 @@
+"""`feedlog record --source mtconnect` against a real HTTP agent on 127.0.0.1 (tests/ingest/mtconnect_test_agent.py)
+replaying a bundled LinuxCNC recording: streaming and polling, a buffer overrun, a dropped connection,
+kill -9, Ctrl-C, and the one-line errors (refused connection, bad URL, malformed probe, several devices)."""
+
+from __future__ import annotations
+
+import json
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from feedlog.cli import main
+from feedlog.errors import IngestError
+from feedlog.ingest import read_recording
+from feedlog.ingest.mtconnect_agent import parse_probe
+from feedlog.ingest.source_mtconnect import plan_items, record_agent
+from tests.ingest.mtconnect_test_agent import ITEMS, ReplayAgent, probe_xml
+
+ROOT = Path(__file__).resolve().parents[2]
+RECORDING = ROOT / "recordings" / "pocket_f3000_p001.mcap"   # 6.8 s of a 3-axis pocket at 1 kHz
+
+
+def stop_after_replay(agent: ReplayAgent, stop: threading.Event, extra_s: float = 0.6) -> None:
+    def watch():
+        agent.finished.wait(60)
+        time.sleep(extra_s)
+        stop.set()
+    threading.Thread(target=watch, daemon=True).start()
+
+
+def assert_matches_replay(agent: ReplayAgent, rec, *, outside: list[tuple[int, int]] = ()) -> None:
+    """Every recorded row holds the replayed values at its time; every change of the replay outside
+    the `outside` spans (gaps) is there."""
+    axes = rec.streams["axes"]
+    t = axes["t_ns"].to_numpy()
+    assert np.all(np.diff(t) > 0)
+    expected = agent.values_at(t)
+    for axis in "xyz":
+        np.testing.assert_array_equal(axes[f"{axis}_mm"].to_numpy(), expected[axis])
+        np.testing.assert_array_equal(rec.streams["axes_commanded"][f"{axis}_mm"].to_numpy(), expected[axis])
+    line = rec.streams["line"]
+    np.testing.assert_array_equal(line["line"].to_numpy(), agent.values_at(line["t_ns"].to_numpy())["line"])
+    feed = rec.streams["feed"]
+    np.testing.assert_allclose(feed["feed_mm_min"].to_numpy(), agent.values_at(feed["t_ns"].to_numpy())["feed"],
+                               rtol=1e-12)
+    # the times at which the replayed position changed, all present unless inside a gap
+    tab = agent.table
+    pos = np.stack([tab["x"], tab["y"], tab["z"]], axis=1)
+    changed = np.concatenate(([True], np.any(pos[1:] != pos[:-1], axis=1)))
+    want = tab["t_ns"][changed] + agent.t0_ns
+    for start, end in outside:
+        want = want[(want <= start) | (want >= end)]
+    assert np.isin(want, t).all(), f"{int((~np.isin(want, t)).sum())} replayed changes missing"
+
+
+@pytest.mark.parametrize("poll", [False, True], ids=["stream", "poll"])
+def test_records_a_replayed_agent_exactly(tmp_path, poll, capsys):
+    out = tmp_path / "m.mcap"
+    with ReplayAgent(RECORDING) as agent:
+        stop = threading.Event()
+        stop_after_replay(agent, stop)
+        summary = record_agent(agent.url, out, poll=poll, interval_ms=50, stop=stop, progress=None)
+    assert summary["stopped_by"] == "signal" and summary["sequences_lost"] == 0 and summary["gaps"] == []
+    assert summary["observations"] == len(agent.observations)   # every replayed observation, each once
+    rec = read_recording(out)
+    assert_matches_replay(agent, rec)
+    assert rec.metadata["source"] == "mtconnect" and rec.metadata["agent"] == agent.url
+    assert rec.metadata["device"] == "LinuxCNC" and rec.metadata["mode"] == ("poll" if poll else "stream")
+    assert "pfo" not in rec.metadata["data_items"]          # the feed override (PERCENT) is not a feed
+    events = rec.streams["events"]
+    assert events[events["name"] == "execution"]["value"].tolist() == ["UNAVAILABLE", "ACTIVE", "READY"]  # /current first
+    assert "replay.ngc" in events[events["name"] == "program"]["value"].tolist()
+    assert main(["info", str(out), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["dropped_frames"] == 0
+    assert {s["name"]: s["samples"] for s in info["streams"]}["axes"] == len(rec.streams["axes"])
+
+
+def test_buffer_overrun_is_a_reported_gap_and_a_dropped_connection_loses_nothing(tmp_path):
+    out = tmp_path / "gap.mcap"
+    with ReplayAgent(RECORDING, buffer_size=300) as agent:
+        # the replay makes ~1650 observations in 6.8 s (~240 per second)
+        agent.drop_at_seq = 500           # half a part, then the connection is cut
+        agent.stall_at_seq = 1100         # the stream stalls 2.5 s: the 300-sequence buffer overruns
+        agent.stall_s = 2.5
+        stop = threading.Event()
+        stop_after_replay(agent, stop)
+        summary = record_agent(agent.url, out, interval_ms=50, stop=stop, progress=None)
+    kinds = [e[0] for e in agent.events]
+    assert "drop" in kinds and "stall" in kinds and "out_of_range" in kinds
+    assert summary["reconnects"] >= 1
+    assert len(summary["gaps"]) == 1, summary["gaps"]
+    gap = summary["gaps"][0]
+    assert gap["lost"] > 0 and "OUT_OF_RANGE" in gap["reason"]
+    # everything the agent produced was either recorded once or counted as lost in the gap
+    assert summary["observations"] + summary["sequences_lost"] == len(agent.observations)
+    assert summary["sequences_lost"] == gap["lost"]
+    rec = read_recording(out)
+    assert rec.dropped_frames == gap["lost"]
+    gaps = rec.streams["gaps"]
+    assert len(gaps) == 1 and gaps["lost"].tolist() == [gap["lost"]]
+    start, end = int(gaps["t_ns"].iloc[0]), int(gaps["end_t_ns"].iloc[0])
+    assert 0.3e9 < end - start < 3e9 and gap["span_s"] == pytest.approx((end - start) / 1e9, abs=1e-3)
+    assert_matches_replay(agent, rec, outside=[(start, end)])
+    t = rec.streams["axes"]["t_ns"].to_numpy()
+    assert not ((t > start) & (t < end)).any()
+
+
+def test_a_poll_that_fell_behind_the_buffer_is_a_gap(tmp_path):
+    out = tmp_path / "poll_gap.mcap"
+    with ReplayAgent(RECORDING, buffer_size=200) as agent:
+        agent.stall_at_seq = 800          # one poll answered 2 s late, with OUT_OF_RANGE
+        agent.stall_s = 2.0
+        stop = threading.Event()
+        stop_after_replay(agent, stop)
+        summary = record_agent(agent.url, out, poll=True, interval_ms=100, stop=stop, progress=None)
+    assert "stall" in [e[0] for e in agent.events]
+    assert len(summary["gaps"]) == 1 and summary["sequences_lost"] > 0
+    assert summary["observations"] + summary["sequences_lost"] == len(agent.observations)
+    rec = read_recording(out)
+    spans = list(zip(rec.streams["gaps"]["t_ns"].tolist(), rec.streams["gaps"]["end_t_ns"].tolist()))
+    assert_matches_replay(agent, rec, outside=spans)
+
+
+def _recorder(url: str, out: Path) -> subprocess.Popen:
+    cmd = [sys.executable, "-m", "feedlog.cli", "record", "--source", "mtconnect", "--url", url, "-o", str(out),
+           "--quiet", "--json"]
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+
+
+def _wait_for_axes(out: Path, proc: subprocess.Popen, seconds: float = 30) -> None:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            pytest.fail(f"recorder ended early: {proc.communicate()}")
+        try:
+            if len(read_recording(out, recover=True).streams.get("axes", ())) > 0:
+                return
+        except IngestError:
+            pass
+        time.sleep(0.1)
+    pytest.fail("recorder wrote nothing")
+
+
+def test_kill_9_loses_at_most_about_one_second(tmp_path):
+    out = tmp_path / "kill.mcap"
+    with ReplayAgent(RECORDING, start_delay_s=1.5) as agent:
+        proc = _recorder(agent.url, out)
+        try:
+            _wait_for_axes(out, proc)
+            lags_ns, on_disk_ns = [], 0
+            watch_until = time.monotonic() + 2.5
+            while time.monotonic() < watch_until:
+                on_disk_ns = int(read_recording(out, recover=True).streams["axes"]["t_ns"].iloc[-1])
+                lags_ns.append(time.time_ns() - on_disk_ns)
+                time.sleep(0.1)
+            killed_at_ns = time.time_ns()
+            proc.send_signal(signal.SIGKILL)
+            proc.wait(timeout=10)
+        finally:
+            proc.kill()
+        assert not agent.finished.is_set(), "the replay ended before the kill: nothing to lose was tested"
+    with pytest.raises(IngestError, match="truncated"):
+        read_recording(out)
+    rec = read_recording(out, recover=True)
+    t = rec.streams["axes"]["t_ns"].to_numpy()
+    assert len(t) > 100 and t[-1] >= on_disk_ns
+    # agent times run with the wall clock; the file trails it by the smallest lag seen (right after
+    # a flush) plus at most one flush interval (1 s) and the 0.3 s hold-back of the latest time
+    assert (killed_at_ns - t[-1]) - min(lags_ns) < 1.4e9
+    assert_matches_replay_prefix(agent, rec)
+
+
+def assert_matches_replay_prefix(agent: ReplayAgent, rec) -> None:
+    axes = rec.streams["axes"]
+    expected = agent.values_at(axes["t_ns"].to_numpy())
+    for axis in "xyz":
+        np.testing.assert_array_equal(axes[f"{axis}_mm"].to_numpy(), expected[axis])
+
+
+def test_sigint_finishes_the_file(tmp_path):
+    out = tmp_path / "int.mcap"
+    with ReplayAgent(RECORDING) as agent:
+        proc = _recorder(agent.url, out)
+        try:
+            _wait_for_axes(out, proc)
+            time.sleep(0.5)
+            proc.send_signal(signal.SIGINT)
+            stdout, stderr = proc.communicate(timeout=30)
+        finally:
+            proc.kill()
+    assert proc.returncode == 0, stderr
+    summary = json.loads(stdout)
+    assert summary["stopped_by"] == "signal"
+    rec = read_recording(out)   # strict: the file was finished
+    assert len(rec.streams["axes"]) == summary["streams"]["axes"] > 10
+    assert_matches_replay_prefix(agent, rec)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _one_line_error(argv: list[str], capsys) -> str:
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "Traceback" not in err and len(err.splitlines()) == 1, err
+    return err
+
+
+def test_bad_urls_and_a_refused_connection_are_one_line_errors(tmp_path, capsys):
+    base = ["record", "--source", "mtconnect", "-o", str(tmp_path / "x.mcap"), "--url"]
+    assert "cannot reach the MTConnect agent" in _one_line_error(base + [f"http://127.0.0.1:{_free_port()}"], capsys)
+    assert "bad agent URL" in _one_line_error(base + ["opc.tcp://127.0.0.1:4840"], capsys)
+    assert "bad agent URL" in _one_line_error(base + ["http://127.0.0.1:99999"], capsys)
+    assert "bad agent URL" in _one_line_error(base + ["http:///probe"], capsys)
+    assert "needs --url" in _one_line_error(base[:-1], capsys)
+    assert not (tmp_path / "x.mcap").exists()
+
+
+def test_malformed_probe_and_devices_are_one_line_errors(tmp_path, capsys):
+    out = str(tmp_path / "x.mcap")
+    with ReplayAgent(RECORDING) as agent:
+        argv = ["record", "--source", "mtconnect", "--url", agent.url, "-o", out]
+        agent.probe_body = probe_xml()[:300]
+        assert "malformed XML" in _one_line_error(argv, capsys)
+        agent.probe_body = b'<?xml version="1.0"?><!DOCTYPE x [<!ENTITY a "b">]><MTConnectDevices/>'
+        assert "DOCTYPE" in _one_line_error(argv, capsys)
+        agent.probe_body = b"<html>not an agent</html>"
+        assert "not an MTConnect probe" in _one_line_error(argv, capsys)
+        agent.probe_body = probe_xml(items={k: v for k, v in ITEMS.items() if v[3] in ("EXECUTION", "AVAILABILITY")})
+        assert "no axis positions, path feed or line number" in _one_line_error(argv, capsys)
+        agent.probe_body = probe_xml(extra_devices=("Lathe",))
+        assert "several devices (LinuxCNC, Lathe): choose one with --device" in _one_line_error(argv, capsys)
+        assert "no device 'Mill' at the agent (devices: LinuxCNC, Lathe)" in _one_line_error(
+            argv + ["--device", "Mill"], capsys)
+        assert "HTTP 404 (NO_DEVICE: no device Lathe)" in _one_line_error(argv + ["--device", "Lathe"], capsys)
+    assert not Path(out).exists()
+
+
+def test_units_come_from_the_probe():
+    items = {"Xa": ("Linear", "X", "SAMPLE", "POSITION", "ACTUAL", "INCH"),
+             "Ca": ("Rotary", "C", "SAMPLE", "ANGLE", "ACTUAL", "RADIAN"),
+             "f": ("Path", "p", "SAMPLE", "PATH_FEEDRATE", "ACTUAL", "INCH/MINUTE"),
+             "fc": ("Path", "p", "SAMPLE", "PATH_FEEDRATE", "PROGRAMMED", "MILLIMETER/SECOND"),
+             "l": ("Path", "p", "EVENT", "LINE", "", "")}
+    plan = plan_items(parse_probe(probe_xml(items=items))[0])
+    cols = {i: (c.stream, c.column, c.factor) for i, c in plan.columns.items()}
+    assert cols["Xa"] == ("axes", "x_mm", 25.4) and cols["f"] == ("feed", "feed_mm_min", 25.4)
+    assert cols["Ca"][:2] == ("axes", "c_deg") and cols["Ca"][2] == pytest.approx(57.29577951308232)
+    assert cols["fc"] == ("feed", "requested_feed_mm_min", 60.0) and cols["l"] == ("line", "line", 0.0)
+    with pytest.raises(IngestError, match="units 'FURLONG'"):
+        plan_items(parse_probe(probe_xml(items={"Xa": ("Linear", "X", "SAMPLE", "POSITION", "ACTUAL", "FURLONG")}))[0])
