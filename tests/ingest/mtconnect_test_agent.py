@@ -10,6 +10,7 @@ or a stream asking for a sequence the buffer no longer holds gets an `OUT_OF_RAN
 Faults the tests inject: `stall_at_seq` (the stream stops sending for `stall_s` once, so a small buffer
 overruns under it: the agent then sends `OUT_OF_RANGE` and ends the stream), `drop_at_seq` (the stream
 sends half a part and the connection is cut, once), `probe_body` (serve these bytes as the probe).
+`corrupt_at_seq` with `corrupt_times` (that many parts from there on are malformed XML).
 `/current?at=SEQ` answers the state at a sequence the buffer still holds.
 Run as a script (`python -m tests.ingest.mtconnect_test_agent REC.mcap PORT`) it serves until killed.
 """
@@ -108,6 +109,8 @@ class ReplayAgent:
         self.stall_s = 0.0
         self.drop_at_seq: int | None = None
         self.probe_body: bytes | None = None
+        self.corrupt_at_seq: int | None = None
+        self.corrupt_times = 0
         self.events: list[tuple] = []      # ("stall"|"drop"|"out_of_range", seq, first_seq)
         self.finished = threading.Event()
         self.closed = threading.Event()
@@ -299,6 +302,13 @@ class ReplayAgent:
                             self.connection.shutdown(socket.SHUT_RDWR)
                             self.close_connection = True
                             return
+                        if agent.corrupt_times and entries and entries[-1][0] >= (agent.corrupt_at_seq or 0):
+                            agent.corrupt_times -= 1
+                            agent.events.append(("corrupt", pos, agent.first_seq()))
+                            body = agent._streams(entries, next_seq=nxt)
+                            self._chunk(body[: len(body) // 2] + b"<</Streams>")
+                            time.sleep(interval_ms / 1000)
+                            continue
                         if entries or time.monotonic() - last_sent >= heartbeat_ms / 1000:
                             self._chunk(agent._streams(entries, next_seq=nxt))
                             last_sent = time.monotonic()

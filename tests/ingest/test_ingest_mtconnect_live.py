@@ -129,6 +129,28 @@ def test_a_poll_that_fell_behind_the_buffer_is_a_gap(tmp_path):
     assert_matches_replay(agent, rec, outside=spans)
 
 
+def test_a_damaged_document_is_asked_for_again_and_three_in_a_row_stop_with_one_line(tmp_path, capsys):
+    out = tmp_path / "bad.mcap"
+    with ReplayAgent(RECORDING) as agent:
+        agent.corrupt_at_seq, agent.corrupt_times = 600, 1
+        stop = threading.Event()
+        stop_after_replay(agent, stop)
+        summary = record_agent(agent.url, out, interval_ms=50, stop=stop, progress=None)
+    assert ("corrupt" in [e[0] for e in agent.events]) and summary["reconnects"] >= 1
+    assert summary["observations"] == len(agent.observations) and summary["gaps"] == []
+    assert_matches_replay(agent, read_recording(out))
+
+    out = tmp_path / "worse.mcap"
+    with ReplayAgent(RECORDING) as agent:
+        agent.corrupt_at_seq, agent.corrupt_times = 600, 100
+        err = _one_line_error(["record", "--source", "mtconnect", "--url", agent.url, "-o", str(out), "--quiet",
+                               "--duration-s", "30"], capsys)
+    assert "malformed XML" in err and "3 times in a row" in err and "the recording keeps what arrived before" in err
+    rec = read_recording(out)  # finished: everything before the damaged part is there
+    assert 0 < len(rec.streams["axes"]) and rec.streams["axes"]["t_ns"].iloc[-1] < agent.t0_ns + 7e9
+    assert_matches_replay_prefix(agent, rec)
+
+
 def _recorder(url: str, out: Path) -> subprocess.Popen:
     cmd = [sys.executable, "-m", "feedlog.cli", "record", "--source", "mtconnect", "--url", url, "-o", str(out),
            "--quiet", "--json"]

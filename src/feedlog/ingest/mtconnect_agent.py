@@ -75,7 +75,7 @@ class StreamsDocument:
 
     def header_int(self, key: str) -> int | None:
         text = self.header.get(key, "")
-        return int(text) if text.isdigit() and len(text) < 19 else None
+        return int(text) if text.isascii() and text.isdigit() and len(text) < 19 else None
 
 
 def _parser(where: str, fail) -> expat.XMLParserType:
@@ -179,7 +179,7 @@ def parse_streams(data: bytes, where: str = "sample") -> StreamsDocument:
             elif stack and stack[-1] in ("Samples", "Events") and not current:
                 item = attrs.get("dataItemId", "")
                 seq = attrs.get("sequence", "")
-                if not item or not (seq.isdigit() and len(seq) < 19):
+                if not item or not (seq.isascii() and seq.isdigit() and len(seq) < 19):
                     fail(f"<{local}> without a dataItemId and a sequence number")
                 current[:] = [Observation(item, int(seq), attrs.get("timestamp", ""), ""), [], depth]
             stack.append(local)
@@ -260,7 +260,7 @@ class AgentClient:
         resp = self._open(path)
         try:
             length = resp.getheader("Content-Length")
-            if length and length.isdigit() and int(length) > MAX_DOCUMENT_BYTES:
+            if length and length.isascii() and length.isdigit() and int(length) > MAX_DOCUMENT_BYTES:
                 raise IngestError(f"the agent announces a {length}-byte document (at most {MAX_DOCUMENT_BYTES})",
                                   file=self.url + path)
             body = resp.read(MAX_DOCUMENT_BYTES + 1)
@@ -377,7 +377,7 @@ class MultipartReader:
             del self.buf[:end + 4]
             length = headers.get("content-length")
             if length is not None:
-                if not (length.isdigit() and len(length) < 12):
+                if not (length.isascii() and length.isdigit() and len(length) < 12):
                     raise IngestError(f"a multipart part with Content-length {length[:20]!r}", file=self.where)
                 n = int(length)
                 if n > MAX_DOCUMENT_BYTES:

@@ -14,7 +14,9 @@
    (`--poll`: plain requests `/sample?from=SEQ&count=N` every `--interval-ms` instead).
 
 Sequence numbers are tracked: observations already received are never taken twice, a dropped or
-silent connection is reopened from the next sequence (nothing the agent still holds is lost), and a
+silent connection, or a damaged document (malformed XML; three in a row at the same sequence end the
+recording with one error line), is reopened from the next sequence (nothing the agent still holds
+is lost), and a
 gap (the agent's buffer overran: `OUT_OF_RANGE`, or a `firstSequence` beyond the next one wanted; an
 agent restart: a new `instanceId`) is written to the `gaps` stream (t_ns = last observation before,
 end_t_ns = first one after, lost = sequences lost or -1 when unknown, reason) and counted in
@@ -55,6 +57,7 @@ EVENT_TYPES = {"EXECUTION": "execution", "PROGRAM": "program", "TOOL_NUMBER": "t
 _LINEAR = re.compile(r"^([XYZ])\d*$", re.IGNORECASE)
 _ROTARY = re.compile(r"^([ABC])\d*$", re.IGNORECASE)
 UNAVAILABLE = "UNAVAILABLE"
+MAX_BAD_DOCUMENTS = 3   # damaged documents in a row for the same sequence before the recording stops
 
 
 def add_arguments(group: argparse._ArgumentGroup) -> None:
@@ -298,6 +301,8 @@ class AgentReader(threading.Thread):
         self.count = count
         self.heartbeat_ms = heartbeat_ms
         self.reconnects = 0
+        self.bad_documents = 0      # damaged documents in a row at the same sequence
+        self.bad_at = -1
 
     def _put(self, item) -> None:
         while not self.stop_event.is_set():
@@ -354,7 +359,15 @@ class AgentReader(threading.Thread):
                 self.stop_event.wait(max(0.0, self.interval_ms / 1000 - (time.monotonic() - started)))
 
     def _accept(self, status: int, body: bytes, path: str) -> int:
-        doc = parse_streams(body, where=self.client.url + path)
+        try:
+            doc = parse_streams(body, where=self.client.url + path)
+        except IngestError as exc:  # a damaged document: ask for the same sequences again, a few times
+            self.bad_documents = self.bad_documents + 1 if self.bad_at == self.next_seq else 1
+            self.bad_at = self.next_seq
+            if self.bad_documents >= MAX_BAD_DOCUMENTS:
+                raise IngestError(f"{exc.message} ({self.bad_documents} times in a row from sequence "
+                                  f"{self.next_seq})", file=exc.file, line=exc.line) from None
+            raise AgentUnreachable(f"a damaged document ({exc.message})") from None
         if doc.errors:
             codes = [code for code, _ in doc.errors]
             if "OUT_OF_RANGE" in codes:
