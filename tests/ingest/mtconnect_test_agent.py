@@ -111,6 +111,7 @@ class ReplayAgent:
         self.probe_body: bytes | None = None
         self.corrupt_at_seq: int | None = None
         self.corrupt_times = 0
+        self.generation = 0     # restarts so far (a stream of an earlier generation ends)
         self.events: list[tuple] = []      # ("stall"|"drop"|"out_of_range", seq, first_seq)
         self.finished = threading.Event()
         self.closed = threading.Event()
@@ -161,6 +162,22 @@ class ReplayAgent:
                 return
             self._add(item, due, text)
         self.finished.set()
+
+    def restart(self) -> None:
+        """As if the agent process restarted: a new instanceId, sequences from 1, an empty buffer
+        that starts with the values the adapter sends on connecting (its whole state); open streams end."""
+        with self.lock:
+            state = {item: entry[3] for item, entry in self.latest.items()}
+            self.instance = str(int(self.instance) + 1)
+            self.buffer.clear()
+            self.history.clear()
+            self.latest.clear()
+            self.next_seq = 1
+            self.generation += 1
+        now = time.time_ns() // 1000 * 1000
+        for item, text in state.items():
+            self._add(item, now, text)
+        self.events.append(("restart", 1, 1))
 
     def first_seq(self) -> int:
         return self.buffer[0][0] if self.buffer else self.next_seq
@@ -284,8 +301,9 @@ class ReplayAgent:
                 self.send_header("Transfer-Encoding", "chunked")
                 self.end_headers()
                 last_sent = time.monotonic()
+                generation = agent.generation
                 try:
-                    while not agent.closed.is_set():
+                    while not agent.closed.is_set() and generation == agent.generation:
                         with agent.lock:
                             overrun = pos < agent.first_seq()
                         if overrun:

@@ -151,6 +151,25 @@ def test_a_damaged_document_is_asked_for_again_and_three_in_a_row_stop_with_one_
     assert_matches_replay_prefix(agent, rec)
 
 
+def test_an_agent_restart_is_a_gap_of_unknown_size_and_recording_goes_on(tmp_path):
+    out = tmp_path / "restart.mcap"
+    with ReplayAgent(RECORDING) as agent:
+        def restart_midway():
+            time.sleep(agent.start_delay_s + 3.0)
+            agent.restart()
+        threading.Thread(target=restart_midway, daemon=True).start()
+        stop = threading.Event()
+        stop_after_replay(agent, stop)
+        summary = record_agent(agent.url, out, interval_ms=50, stop=stop, progress=None)
+    assert len(summary["gaps"]) == 1 and summary["gaps"][0]["lost"] == -1
+    assert "restarted" in summary["gaps"][0]["reason"]
+    rec = read_recording(out)
+    gaps = rec.streams["gaps"]
+    spans = list(zip(gaps["t_ns"].tolist(), gaps["end_t_ns"].tolist()))
+    assert_matches_replay(agent, rec, outside=spans)
+    assert rec.streams["axes"]["t_ns"].iloc[-1] > spans[0][1]      # recorded on after the restart
+
+
 def _recorder(url: str, out: Path) -> subprocess.Popen:
     cmd = [sys.executable, "-m", "feedlog.cli", "record", "--source", "mtconnect", "--url", url, "-o", str(out),
            "--quiet", "--json"]

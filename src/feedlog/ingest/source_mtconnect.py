@@ -402,7 +402,7 @@ class AgentReader(threading.Thread):
         instance = doc.header.get("instanceId", "")
         first = doc.header_int("firstSequence") or 1
         if instance and instance != self.instance:
-            lost = -1
+            lost, reason = -1, "the agent restarted (new instanceId): what it saw before is unknown"
             self.instance = instance
         elif first > self.next_seq:
             lost = first - self.next_seq
