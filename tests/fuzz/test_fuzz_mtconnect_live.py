@@ -16,7 +16,8 @@ from hypothesis import strategies as st
 
 from feedlog.errors import IngestError
 from feedlog.ingest.mtconnect_agent import MAX_DOCUMENT_BYTES, MultipartReader, parse_probe, parse_streams
-from feedlog.ingest.source_mtconnect import Pivot, observation_times, plan_items
+from feedlog.ingest.live_rows import Pivot
+from feedlog.ingest.source_mtconnect import observation_times, plan_items
 from feedlog.units import MAX_ABS_T_NS
 from tests.fuzz import mutate
 from tests.ingest.mtconnect_test_agent import BOUNDARY, ITEMS, probe_xml

@@ -35,15 +35,14 @@ import re
 import sys
 import threading
 import time
-from dataclasses import dataclass, field
 from typing import Any, TextIO
 
 import numpy as np
-import pandas as pd
 
 from feedlog.errors import IngestError, OutputError
 from feedlog.ingest.mtconnect_agent import (AgentClient, AgentUnreachable, DataItem, Device, Observation,
                                             StreamsDocument, parse_probe, parse_streams)
+from feedlog.ingest.live_rows import Column, Gap, Plan, Progress, RowSession, Stats, iso
 from feedlog.ingest.mtconnect_obs import parse_times
 from feedlog.ingest.writer import RecordingWriter
 
@@ -56,7 +55,6 @@ FEED_UNITS = {"MILLIMETER/SECOND": 60.0, "": 60.0, "MILLIMETER/MINUTE": 1.0, "IN
 EVENT_TYPES = {"EXECUTION": "execution", "PROGRAM": "program", "TOOL_NUMBER": "tool_number", "BLOCK": "block"}
 _LINEAR = re.compile(r"^([XYZ])\d*$", re.IGNORECASE)
 _ROTARY = re.compile(r"^([ABC])\d*$", re.IGNORECASE)
-UNAVAILABLE = "UNAVAILABLE"
 MAX_BAD_DOCUMENTS = 3   # damaged documents in a row for the same sequence before the recording stops
 
 
@@ -67,28 +65,6 @@ def add_arguments(group: argparse._ArgumentGroup) -> None:
 
 
 # -- which data items ----------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Column:
-    stream: str
-    column: str
-    factor: float       # to mm, deg, mm/min; 0 for integers (line)
-
-
-@dataclass
-class Plan:
-    device: Device
-    columns: dict[str, Column] = field(default_factory=dict)     # data item id -> column
-    events: dict[str, str] = field(default_factory=dict)         # data item id -> event name
-    notes: list[str] = field(default_factory=list)
-
-    def describe(self) -> str:
-        items = {i.id: i for i in self.device.items}
-        parts = [f"{c.stream}.{c.column}={i}({items[i].type} {items[i].sub_type or '-'} {items[i].units or '-'})"
-                 for i, c in self.columns.items()]
-        parts += [f"events.{name}={i}" for i, name in self.events.items()]
-        return ", ".join(parts)
-
-
 def _factor(item: DataItem, table: dict[str, float], what: str) -> float:
     if item.units not in table:
         raise IngestError(f"data item {item.id!r} ({item.type}) has units {item.units!r}; feedlog converts "
@@ -115,7 +91,7 @@ def choose_device(devices: list[Device], name: str | None, where: str) -> Device
 
 def plan_items(device: Device, where: str = "probe") -> Plan:
     """The data items to record and where they go: see the module docstring."""
-    plan = Plan(device)
+    plan = Plan(device.name, labels={i.id: f"{i.type} {i.sub_type or '-'} {i.units or '-'}" for i in device.items})
     axes: dict[str, dict[str, DataItem]] = {}      # axis letter -> subType -> item
     feed: dict[str, DataItem] = {}
     line: dict[str, DataItem] = {}
@@ -164,103 +140,6 @@ def plan_items(device: Device, where: str = "probe") -> Plan:
 
 
 # -- observations -> rows --------------------------------------------------------------------------------
-class Pivot:
-    """Turns observations (in sequence order) into rows: per stream, one row per distinct time at
-    which one of its members changed, each column holding its last value. The rows of the latest
-    time are held back until an observation with a later time arrives (an agent may split the
-    observations of one time over two documents) or `release()` is called."""
-
-    def __init__(self, plan: Plan) -> None:
-        self.plan = plan
-        self.members: dict[str, list[str]] = {}
-        for column in plan.columns.values():
-            self.members.setdefault(column.stream, []).append(column.column)
-        self.held = {s: {c: np.nan for c in cols} for s, cols in self.members.items()}
-        self.last_t: dict[str, int] = {}
-        self.pending_t: int | None = None
-        self.dirty: set[str] = set()
-        self.unavailable_rows = 0
-        self.bad_values = 0
-        self.late = 0
-
-    def feed(self, observations: list[Observation], times: np.ndarray) -> dict[str, pd.DataFrame]:
-        rows: dict[str, list[tuple]] = {}
-        events: list[tuple[int, str, str]] = []
-        order = np.lexsort((np.array([o.sequence for o in observations], dtype=np.int64), times))
-        for k in order.tolist():
-            obs, t = observations[k], int(times[k])
-            if self.pending_t is not None and t != self.pending_t and self.dirty:
-                self._emit(self.pending_t, rows)
-            self.pending_t = t
-            column = self.plan.columns.get(obs.item)
-            if column is not None:
-                value = self._number(obs.value, column)
-                if value is None:
-                    continue
-                self.held[column.stream][column.column] = value
-                self.dirty.add(column.stream)
-            elif obs.item in self.plan.events:
-                events.append((self._clamp("events", t), self.plan.events[obs.item], obs.value))
-        return self._frames(rows, events)
-
-    def forget(self) -> None:
-        """After a gap: no value is known until it arrives again."""
-        for values in self.held.values():
-            for column in values:
-                values[column] = np.nan
-        self.dirty.clear()
-
-    def release(self) -> dict[str, pd.DataFrame]:
-        """The rows held back (the latest time's)."""
-        rows: dict[str, list[tuple]] = {}
-        if self.dirty and self.pending_t is not None:
-            self._emit(self.pending_t, rows)
-        return self._frames(rows, [])
-
-    def _frames(self, rows: dict[str, list[tuple]], events: list[tuple[int, str, str]]) -> dict[str, pd.DataFrame]:
-        out = {}
-        for stream, table in rows.items():
-            frame = pd.DataFrame(table, columns=["t_ns", *self.members[stream]])
-            frame["t_ns"] = frame["t_ns"].astype(np.int64)
-            if stream == "line":
-                frame["line"] = frame["line"].astype(np.int64)
-            out[stream] = frame
-        if events:
-            out["events"] = pd.DataFrame({"t_ns": np.array([e[0] for e in events], dtype=np.int64),
-                                          "name": [e[1] for e in events], "value": [e[2] for e in events]})
-        return out
-
-    def _number(self, text: str, column: Column) -> float | None:
-        if text.upper() == UNAVAILABLE:
-            return np.nan
-        try:
-            value = float(text.removeprefix("N").removeprefix("n") if column.factor == 0 else text)
-        except ValueError:
-            self.bad_values += 1
-            return None
-        if not np.isfinite(value) or (column.factor == 0 and (value != int(value) or abs(value) > 2**53)):
-            self.bad_values += 1
-            return None
-        return value if column.factor == 0 else value * column.factor
-
-    def _clamp(self, stream: str, t: int) -> int:
-        last = self.last_t.get(stream)
-        if last is not None and t < last:   # an adapter's own timestamps may step back: keep the order
-            self.late += 1
-            t = last
-        self.last_t[stream] = t
-        return t
-
-    def _emit(self, t: int, rows: dict[str, list[tuple]]) -> None:
-        for stream in sorted(self.dirty):
-            values = self.held[stream]
-            if all(np.isfinite(v) for v in values.values()):
-                rows.setdefault(stream, []).append((self._clamp(stream, t), *values.values()))
-            else:
-                self.unavailable_rows += 1
-        self.dirty.clear()
-
-
 def observation_times(observations: list[Observation], default_ns: int) -> np.ndarray:
     """int64 ns of each observation's timestamp; one without a usable time takes `default_ns`."""
     if not observations:
@@ -270,12 +149,6 @@ def observation_times(observations: list[Observation], default_ns: int) -> np.nd
 
 
 # -- the HTTP side ----------------------------------------------------------------------------------------
-@dataclass
-class Gap:
-    lost: int            # sequences lost; -1 when unknown (the agent restarted)
-    reason: str
-
-
 class _Resync(Exception):
     def __init__(self, reason: str) -> None:
         super().__init__(reason)
@@ -423,134 +296,14 @@ class AgentReader(threading.Thread):
 
 
 # -- the recorder --------------------------------------------------------------------------------------
-@dataclass
-class Stats:
-    samples: int = 0
-    observations: int = 0
-    sequences_lost: int = 0
-    gaps: list[dict] = field(default_factory=list)
-    reconnects: int = 0
-    unavailable_rows: int = 0
-    bad_values: int = 0
-    late_observations: int = 0
-    wall_s: float = 0.0
-    stopped_by: str = ""
-    error: str = ""
-    streams: dict[str, int] = field(default_factory=dict)
-
-    def as_dict(self) -> dict:
-        rate = self.samples / self.wall_s if self.wall_s > 0 else 0.0
-        return {**self.__dict__, "wall_s": round(self.wall_s, 3), "samples_per_s": round(rate, 1)}
-
-
-class Progress:
-    """One refreshing status line: samples, rate, gaps, reconnects."""
-
-    def __init__(self, stream: TextIO | None, interval_s: float = 0.5) -> None:
-        self.stream = stream
-        self.interval_s = interval_s
-        self._last = 0.0
-
-    def show(self, stats: Stats, elapsed: float, *, final: bool = False) -> None:
-        if self.stream is None or (not final and elapsed - self._last < self.interval_s):
-            return
-        self._last = elapsed
-        rate = stats.samples / elapsed if elapsed > 0 else 0.0
-        self.stream.write(f"\r{elapsed:7.1f} s  {stats.samples:>9} samples  {rate:>7.0f} samples/s  "
-                          f"{len(stats.gaps)} gaps ({stats.sequences_lost} lost)  {stats.reconnects} reconnects"
-                          + ("\n" if final else ""))
-        self.stream.flush()
-
-
-def _iso(t_ns: int | None) -> str:
-    return "" if t_ns is None else pd.Timestamp(t_ns, tz="UTC").isoformat()
-
-
-class _Session:
-    """The main loop's state: pivot, writer, gaps waiting for their end time."""
-
-    def __init__(self, plan: Plan, writer: RecordingWriter, stats: Stats) -> None:
-        self.pivot = Pivot(plan)
-        self.writer = writer
-        self.stats = stats
-        self.last_obs_ns: int | None = None
-        self.open_gaps: list[Gap] = []
-        self.held_since: float | None = None
-        self.resume_state: StreamsDocument | None = None
-
+class _Session(RowSession):
     def document(self, doc: StreamsDocument, *, counted: bool = True, stamp_ns: int | None = None) -> None:
-        """Observations -> rows. `counted`: new sequences (not the /current state); `stamp_ns`: the
-        state's observations are stamped no earlier than this (the time the state held)."""
+        """A streams document's observations -> rows; `stamp_ns`: the /current state's observations
+        are stamped no earlier than this (the time the state held)."""
         times = observation_times(doc.observations, _header_time(doc) or time.time_ns())
         if stamp_ns is not None:
             times = np.maximum(times, stamp_ns)
-        if counted:
-            self.stats.observations += len(doc.observations)
-        if len(times) and self.open_gaps and counted:  # a gap ends with the first new observation
-            end = int(times.min())
-            self._close_gaps(end)
-            if self.resume_state is not None:  # the state where the agent resumed: it held at `end`
-                state, self.resume_state = self.resume_state, None
-                self._feed(state.observations, np.full(len(state.observations), end, dtype=np.int64))
-        self._feed(doc.observations, times)
-        if len(times):
-            self.last_obs_ns = max(int(times.max()), self.last_obs_ns or int(times.max()))
-
-    def _feed(self, observations: list[Observation], times: np.ndarray) -> None:
-        self._write(self.pivot.feed(observations, times))
-        if self.pivot.dirty and self.held_since is None:
-            self.held_since = time.monotonic()
-        self.stats.unavailable_rows = self.pivot.unavailable_rows
-        self.stats.bad_values = self.pivot.bad_values
-        self.stats.late_observations = self.pivot.late
-
-    def gap(self, gap: Gap) -> None:
-        if gap.lost > 0:
-            self.stats.sequences_lost += gap.lost
-        if self.open_gaps:  # nothing new arrived since the last gap (a resync that lost the race): one gap
-            last = self.open_gaps[-1]
-            self.open_gaps[-1] = Gap(-1 if -1 in (last.lost, gap.lost) else last.lost + gap.lost, last.reason)
-        else:
-            self.open_gaps.append(gap)
-        self.writer.dropped_frames = self.stats.sequences_lost
-        self._write(self.pivot.release())   # rows before the gap are complete; the held values no longer hold
-        self.held_since = None
-        self.pivot.forget()
-
-    def state(self, doc: StreamsDocument | None) -> None:
-        """The agent's state at the sequence the recording resumes from after a gap (None: the agent
-        could not say): applied when the first new observation arrives, at its time."""
-        self.resume_state = doc if doc is not None and doc.observations else None
-
-    def _close_gaps(self, end_ns: int) -> None:
-        start = self.last_obs_ns if self.last_obs_ns is not None else end_ns
-        start = min(start, end_ns)
-        for gap in self.open_gaps:
-            self.stats.gaps.append({"start": _iso(start), "end": _iso(end_ns), "span_s": round((end_ns - start) / 1e9, 3),
-                                    "lost": gap.lost, "reason": gap.reason})
-            self._write({"gaps": pd.DataFrame({"t_ns": np.array([start], dtype=np.int64),
-                                               "end_t_ns": np.array([end_ns], dtype=np.int64),
-                                               "lost": np.array([gap.lost], dtype=np.int64),
-                                               "reason": [gap.reason]})})
-        self.open_gaps = []
-
-    def release_due(self, hold_s: float = 0.3) -> None:
-        """Write the rows held back once they have waited `hold_s` for a later observation."""
-        if self.held_since is not None and time.monotonic() - self.held_since >= hold_s:
-            self.held_since = None
-            self._write(self.pivot.release())
-
-    def finish(self) -> None:
-        self._write(self.pivot.release())
-        if self.open_gaps:  # the recording ended before anything arrived after the gap
-            self._close_gaps(max(time.time_ns(), self.last_obs_ns or 0))
-
-    def _write(self, streams: dict[str, pd.DataFrame]) -> None:
-        for name, table in streams.items():
-            self.writer.write(name, table)
-            if name != "gaps":
-                self.stats.samples += len(table)
-                self.stats.streams[name] = self.stats.streams.get(name, 0) + len(table)
+        self.observations(doc.observations, times, counted=counted)
 
 
 def _header_time(doc: StreamsDocument) -> int | None:
@@ -603,7 +356,7 @@ def record_agent(url: str, out, *, device: str | None = None, interval_ms: int =
             "interval_ms": str(interval_ms), "mode": "poll" if poll else "stream",
             "mtconnect_instance": current.header.get("instanceId", ""),
             "mtconnect_version": current.header.get("version", ""), "data_items": plan.describe(),
-            "start_time": _iso(start_ns)}
+            "start_time": iso(start_ns)}
     if plan.notes:
         meta["notes"] = "; ".join(filter(None, [meta.get("notes", ""), *plan.notes]))
     writer = RecordingWriter(out, metadata=meta, attachments=attachments or {}, overwrite=overwrite,
@@ -673,7 +426,7 @@ def _handle(item, session: _Session, stats: Stats) -> BaseException | None:
     elif kind == "gap":
         session.gap(value)
     elif kind == "state":
-        session.state(value)
+        session.state(value.observations if value is not None else None)
     elif kind == "reconnect":
         stats.reconnects += 1
     elif kind == "fatal":
