@@ -155,7 +155,7 @@ def _unit_factor(target: str, unit: str, where: str = "") -> float:
 def unit_from_eu(eu) -> str | None:
     """The unit an EUInformation names (UNECE code, else display name), None if neither is known."""
     unit_id = getattr(eu, "UnitId", None)
-    if isinstance(unit_id, int) and unit_id > 0:
+    if isinstance(unit_id, int) and 0 < unit_id < 1 << 32:   # an Int32 on the wire
         code = bytes(b for b in unit_id.to_bytes(4, "big") if b).decode("latin-1")
         if code in UNECE:
             return UNECE[code]
