@@ -340,3 +340,51 @@ def test_one_line_errors(tmp_path, capsys):
         assert "none of the node map's nodes exist" in error("--url", served.url, "--nodes", str(other))
     assert not Path(out).exists()
     assert load_node_map("sinumerik").verified is False
+
+
+def test_kill_9_of_the_recorder_loses_at_most_about_one_second(tmp_path):
+    out = tmp_path / "kill.mcap"
+    with server_long() as served:
+        proc = subprocess.Popen([sys.executable, "-m", "feedlog.cli", "record", "--source", "opcua", "--url", served.url,
+                                 "--interval-ms", "10", "-o", str(out), "--quiet"], cwd=ROOT,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            deadline = time.monotonic() + 30
+            while time.monotonic() < deadline:
+                try:
+                    axes = read_recording(out, recover=True).streams.get("axes")
+                    if axes is not None and (axes["t_ns"] > served.t0_ns).sum() > 20:
+                        break
+                except IngestError:
+                    pass
+                assert proc.poll() is None, proc.communicate()
+                time.sleep(0.1)
+            lags = []
+            until = time.monotonic() + 2.5
+            while time.monotonic() < until:
+                on_disk = int(read_recording(out, recover=True).streams["axes"]["t_ns"].iloc[-1])
+                lags.append(time.time_ns() - on_disk)
+                time.sleep(0.1)
+            killed_at = time.time_ns()
+            proc.send_signal(signal.SIGKILL)
+            proc.wait(10)
+        finally:
+            proc.kill()
+        assert not served.done.is_set(), "the replay ended before the kill"
+    rec = read_recording(out, recover=True)
+    t = rec.streams["axes"]["t_ns"].to_numpy()
+    assert t[-1] >= on_disk and (killed_at - t[-1]) - min(lags) < 1.4e9
+    axes = rec.streams["axes"]
+    axes = axes[axes["t_ns"] >= served.t0_ns]
+    tab = replay_table(LONG, 100.0)
+    np.testing.assert_array_equal(axes["x_mm"].to_numpy(), replay_at(served.t0_ns, axes["t_ns"].to_numpy(), tab)["x"])
+
+
+@contextmanager
+def server_long():
+    served = start_server(free_port(), "+1.5", recording=LONG)
+    try:
+        yield served
+    finally:
+        served.proc.kill()
+        served.proc.wait(10)
