@@ -21,6 +21,7 @@ from feedlog.errors import IngestError
 from feedlog.ingest import read_recording
 from feedlog.ingest.mtconnect_agent import parse_probe
 from feedlog.ingest.source_mtconnect import plan_items, record_agent
+from tests.ingest.live_helpers import wait_for_rows, watch_then_kill
 from tests.ingest.mtconnect_test_agent import ITEMS, ReplayAgent, probe_xml
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -176,35 +177,13 @@ def _recorder(url: str, out: Path) -> subprocess.Popen:
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
 
 
-def _wait_for_axes(out: Path, proc: subprocess.Popen, seconds: float = 30) -> None:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            pytest.fail(f"recorder ended early: {proc.communicate()}")
-        try:
-            if len(read_recording(out, recover=True).streams.get("axes", ())) > 0:
-                return
-        except IngestError:
-            pass
-        time.sleep(0.1)
-    pytest.fail("recorder wrote nothing")
-
-
 def test_kill_9_loses_at_most_about_one_second(tmp_path):
     out = tmp_path / "kill.mcap"
     with ReplayAgent(RECORDING, start_delay_s=1.5) as agent:
         proc = _recorder(agent.url, out)
         try:
-            _wait_for_axes(out, proc)
-            lags_ns, on_disk_ns = [], 0
-            watch_until = time.monotonic() + 2.5
-            while time.monotonic() < watch_until:
-                on_disk_ns = int(read_recording(out, recover=True).streams["axes"]["t_ns"].iloc[-1])
-                lags_ns.append(time.time_ns() - on_disk_ns)
-                time.sleep(0.1)
-            killed_at_ns = time.time_ns()
-            proc.send_signal(signal.SIGKILL)
-            proc.wait(timeout=10)
+            wait_for_rows(out, proc)
+            killed_at_ns, on_disk_ns, min_lag_ns = watch_then_kill(out, proc)
         finally:
             proc.kill()
         assert not agent.finished.is_set(), "the replay ended before the kill: nothing to lose was tested"
@@ -215,7 +194,7 @@ def test_kill_9_loses_at_most_about_one_second(tmp_path):
     assert len(t) > 100 and t[-1] >= on_disk_ns
     # agent times run with the wall clock; the file trails it by the smallest lag seen (right after
     # a flush) plus at most one flush interval (1 s) and the 0.3 s hold-back of the latest time
-    assert (killed_at_ns - t[-1]) - min(lags_ns) < 1.4e9
+    assert (killed_at_ns - t[-1]) - min_lag_ns < 1.4e9
     assert_matches_replay_prefix(agent, rec)
 
 
@@ -231,7 +210,7 @@ def test_sigint_finishes_the_file(tmp_path):
     with ReplayAgent(RECORDING) as agent:
         proc = _recorder(agent.url, out)
         try:
-            _wait_for_axes(out, proc)
+            wait_for_rows(out, proc)
             time.sleep(0.5)
             proc.send_signal(signal.SIGINT)
             stdout, stderr = proc.communicate(timeout=30)
