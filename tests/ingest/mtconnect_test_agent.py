@@ -55,6 +55,15 @@ ITEMS = {
     "tool": ("Path", "path", "EVENT", "TOOL_NUMBER", "", ""),
     "avail": ("Device", "", "EVENT", "AVAILABILITY", "", ""),
 }
+ROTARY_ITEMS = {f"{a}act": ("Rotary", a, "SAMPLE", "ANGLE", "ACTUAL", "DEGREE") for a in "ABC"}
+
+
+def synthetic_table(seconds: float, rate_hz: float = 100.0) -> dict[str, np.ndarray]:
+    """Six axes that all move every sample, a feed and a line that changes every second (benchmarks)."""
+    t = np.arange(int(seconds * rate_hz)) / rate_hz
+    return {"t_ns": np.round(t * 1e9).astype(np.int64), "x": 50 * np.sin(t), "y": 40 * np.cos(0.7 * t),
+            "z": -5 + np.sin(3 * t), "a": 30 * np.sin(0.2 * t), "b": 20 * np.cos(0.3 * t), "c": 10.0 * t,
+            "feed": 1000 + 500 * np.sin(t), "line": (10 + t).astype(np.int64)}
 
 
 def probe_xml(device: str = "LinuxCNC", items: dict = ITEMS, extra_devices: tuple[str, ...] = ()) -> bytes:
@@ -93,9 +102,11 @@ def replay_table(path: Path, rate_hz: float) -> dict[str, np.ndarray]:
 
 
 class ReplayAgent:
-    def __init__(self, recording: Path, *, rate_hz: float = 100.0, buffer_size: int = 8192,
-                 device: str = "LinuxCNC", start_delay_s: float = 0.8, port: int = 0) -> None:
-        self.table = replay_table(recording, rate_hz)
+    def __init__(self, recording: Path | None, *, rate_hz: float = 100.0, buffer_size: int = 8192,
+                 device: str = "LinuxCNC", start_delay_s: float = 0.8, port: int = 0,
+                 table: dict[str, np.ndarray] | None = None) -> None:
+        self.table = table if table is not None else replay_table(recording, rate_hz)
+        self.items = {**ITEMS, **{k: v for k, v in ROTARY_ITEMS.items() if k[0].lower() in self.table}}
         self.device = device
         self.buffer_size = buffer_size
         self.start_delay_s = start_delay_s
@@ -117,7 +128,7 @@ class ReplayAgent:
         self.closed = threading.Event()
         self.t0_ns = (time.time_ns() // 1_000_000 + int(start_delay_s * 1000)) * 1_000_000
         now = time.time_ns() // 1000 * 1000
-        for item in ITEMS:
+        for item in self.items:
             self._add(item, now, "UNAVAILABLE" if item != "avail" else "AVAILABLE")
         self.server = ThreadingHTTPServer(("127.0.0.1", port), self._handler())
         self.server.daemon_threads = True
@@ -134,7 +145,8 @@ class ReplayAgent:
             t = int(tab["t_ns"][i])
             values = {"Xact": tab["x"][i], "Xcmd": tab["x"][i], "Yact": tab["y"][i], "Ycmd": tab["y"][i],
                       "Zact": tab["z"][i], "Zcmd": tab["z"][i], "pf": tab["feed"][i] / 60.0, "pfo": 100.0,
-                      "ln": int(tab["line"][i]), "exec": "ACTIVE", "pgm": "replay.ngc", "tool": 1}
+                      "ln": int(tab["line"][i]), "exec": "ACTIVE", "pgm": "replay.ngc", "tool": 1,
+                      **{f"{a}act": tab[a.lower()][i] for a in "ABC" if a.lower() in tab}}
             for item, value in values.items():
                 text = repr(float(value)) if isinstance(value, (float, np.floating)) else str(value)
                 if last.get(item) != text:
@@ -198,7 +210,7 @@ class ReplayAgent:
     def _streams(self, entries, *, next_seq: int | None = None) -> bytes:
         by_comp: dict[tuple[str, str], list[str]] = {}
         for seq, item, t_ns, text in entries:
-            comp, cname, cat, typ, sub, _ = ITEMS[item]
+            comp, cname, cat, typ, sub, _ = self.items[item]
             element = "".join(part.capitalize() for part in typ.split("_"))
             category = "Samples" if cat == "SAMPLE" else "Events"
             sub_attr = f' subType="{sub}"' if sub else ""
@@ -256,7 +268,8 @@ class ReplayAgent:
                 query = dict(urllib.parse.parse_qsl(url.query))
                 what = parts[0] if parts else "probe"
                 if what == "probe":
-                    return self._send(200, agent.probe_body if agent.probe_body is not None else probe_xml(agent.device))
+                    return self._send(200, agent.probe_body if agent.probe_body is not None else
+                                      probe_xml(agent.device, agent.items))
                 if what == "current":
                     with agent.lock:
                         entries = sorted(agent.latest.values())
@@ -362,9 +375,14 @@ class ReplayAgent:
 
 
 if __name__ == "__main__":
-    agent = ReplayAgent(Path(sys.argv[1]), port=int(sys.argv[2]) if len(sys.argv) > 2 else 0, start_delay_s=0.5)
+    # REC.mcap PORT [START_DELAY_S], or synthetic:SECONDS PORT [START_DELAY_S] (six axes at 100 Hz, benchmarks)
+    source = sys.argv[1]
+    table = synthetic_table(float(source.split(":", 1)[1])) if source.startswith("synthetic:") else None
+    agent = ReplayAgent(None if table is not None else Path(source), port=int(sys.argv[2]) if len(sys.argv) > 2 else 0,
+                        start_delay_s=float(sys.argv[3]) if len(sys.argv) > 3 else 0.5, table=table,
+                        buffer_size=131072)
     agent.start()
-    print(agent.url, flush=True)
+    print(agent.url, agent.t0_ns, flush=True)
     agent.finished.wait()
     while True:
         time.sleep(1)

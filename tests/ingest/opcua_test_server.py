@@ -2,7 +2,7 @@
 feedlog recording replayed at its own pace (100 Hz; a value is written only when it changes, stamped
 with its replay time as server and source timestamp).
 
-    python -m tests.ingest.opcua_test_server REC.mcap PORT T0_NS [--layout cnc|MAP.toml]
+    python -m tests.ingest.opcua_test_server REC.mcap|synthetic:SECONDS PORT T0_NS [--layout cnc|MAP.toml]
         [--user U --password P] [--secure CERT_DIR]
 
 `--layout cnc` (default) builds the OPC UA CNC interface (OPC 40502) with the machine-tool layout's
@@ -31,10 +31,12 @@ from asyncua.crypto.permission_rules import User, UserRole
 from asyncua.crypto.truststore import TrustStore
 from asyncua.crypto.validator import CertificateValidator, CertificateValidatorOptions
 
-from tests.ingest.mtconnect_test_agent import replay_table
+from tests.ingest.mtconnect_test_agent import replay_table, synthetic_table
 
 MM_MIN = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=4732977,
                           DisplayName=ua.LocalizedText("mm/min"), Description=ua.LocalizedText("millimetre per minute"))
+DEG = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=17476,
+                       DisplayName=ua.LocalizedText("deg"), Description=ua.LocalizedText("degree"))
 MM = ua.EUInformation(NamespaceUri="http://www.opcfoundation.org/UA/units/un/cefact", UnitId=5066068,
                       DisplayName=ua.LocalizedText("mm"), Description=ua.LocalizedText("millimetre"))
 
@@ -51,25 +53,25 @@ class Users:
 
 def values_at(tab: dict, i: int) -> dict[str, object]:
     """target -> value of replay sample i (what each kind of node publishes)."""
-    x, y, z = (float(tab[k][i]) for k in "xyz")
-    return {"x": x, "y": y, "z": z, "x_cmd": x, "y_cmd": y, "z_cmd": z, "feed": float(tab["feed"][i]),
+    axes = {a: float(tab[a][i]) for a in "xyzabc" if a in tab}
+    return {**axes, **{f"{a}_cmd": v for a, v in axes.items()}, "feed": float(tab["feed"][i]),
             "requested_feed": 3000.0, "line": int(tab["line"][i]), "program": "replay.ngc",
             "execution": 1, "tool_number": 1, "block": f"N{int(tab['line'][i])}", "channel_state": 1}
 
 
-async def build_cnc(server: Server) -> dict[str, object]:
+async def build_cnc(server: Server, letters: str = "XYZ") -> dict[str, object]:
     idx = await server.register_namespace("http://opcfoundation.org/UA/CNC")
     tool_idx = await server.register_namespace("http://opcfoundation.org/UA/MachineTool/")
     objects = server.nodes.objects
     cnc = await objects.add_object(idx, "CncInterface")
     axes = await cnc.add_object(idx, "CncAxisList")
     nodes: dict[str, object] = {}
-    for letter in "XYZ":
+    for letter in letters:
         axis = await axes.add_object(idx, letter)
         pos = await axis.add_variable(idx, "PosIndirect", 0.0)
         for name, target in (("ActPos", letter.lower()), ("CmdPos", f"{letter.lower()}_cmd")):
             var = await pos.add_variable(idx, name, 0.0)
-            await var.add_property(idx, "EngineeringUnits", MM)
+            await var.add_property(idx, "EngineeringUnits", MM if letter in "XYZ" else DEG)
             nodes[target] = var
     channels = await cnc.add_object(idx, "CncChannelList")
     channel = await channels.add_object(idx, "Channel_1")
@@ -161,8 +163,12 @@ async def main() -> None:
     if args.user:
         server.set_security_IDs(["Username"])
     cnc = args.layout == "cnc"
-    nodes = await (build_cnc(server) if cnc else build_map(server, Path(args.layout)))
-    tab = replay_table(Path(args.recording), args.rate_hz)
+    if args.recording.startswith("synthetic:"):   # six axes at 100 Hz (benchmarks)
+        tab = synthetic_table(float(args.recording.split(":", 1)[1]), args.rate_hz)
+    else:
+        tab = replay_table(Path(args.recording), args.rate_hz)
+    letters = "".join(a.upper() for a in "xyzabc" if a in tab)
+    nodes = await (build_cnc(server, letters) if cnc else build_map(server, Path(args.layout)))
     async with server:
         t0_ns = int(args.t0_ns) if not args.t0_ns.startswith("+") else \
             (time.time_ns() // 1_000_000 + int(float(args.t0_ns) * 1000)) * 1_000_000

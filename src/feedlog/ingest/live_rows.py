@@ -166,6 +166,7 @@ class Stats:
     bad_values: int = 0
     late_observations: int = 0
     wall_s: float = 0.0
+    cpu_s: float = 0.0          # the recorder process's CPU time over the recording (all its threads)
     stopped_by: str = ""
     error: str = ""
     streams: dict[str, int] = field(default_factory=dict)

@@ -369,7 +369,7 @@ def record_agent(url: str, out, *, device: str | None = None, interval_ms: int =
     reader = AgentReader(client, name, next_seq=next_seq, instance=current.header.get("instanceId", ""),
                          interval_ms=interval_ms, poll=poll, out=items, stop=halt)
     session = _Session(plan, writer, stats)
-    start = time.monotonic()
+    start, cpu0 = time.monotonic(), time.process_time()
     fatal: BaseException | None = None
     try:
         session.document(current, counted=False, stamp_ns=start_ns)
@@ -406,6 +406,7 @@ def record_agent(url: str, out, *, device: str | None = None, interval_ms: int =
         client.close()
         stats.reconnects = reader.reconnects
         stats.wall_s = time.monotonic() - start
+        stats.cpu_s = round(time.process_time() - cpu0, 3)
         try:
             writer.close()
         except OutputError as exc:

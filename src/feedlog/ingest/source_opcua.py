@@ -506,8 +506,10 @@ async def _record(url: str, out, *, nodes: str | None, settings: dict[str, str],
     client.application_uri = "urn:feedlog:recorder"
     await _configure(client, settings)
     try:
-        await asyncio.wait_for(client.connect(auto_reconnect=True, reconnect_max_delay=2.0,
-                                              reconnect_request_timeout=connect_timeout_s), connect_timeout_s * 2)
+        # reconnects: tried again within 1 s, a request waits at most 2 s for one (a server that is still
+        # starting up must not hold the recording for a whole timeout)
+        await asyncio.wait_for(client.connect(auto_reconnect=True, reconnect_max_delay=1.0,
+                                              reconnect_request_timeout=2.0), connect_timeout_s * 2)
     except (OSError, asyncio.TimeoutError, ua.UaError) as exc:
         try:
             await asyncio.wait_for(client.disconnect(), 2)
@@ -551,7 +553,7 @@ async def _record(url: str, out, *, nodes: str | None, settings: dict[str, str],
             raise IngestError(f"the OPC UA server refused to monitor every node ({refused[0]} ...)")
         resume = _Resume(node_objs)
         show = Progress(progress)
-        start = time.monotonic()
+        start, cpu0 = time.monotonic(), time.process_time()
         while True:
             elapsed = time.monotonic() - start
             if stop.is_set():
@@ -569,6 +571,7 @@ async def _record(url: str, out, *, nodes: str | None, settings: dict[str, str],
         _take(handler, session, resume, stats)
         session.finish()
         stats.wall_s = time.monotonic() - start
+        stats.cpu_s = round(time.process_time() - cpu0, 3)
         show.show(stats, stats.wall_s, final=True)
     except OutputError as exc:
         stats.error = str(exc)
