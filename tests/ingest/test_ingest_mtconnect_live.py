@@ -280,3 +280,26 @@ def test_units_come_from_the_probe():
     assert cols["fc"] == ("feed", "requested_feed_mm_min", 60.0) and cols["l"] == ("line", "line", 0.0)
     with pytest.raises(IngestError, match="units 'FURLONG'"):
         plan_items(parse_probe(probe_xml(items={"Xa": ("Linear", "X", "SAMPLE", "POSITION", "ACTUAL", "FURLONG")}))[0])
+
+
+def test_a_column_the_source_never_reports_is_left_out_after_two_seconds_not_every_row():
+    from feedlog.ingest.live_rows import Column, Pivot, Plan
+    from feedlog.ingest.mtconnect_agent import Observation
+
+    plan = Plan("m", columns={"X": Column("axes", "x_mm", 1.0), "Y": Column("axes", "y_mm", 1.0),
+                              "C": Column("axes", "c_deg", 1.0), "L": Column("line", "line", 0.0)})
+    pivot = Pivot(plan)
+    obs, times = [Observation("C", 0, "", "UNAVAILABLE")], [0]
+    for k in range(1, 400):  # X every 10 ms from 10 ms on, Y from 15 ms on, C never; line from 20 ms on
+        obs += [Observation("X", 3 * k, "", str(k)), Observation("Y", 3 * k + 1, "", str(-k))]
+        times += [k * 10_000_000, k * 10_000_000 + (5_000_000 if k == 1 else 0)]
+        if k == 2:
+            obs.append(Observation("L", 3 * k + 2, "", "N7"))
+            times.append(k * 10_000_000)
+    out = pivot.feed(obs, np.array(times, dtype=np.int64))
+    tail = pivot.release()
+    axes = out["axes"]
+    assert list(axes.columns) == ["t_ns", "x_mm", "y_mm"] and pivot.left_out == ["axes.c_deg"]
+    assert axes["t_ns"].iloc[0] >= 2_000_000_000 and len(axes) + len(tail.get("axes", ())) >= 190
+    assert out["line"]["line"].tolist() == [7]   # complete at once: fixed at its first value
+    np.testing.assert_array_equal(axes["x_mm"].to_numpy(), -axes["y_mm"].to_numpy())

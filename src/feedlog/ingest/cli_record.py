@@ -40,7 +40,7 @@ def _source_module(name: str):
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("program", nargs="?", help="part program (sim, linuxcnc; attached to the recording)")
+    parser.add_argument("program", nargs="?", help="part program (attached to the recording; sim and linuxcnc run it)")
     parser.add_argument("--source", required=True, choices=list(SOURCES),
                         help="where the data comes from: a CAN bus (can), feedlog's own simulation (sim) or a "
                              "LinuxCNC machine (linuxcnc), an MTConnect agent (mtconnect) or an OPC UA server (opcua)")

@@ -54,9 +54,14 @@ class Pivot:
     """Turns observations (in sequence order) into rows: per stream, one row per distinct time at
     which one of its members changed, each column holding its last value. The rows of the latest
     time are held back until an observation with a later time arrives (an agent may split the
-    observations of one time over two documents) or `release()` is called."""
+    observations of one time over two documents) or `release()` is called.
 
-    def __init__(self, plan: Plan) -> None:
+    A stream's columns are fixed by its first row: once every member has a value, or `settle_ns` after
+    the first member had one, whichever comes first; members still without a value then are left out
+    of the stream for good (`left_out`: a probe may list an axis the machine never reports, which must
+    not keep every row of `axes` out)."""
+
+    def __init__(self, plan: Plan, settle_ns: int = 2_000_000_000) -> None:
         self.plan = plan
         self.members: dict[str, list[str]] = {}
         for column in plan.columns.values():
@@ -65,6 +70,10 @@ class Pivot:
         self.last_t: dict[str, int] = {}
         self.pending_t: int | None = None
         self.dirty: set[str] = set()
+        self.settle_ns = settle_ns
+        self.first_seen: dict[str, int] = {}
+        self.fixed: dict[str, list[str]] = {}           # stream -> its columns, once fixed
+        self.left_out: list[str] = []                   # stream.column never reported in time
         self.unavailable_rows = 0
         self.bad_values = 0
         self.late = 0
@@ -106,9 +115,9 @@ class Pivot:
     def _frames(self, rows: dict[str, list[tuple]], events: list[tuple[int, str, str]]) -> dict[str, pd.DataFrame]:
         out = {}
         for stream, table in rows.items():
-            frame = pd.DataFrame(table, columns=["t_ns", *self.members[stream]])
+            frame = pd.DataFrame(table, columns=["t_ns", *self.fixed[stream]])
             frame["t_ns"] = frame["t_ns"].astype(np.int64)
-            if stream == "line":
+            if "line" in frame:
                 frame["line"] = frame["line"].astype(np.int64)
             out[stream] = frame
         if events:
@@ -140,8 +149,16 @@ class Pivot:
     def _emit(self, t: int, rows: dict[str, list[tuple]]) -> None:
         for stream in sorted(self.dirty):
             values = self.held[stream]
-            if all(np.isfinite(v) for v in values.values()):
-                rows.setdefault(stream, []).append((self._clamp(stream, t), *values.values()))
+            columns = self.fixed.get(stream)
+            if columns is None:
+                known = [c for c, v in values.items() if np.isfinite(v)]
+                if known:
+                    self.first_seen.setdefault(stream, t)
+                if known and (len(known) == len(values) or t - self.first_seen[stream] >= self.settle_ns):
+                    columns = self.fixed[stream] = known
+                    self.left_out += [f"{stream}.{c}" for c in values if c not in known]
+            if columns is not None and all(np.isfinite(values[c]) for c in columns):
+                rows.setdefault(stream, []).append((self._clamp(stream, t), *(values[c] for c in columns)))
             else:
                 self.unavailable_rows += 1
         self.dirty.clear()
@@ -167,6 +184,7 @@ class Stats:
     late_observations: int = 0
     wall_s: float = 0.0
     cpu_s: float = 0.0          # the recorder process's CPU time over the recording (all its threads)
+    left_out: list[str] = field(default_factory=list)   # columns the source never reported in time
     stopped_by: str = ""
     error: str = ""
     streams: dict[str, int] = field(default_factory=dict)
@@ -234,6 +252,7 @@ class RowSession:
         self.stats.unavailable_rows = self.pivot.unavailable_rows
         self.stats.bad_values = self.pivot.bad_values
         self.stats.late_observations = self.pivot.late
+        self.stats.left_out = list(self.pivot.left_out)
 
     def gap(self, gap: Gap) -> None:
         if gap.lost > 0:
