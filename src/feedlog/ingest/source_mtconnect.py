@@ -206,6 +206,7 @@ class AgentReader(threading.Thread):
                     backoff = min(backoff * 2, 5.0)
                 except _Resync as exc:
                     resync = exc.reason
+                    self.stop_event.wait(0.05)   # an agent that keeps refusing must not make this spin
         except Exception as exc:  # noqa: BLE001 - handed to the main loop, which ends the recording
             if not self.stop_event.is_set():  # (closing the connection to stop breaks reads in any way)
                 self._put(("fatal", exc))
@@ -274,9 +275,12 @@ class AgentReader(threading.Thread):
                               file=self.client.url)
         instance = doc.header.get("instanceId", "")
         first = doc.header_int("firstSequence") or 1
+        agent_next = doc.header_int("nextSequence")
         if instance and instance != self.instance:
             lost, reason = -1, "the agent restarted (new instanceId): what it saw before is unknown"
             self.instance = instance
+        elif agent_next is not None and self.next_seq > agent_next:
+            lost, reason = -1, "the agent's sequence numbers went back: what it saw before is unknown"
         elif first > self.next_seq:
             lost = first - self.next_seq
         else:
