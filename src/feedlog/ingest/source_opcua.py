@@ -519,6 +519,7 @@ async def _record(url: str, out, *, nodes: str | None, settings: dict[str, str],
     writer = None
     stats = Stats()
     stats.queue_overflows = 0  # values the server's queue dropped (the Overflow bit), shown in the summary
+    stats.refused_nodes = []
     try:
         nmap = load_node_map(nodes) if nodes else await standard_layout(client)
         if nmap is None:
@@ -551,6 +552,7 @@ async def _record(url: str, out, *, nodes: str | None, settings: dict[str, str],
         refused = [nid for nid, r in zip(node_objs, results) if isinstance(r, ua.StatusCode)]
         if len(refused) == len(node_objs):
             raise IngestError(f"the OPC UA server refused to monitor every node ({refused[0]} ...)")
+        stats.refused_nodes = refused  # monitored items the server would not create (in the summary)
         resume = _Resume(node_objs)
         show = Progress(progress)
         start, cpu0 = time.monotonic(), time.process_time()
