@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import signal
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -43,3 +44,12 @@ def watch_then_kill(out: Path, proc: subprocess.Popen, *, watch_s: float = 2.5) 
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=10)
     return killed_at, on_disk, min(lags)
+
+
+def stop_when_set(event: threading.Event, stop: threading.Event, extra_s: float) -> None:
+    """Set `stop` `extra_s` after `event` (the replay ended), so the recorder gets what is still in flight."""
+    def watch():
+        event.wait(90)
+        time.sleep(extra_s)
+        stop.set()
+    threading.Thread(target=watch, daemon=True).start()

@@ -21,7 +21,7 @@ from feedlog.errors import IngestError
 from feedlog.ingest import read_recording
 from feedlog.ingest.mtconnect_agent import parse_probe
 from feedlog.ingest.source_mtconnect import plan_items, record_agent
-from tests.ingest.live_helpers import wait_for_rows, watch_then_kill
+from tests.ingest.live_helpers import stop_when_set, wait_for_rows, watch_then_kill
 from tests.ingest.mtconnect_test_agent import ITEMS, ReplayAgent, probe_xml
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -29,11 +29,7 @@ RECORDING = ROOT / "recordings" / "pocket_f3000_p001.mcap"   # 6.8 s of a 3-axis
 
 
 def stop_after_replay(agent: ReplayAgent, stop: threading.Event, extra_s: float = 0.6) -> None:
-    def watch():
-        agent.finished.wait(60)
-        time.sleep(extra_s)
-        stop.set()
-    threading.Thread(target=watch, daemon=True).start()
+    stop_when_set(agent.finished, stop, extra_s)
 
 
 def assert_matches_replay(agent: ReplayAgent, rec, *, outside: list[tuple[int, int]] = ()) -> None:

@@ -23,7 +23,7 @@ from feedlog.cli import main
 from feedlog.errors import IngestError
 from feedlog.ingest import read_recording
 from feedlog.ingest.source_opcua import load_node_map, record_server, security_settings
-from tests.ingest.live_helpers import wait_for_rows, watch_then_kill
+from tests.ingest.live_helpers import stop_when_set, wait_for_rows, watch_then_kill
 from tests.ingest.mtconnect_test_agent import replay_table
 
 pytest.importorskip("asyncua")
@@ -74,11 +74,7 @@ def server(*extra: str, port: int | None = None):
 
 
 def stop_when_done(served: Served, stop: threading.Event, extra_s: float = 0.7) -> None:
-    def watch():
-        served.done.wait(60)
-        time.sleep(extra_s)
-        stop.set()
-    threading.Thread(target=watch, daemon=True).start()
+    stop_when_set(served.done, stop, extra_s)
 
 
 def replay_at(t0_ns: int, t_ns: np.ndarray, tab: dict = TABLE) -> dict[str, np.ndarray]:

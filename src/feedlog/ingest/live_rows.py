@@ -301,3 +301,19 @@ class RowSession:
             if name != "gaps":
                 self.stats.samples += len(table)
                 self.stats.streams[name] = self.stats.streams.get(name, 0) + len(table)
+
+
+def record_from_args(args, record_fn, source: str, example_url: str, **options):
+    """`feedlog record --source SOURCE`: the common arguments (URL, output, program and profile
+    attached, interval, duration, stop event, progress) handed to a network source's `record_fn`."""
+    import sys
+
+    from feedlog.errors import IngestError
+    from feedlog.ingest.cli_record import session_attachments
+
+    if not args.url:
+        raise IngestError(f"--source {source} needs --url {example_url}")
+    metadata, attachments = session_attachments(args)
+    return record_fn(args.url, args.out, interval_ms=args.interval_ms, metadata=metadata, attachments=attachments,
+                     overwrite=args.overwrite, stop=getattr(args, "stop_event", None), duration_s=args.duration_s,
+                     progress=None if args.quiet else sys.stderr, **options)

@@ -42,7 +42,7 @@ import numpy as np
 from feedlog.errors import IngestError, OutputError
 from feedlog.ingest.mtconnect_agent import (AgentClient, AgentUnreachable, DataItem, Device, Observation,
                                             StreamsDocument, parse_probe, parse_streams)
-from feedlog.ingest.live_rows import Column, Gap, Plan, Progress, RowSession, Stats, iso
+from feedlog.ingest.live_rows import Column, Gap, Plan, Progress, RowSession, Stats, iso, record_from_args
 from feedlog.ingest.mtconnect_obs import parse_times
 from feedlog.ingest.writer import RecordingWriter
 
@@ -440,12 +440,4 @@ def _handle(item, session: _Session, stats: Stats) -> BaseException | None:
 
 
 def record(args: argparse.Namespace) -> dict[str, Any]:
-    from feedlog.ingest.cli_record import session_attachments
-
-    if not args.url:
-        raise IngestError("--source mtconnect needs --url http://AGENT:PORT")
-    metadata, attachments = session_attachments(args)
-    return record_agent(args.url, args.out, device=args.device, interval_ms=args.interval_ms, poll=args.poll,
-                        metadata=metadata, attachments=attachments, overwrite=args.overwrite,
-                        stop=getattr(args, "stop_event", None), duration_s=args.duration_s,
-                        progress=None if args.quiet else sys.stderr)
+    return record_from_args(args, record_agent, "mtconnect", "http://AGENT:PORT", device=args.device, poll=args.poll)

@@ -46,7 +46,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from feedlog.errors import FeedlogError, IngestError, OutputError
-from feedlog.ingest.live_rows import Column, Gap, Plan, Progress, RowSession, Stats, iso
+from feedlog.ingest.live_rows import Column, Gap, Plan, Progress, RowSession, Stats, iso, record_from_args
 from feedlog.ingest.mtconnect_agent import Observation
 from feedlog.ingest.writer import RecordingWriter
 from feedlog.errors import UnitError
@@ -621,12 +621,5 @@ def record_server(url: str, out, *, nodes: str | None = None, security: str | No
 
 
 def record(args: argparse.Namespace) -> dict[str, Any]:
-    from feedlog.ingest.cli_record import session_attachments
-
-    if not args.url:
-        raise IngestError("--source opcua needs --url opc.tcp://HOST:PORT")
-    metadata, attachments = session_attachments(args)
-    return record_server(args.url, args.out, nodes=args.nodes, security=args.security, interval_ms=args.interval_ms,
-                         metadata=metadata, attachments=attachments, overwrite=args.overwrite,
-                         stop=getattr(args, "stop_event", None), duration_s=args.duration_s,
-                         progress=None if args.quiet else sys.stderr)
+    return record_from_args(args, record_server, "opcua", "opc.tcp://HOST:PORT", nodes=args.nodes,
+                            security=args.security)
