@@ -303,6 +303,13 @@ class RowSession:
                 self.stats.streams[name] = self.stats.streams.get(name, 0) + len(table)
 
 
+def stop_reason(stop, duration_s: float | None, elapsed_s: float) -> str:
+    """Why a live recording ends now: "signal" (SIGINT/SIGTERM set `stop`), "duration", or "" (go on)."""
+    if stop.is_set():
+        return "signal"
+    return "duration" if duration_s is not None and elapsed_s >= duration_s else ""
+
+
 def record_from_args(args, record_fn, source: str, example_url: str, **options):
     """`feedlog record --source SOURCE`: the common arguments (URL, output, program and profile
     attached, interval, duration, stop event, progress) handed to a network source's `record_fn`."""

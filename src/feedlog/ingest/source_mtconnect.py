@@ -42,7 +42,7 @@ import numpy as np
 from feedlog.errors import IngestError, OutputError
 from feedlog.ingest.mtconnect_agent import (AgentClient, AgentUnreachable, DataItem, Device, Observation,
                                             StreamsDocument, parse_probe, parse_streams)
-from feedlog.ingest.live_rows import Column, Gap, Plan, Progress, RowSession, Stats, iso, record_from_args
+from feedlog.ingest.live_rows import Column, Gap, Plan, Progress, RowSession, Stats, iso, record_from_args, stop_reason
 from feedlog.ingest.mtconnect_obs import parse_times
 from feedlog.ingest.writer import RecordingWriter
 
@@ -379,11 +379,7 @@ def record_agent(url: str, out, *, device: str | None = None, interval_ms: int =
         session.document(current, counted=False, stamp_ns=start_ns)
         reader.start()
         while True:
-            elapsed = time.monotonic() - start
-            if stop.is_set():
-                stats.stopped_by = "signal"
-            elif duration_s is not None and elapsed >= duration_s:
-                stats.stopped_by = "duration"
+            stats.stopped_by = stop_reason(stop, duration_s, time.monotonic() - start)
             if stats.stopped_by or fatal is not None:
                 break
             try:

@@ -46,7 +46,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from feedlog.errors import FeedlogError, IngestError, OutputError
-from feedlog.ingest.live_rows import Column, Gap, Plan, Progress, RowSession, Stats, iso, record_from_args
+from feedlog.ingest.live_rows import Column, Gap, Plan, Progress, RowSession, Stats, iso, record_from_args, stop_reason
 from feedlog.ingest.mtconnect_agent import Observation
 from feedlog.ingest.writer import RecordingWriter
 from feedlog.errors import UnitError
@@ -557,11 +557,7 @@ async def _record(url: str, out, *, nodes: str | None, settings: dict[str, str],
         show = Progress(progress)
         start, cpu0 = time.monotonic(), time.process_time()
         while True:
-            elapsed = time.monotonic() - start
-            if stop.is_set():
-                stats.stopped_by = "signal"
-            elif duration_s is not None and elapsed >= duration_s:
-                stats.stopped_by = "duration"
+            stats.stopped_by = stop_reason(stop, duration_s, time.monotonic() - start)
             if stats.stopped_by:
                 break
             await asyncio.sleep(0.1)
