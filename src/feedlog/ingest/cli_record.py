@@ -25,6 +25,8 @@ SOURCES: dict[str, str] = {
     "can": "feedlog.ingest.source_can",
     "sim": "feedlog.ingest.source_sim",
     "linuxcnc": "feedlog.ingest.linuxcnc",
+    "mtconnect": "feedlog.ingest.source_mtconnect",
+    "opcua": "feedlog.ingest.source_opcua",
 }
 
 
@@ -38,10 +40,10 @@ def _source_module(name: str):
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("program", nargs="?", help="part program (sim, linuxcnc; attached to the recording)")
+    parser.add_argument("program", nargs="?", help="part program (attached to the recording; sim and linuxcnc run it)")
     parser.add_argument("--source", required=True, choices=list(SOURCES),
                         help="where the data comes from: a CAN bus (can), feedlog's own simulation (sim) or a "
-                             "LinuxCNC machine (linuxcnc)")
+                             "LinuxCNC machine (linuxcnc), an MTConnect agent (mtconnect) or an OPC UA server (opcua)")
     parser.add_argument("--profile", help="machine profile (name or TOML path), attached to the recording")
     add_output(parser, required=True, metavar="REC.mcap", help="recording to write (.mcap)")
     add_overwrite(parser, help="replace an existing output file")
@@ -50,6 +52,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     capture.add_argument("--duration-s", type=float, help="stop after this many seconds")
     add_quiet(capture, help="no live progress line")
     capture.add_argument("--json", action="store_true", help="print the summary as JSON")
+    network = parser.add_argument_group("network sources (mtconnect, opcua)")
+    network.add_argument("--url", help="the agent or server: http://AGENT:5000, opc.tcp://HOST:4840")
+    network.add_argument("--interval-ms", type=int, default=100, help="sampling interval in ms (default 100)")
     for name in SOURCES:
         module = _source_module(name)
         if module is not None:
