@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from feedlog.errors import AlignmentError
+from feedlog.align.line_sequence import blocks_from_line_sequence, repeats_lines
 
 
 @dataclass(frozen=True)
@@ -157,10 +158,13 @@ def blocks_from_lines(t_ns: np.ndarray, line: np.ndarray, motion_blocks: pd.Data
         runs["t_start_ns"] = runs["t_start_ns"].clip(span.t_start_ns, span.t_end_ns)
         runs["t_end_ns"] = runs["t_end_ns"].clip(span.t_start_ns, span.t_end_ns)
     runs = runs[runs["line"].isin(lines)]
-    first = runs.groupby("line")["t_start_ns"].min()
-    last = runs.groupby("line")["t_end_ns"].max()
-    start = pd.Series(lines).map(first).to_numpy(dtype=np.float64, copy=True)
-    end = pd.Series(lines).map(last).to_numpy(dtype=np.float64, copy=True)
+    if repeats_lines(motion_blocks):  # loops, subroutines, sub files: a line number names several blocks
+        start, end = blocks_from_line_sequence(runs.reset_index(drop=True), motion_blocks)
+    else:
+        first = runs.groupby("line")["t_start_ns"].min()
+        last = runs.groupby("line")["t_end_ns"].max()
+        start = pd.Series(lines).map(first).to_numpy(dtype=np.float64, copy=True)
+        end = pd.Series(lines).map(last).to_numpy(dtype=np.float64, copy=True)
     seen = np.isfinite(start)
     if not seen.any():
         raise AlignmentError("the line stream never shows a line of the program's motion blocks "

@@ -41,6 +41,7 @@ from feedlog.align.work_offset import estimate_work_offset
 from feedlog.errors import AlignmentError, FeedlogError
 from feedlog.ingest.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.profile import MachineProfile, load_profile
+from feedlog.ingest.subroutine_files import load_recorded_program
 from feedlog.toolpath import Program, block_features, cl_points, load_program, to_machine
 from feedlog.toolpath.schema import CONTINUOUS, RAPID
 
@@ -143,8 +144,8 @@ def _program(recording: Recording, program: Program | str | Path | None, lenient
     if text is None:
         raise AlignmentError(f"{recording.source or 'recording'}: no program given and none attached "
                              "(program.ngc); pass one with --program")
-    return load_program(text, lenient=lenient, dialect=dialect,
-                        name=f"{Path(recording.source).stem or 'recording'}:program.ngc")
+    return load_recorded_program(recording, lenient=lenient, dialect=dialect,
+                                 name=f"{Path(recording.source).stem or 'recording'}:program.ngc")
 
 
 def position_quantum(pos: np.ndarray, *, samples: int = 100_000) -> float:
