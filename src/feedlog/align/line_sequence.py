@@ -26,6 +26,12 @@ def repeats_lines(motion_blocks: pd.DataFrame) -> bool:
     return len(np.unique(lines)) < len(lines)
 
 
+def shares_next_run(motion_blocks: pd.DataFrame) -> np.ndarray:
+    """Per motion block: whether the next block comes from the same file and line (one run of the stream)."""
+    keys = _group_keys(motion_blocks)
+    return np.r_[keys[:-1] == keys[1:], False] if len(keys) else np.zeros(0, bool)
+
+
 def _group_keys(motion_blocks: pd.DataFrame) -> np.ndarray:
     lines = motion_blocks["line"].astype(str).to_numpy()
     if "file" not in motion_blocks.columns:
@@ -72,4 +78,4 @@ def blocks_from_line_sequence(runs: pd.DataFrame, motion_blocks: pd.DataFrame) -
     return start, end
 
 
-__all__ = ["WINDOW", "blocks_from_line_sequence", "match_runs", "repeats_lines"]
+__all__ = ["WINDOW", "blocks_from_line_sequence", "match_runs", "repeats_lines", "shares_next_run"]
