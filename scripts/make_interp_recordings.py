@@ -46,13 +46,14 @@ VENDORED = {
     "subs_loops": (OWN / "subs_loops.ngc", "ours: o<square> in the file called from repeat, "
                                            "o<bolt_row> (subs/) from while, with a while inside"),
 }
-# not recorded: skeleton.ngc stops at M00 for the operator; daisy.ngc and b-index.ngc move A and B, which the
+# not recorded: skeleton.ngc and tort.ngc stop at M0/M00 for the operator (the driver does not press
+# cycle start: tort waited 12 minutes at its line 4); daisy.ngc and b-index.ngc move A and B, which the
 # bundled machine lacks; the others of ncfiles have no motion, use probing, lathe codes, or cutter
 # compensation that is refused before it moves (entry too short)
 # examples that run for minutes: recorded and measured with --long, not vendored (size)
 LONG = {
     "spiral": NCFILES / "spiral.ngc", "arcspiral": NCFILES / "arcspiral.ngc",
-    "flowsnake": NCFILES / "flowsnake.ngc", "tort": NCFILES / "tort.ngc", "cds": NCFILES / "cds.ngc",
+    "flowsnake": NCFILES / "flowsnake.ngc", "cds": NCFILES / "cds.ngc",
 }
 
 

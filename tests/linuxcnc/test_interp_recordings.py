@@ -123,7 +123,7 @@ def test_subroutine_attachments_follow_calls_along_the_path(tmp_path):
 
 
 # LinuxCNC blends plasmatest's star corners (no G64 P: as fast as it can) up to 8.4 mm off the program
-ALIGN_TOL_MM = {"plasmatest": 10.0}
+ALIGN_TOL_MM = {"plasmatest": 10.0}   # --unstated-tol-mm: G64 without P
 # programs whose moves end on their end points (canned cycles run in exact path, G64 P0.01 or single moves);
 # in the blended ones the line switches where the blend into the next move begins, up to ~2 mm before it
 EXACT = ["drill_cycles", "hole-circle", "polar", "subs_loops", "toplevel"]
@@ -133,7 +133,7 @@ EXACT = ["drill_cycles", "hole-circle", "polar", "subs_loops", "toplevel"]
 def test_align_finds_every_block_as_linuxcnc_ran_it(name):
     rec = _recording(name)
     program = load_recorded_program(rec, name=f"{name}:program.ngc")
-    result = align_recording(rec, **({"tol_mm": ALIGN_TOL_MM[name]} if name in ALIGN_TOL_MM else {}))
+    result = align_recording(rec, **({"unstated_tol_mm": ALIGN_TOL_MM[name]} if name in ALIGN_TOL_MM else {}))
     blocks = result.blocks
     motion = program.motion.reset_index(drop=True)
     assert len(blocks) == len(motion) and (blocks["line"].to_numpy() == motion["line"].to_numpy()).all()
