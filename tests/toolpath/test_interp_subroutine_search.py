@@ -46,3 +46,4 @@ def test_a_subroutine_only_beside_the_program_is_refused_as_linuxcnc_does(tmp_pa
     with pytest.raises(ProgramError) as info:
         interpret(main)
     assert info.value.line == 2
+

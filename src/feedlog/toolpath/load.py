@@ -57,8 +57,8 @@ def load_program(source: str | Path | Program, *, lenient: bool = False, dialect
             try:
                 program = interpret(source if path is not None else body, name=label, options=interp)
                 program.path = path
-            except ProgramError:
-                raise refused_by_parser from None
+            except Exception:  # noqa: BLE001 - the parser's one-line error stays the answer, whatever the
+                raise refused_by_parser from None   # interpreter made of it (a 400-digit N word: OverflowError)
     else:
         body = translation.text if "\n" in translation.text else translation.text + "\n"
         program = parse_program(body, lenient=lenient, name=label)
