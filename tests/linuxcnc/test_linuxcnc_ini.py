@@ -100,3 +100,29 @@ def test_namespace_setup_binds_back_paths_under_tmp_only():
     assert kept.startswith(f"mkdir -p {HOST_TMP} && mount --bind /tmp {HOST_TMP} && mount -t tmpfs tmpfs /tmp")
     assert kept.count("mount --bind") == 3  # the host /tmp, then /tmp/ci and /tmp/other once each
     assert f"mount --bind {HOST_TMP}/ci /tmp/ci" in kept and f"mount --bind {HOST_TMP}/other /tmp/other" in kept
+
+
+def test_subroutine_path_is_written_absolute_before_the_ini_own(tmp_path):
+    (tmp_path / "subs").mkdir()
+    src = (CONFIGS / "xyz.ini").read_text().replace("PARAMETER_FILE = sim.var\n",
+                                                    "PARAMETER_FILE = sim.var\nSUBROUTINE_PATH = mine:/abs/lib\n")
+    path = tmp_path / "m.ini"
+    path.write_text(src)
+    ini = MachineIni.read(path)
+    assert ini.subroutine_dirs() == [tmp_path.resolve() / "mine", Path("/abs/lib")]
+    text = ini.rewritten(display="d", recorder=tmp_path / "record.tcl", subroutine_path=(tmp_path / "subs",))
+    found = [line for line in text.splitlines() if line.startswith("SUBROUTINE_PATH")]
+    # one key (LinuxCNC reads the first), in [RS274NGC], the given folder first, the INI's relative one absolute
+    assert found == [f"SUBROUTINE_PATH = {tmp_path.resolve() / 'subs'}:{tmp_path.resolve() / 'mine'}:/abs/lib"]
+    section = text.split("[RS274NGC]", 1)[1].split("[", 1)[0]
+    assert found[0] in section
+
+
+def test_subroutine_path_adds_the_section_an_ini_lacks(tmp_path):
+    src = (CONFIGS / "xyz.ini").read_text().replace("[RS274NGC]\nPARAMETER_FILE = sim.var\n", "")
+    path = tmp_path / "m.ini"
+    path.write_text(src)
+    ini = MachineIni.read(path)
+    assert "SUBROUTINE_PATH" not in ini.rewritten(display="d", recorder=tmp_path / "r.tcl")
+    text = ini.rewritten(display="d", recorder=tmp_path / "r.tcl", subroutine_path=(tmp_path,))
+    assert text.rstrip().endswith(f"[RS274NGC]\nSUBROUTINE_PATH = {tmp_path.resolve()}")

@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from feedlog.errors import AlignmentError
+from feedlog.ingest.subroutine_files import load_recorded_program
 from feedlog.profile import MachineProfile, load_profile
 from feedlog.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.toolpath import Program, load_program
@@ -37,5 +38,5 @@ def attached_program(recording: Recording, program: Program | str | Path | None,
     if text is None:
         raise AlignmentError(f"{recording.source or 'recording'}: no program given and none attached "
                              "(program.ngc); pass one with --program")
-    return load_program(text, lenient=lenient, dialect=dialect,
-                        name=f"{Path(recording.source).stem or 'recording'}:program.ngc")
+    return load_recorded_program(recording, lenient=lenient, dialect=dialect,
+                                 name=f"{Path(recording.source).stem or 'recording'}:program.ngc")

@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from feedlog.errors import AlignmentError
+from feedlog.align.line_sequence import blocks_from_line_sequence, repeats_lines, shares_next_run
 
 
 @dataclass(frozen=True)
@@ -157,14 +158,20 @@ def blocks_from_lines(t_ns: np.ndarray, line: np.ndarray, motion_blocks: pd.Data
         runs["t_start_ns"] = runs["t_start_ns"].clip(span.t_start_ns, span.t_end_ns)
         runs["t_end_ns"] = runs["t_end_ns"].clip(span.t_start_ns, span.t_end_ns)
     runs = runs[runs["line"].isin(lines)]
-    first = runs.groupby("line")["t_start_ns"].min()
-    last = runs.groupby("line")["t_end_ns"].max()
-    start = pd.Series(lines).map(first).to_numpy(dtype=np.float64, copy=True)
-    end = pd.Series(lines).map(last).to_numpy(dtype=np.float64, copy=True)
+    if repeats_lines(motion_blocks):  # loops, subroutines, sub files: a line number names several blocks
+        start, end = blocks_from_line_sequence(runs.reset_index(drop=True), motion_blocks)
+    else:
+        first = runs.groupby("line")["t_start_ns"].min()
+        last = runs.groupby("line")["t_end_ns"].max()
+        start = pd.Series(lines).map(first).to_numpy(dtype=np.float64, copy=True)
+        end = pd.Series(lines).map(last).to_numpy(dtype=np.float64, copy=True)
     seen = np.isfinite(start)
     if not seen.any():
         raise AlignmentError("the line stream never shows a line of the program's motion blocks "
                              f"(it shows {sorted(set(np.asarray(line).tolist()))[:10]}...); wrong program?")
+    # a line that makes several moves (a canned cycle, G28) shows as one run: it times the last of them,
+    # the others are split off by geometry (split_merged), as blocks the planner merged
+    seen &= ~shares_next_run(motion_blocks)
     if span is not None:
         # motion before the first line shows (or after the last one ends) can only be theirs
         first, last = np.flatnonzero(seen)[[0, -1]]

@@ -38,9 +38,10 @@ from feedlog.align.feed import LINEAR
 from feedlog.align.pipeline import STRAIGHT, Alignment, position_quantum
 from feedlog.errors import AlignmentError, FeedlogError
 from feedlog.profile import MachineProfile
+from feedlog.ingest.subroutine_files import load_recorded_program
 from feedlog.recording import PROFILE_ATTACHMENT, Recording
 from feedlog.sim.mechanism import mechanism_params
-from feedlog.toolpath import Program, load_program, to_machine
+from feedlog.toolpath import Program, to_machine
 
 
 def planner_moves(program: Program, profile: MachineProfile) -> np.ndarray:
@@ -260,7 +261,7 @@ def geometry_blocks_by_moves(recording: Recording, alignment: Alignment, *, prog
     if program is None:
         if recording.program_text is None:
             raise AlignmentError(f"{src}: no program given and none attached (program.ngc)")
-        program = load_program(recording.program_text, name=f"{src}:program.ngc")
+        program = load_recorded_program(recording, name=f"{src}:program.ngc")
     if profile is None:
         data = recording.attachments.get(PROFILE_ATTACHMENT)
         if data is None:

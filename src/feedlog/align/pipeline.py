@@ -34,6 +34,7 @@ from feedlog.align.blocks import (NO_TIME, MotionSpan, blocks_from_geometry, blo
                                   leave_times, motion_span, rest_noise, split_merged)
 from feedlog.align.clock import event_offset, shift_stream
 from feedlog.align.feed import LINEAR, ROTARY, FeedSmoothing, feed_at_checked
+from feedlog.align.line_sequence import shares_next_run
 from feedlog.align.match import MatchConfig, match_cl_points
 from feedlog.align.partial import auto_lines, program_lines, slice_program
 from feedlog.align.subsample import refine_span
@@ -541,6 +542,9 @@ def _line_blocks(recording: Recording, cfg: AlignConfig, motion: pd.DataFrame, s
         info["shifted_ns"] = -off.offset_ns
     lb["source"] = "line"
     groups = geo["move"].to_numpy() if "move" in geo.columns else None  # merged moves compared as one
+    shared = shares_next_run(motion)
+    if groups is not None and shared.any():  # and the moves of one line (a canned cycle), timed as one run
+        groups = np.cumsum(np.r_[True, (groups[1:] != groups[:-1]) & ~shared[:-1]]) - 1
     info["geometry_vs_line"] = compare_blocks(lb, geo, servo_period_s=_period_s(recording), groups=groups)
     report["line_stream"] = info
     return split_merged(lb, geo)

@@ -24,6 +24,7 @@ import pandas as pd
 from feedlog.errors import FeedlogError, IngestError
 from feedlog.ingest.linuxcnc_capture import has_samples, load_capture, motion_span
 from feedlog.ingest.linuxcnc_session import MachineIni, cleanup, run_session, session_error
+from feedlog.ingest.subroutine_files import subroutine_attachments
 from feedlog.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT, Recording
 from feedlog.ingest.writer import write_recording
 from feedlog.profile import load_profile
@@ -67,7 +68,8 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
                     isolate: bool = False, timeout_s: float = 600.0, overwrite: bool = False,
                     compression: str = "zstd", notes: str = "", streams: str = "full",
                     priority: str = "normal", level: int | None = None,
-                    stop_event: threading.Event | None = None, feed_override: float | None = None) -> dict[str, Any]:
+                    stop_event: threading.Event | None = None, feed_override: float | None = None,
+                    subroutine_path: tuple[str | Path, ...] = ()) -> dict[str, Any]:
     """Run `program` on the LinuxCNC machine `ini`, write the recording to `out`, return a summary.
 
     Setting `stop_event` (the CLI does on SIGINT/SIGTERM) stops the machine where it is and writes
@@ -77,7 +79,9 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
     zstd level 19 unless `level` says otherwise: about half the size). `priority`: "normal", "high" or
     "realtime" (root): how LinuxCNC's processes are scheduled against other work on the host.
     `feed_override` (0 < x <= the INI's MAX_FEED_OVERRIDE) turns the feed override dial before the program
-    starts; the recording's metadata says so (`feed_override`).
+    starts; the recording's metadata says so (`feed_override`). `subroutine_path`: folders where LinuxCNC
+    finds `o<name> call` files, before the INI's SUBROUTINE_PATH; the files the program calls are
+    attached as `subroutines/<name>.ngc` (feedlog.ingest.subroutine_files).
 
     A G-code error raises ProgramError (file, line, LinuxCNC's message); if the machine had already
     moved, what was recorded up to then is still written to `out` (metadata `status = aborted`).
@@ -96,8 +100,13 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
     if feed_override is not None and not (0.0 < feed_override <= 10.0):
         raise IngestError(f"feed override must be within (0, 10], got {feed_override}")
     profile_name, profile_toml = profile_toml_for(profile, ini_cfg)
+    subroutine_path = tuple(Path(d) for d in subroutine_path)
+    for folder in subroutine_path:
+        if not folder.is_dir():
+            raise IngestError("subroutine folder not found", file=str(folder))
+    subroutines = subroutine_attachments(program.read_bytes(), [*subroutine_path, *ini_cfg.subroutine_dirs()])
     session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s, stop_event=stop_event,
-                          priority=priority, feed_override=feed_override)
+                          priority=priority, feed_override=feed_override, subroutine_path=subroutine_path)
     sampled = has_samples(session.sample_files)
     error = session_error(session.report, program, sampled=sampled)
     if error is not None and not sampled:
@@ -110,7 +119,7 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
                                 program_bytes=program.read_bytes(), profile_name=profile_name,
                                 profile_toml=profile_toml, out=out, overwrite=overwrite, compression=compression,
                                 notes=notes, error=error, wall_s=session.wall_s, stream_set=streams, level=level,
-                                priority=priority)
+                                priority=priority, extra_attachments=subroutines)
     cleanup(session)
     return finish(summary, error, out)
 
@@ -150,7 +159,8 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
                   program: str, program_bytes: bytes | None, profile_name: str, profile_toml: bytes,
                   out: Path, overwrite: bool, compression: str = "zstd", notes: str = "",
                   error: FeedlogError | None = None, wall_s: float = 0.0, stream_set: str = "full",
-                  level: int | None = None, priority: str = "normal") -> dict[str, Any] | None:
+                  level: int | None = None, priority: str = "normal",
+                  extra_attachments: dict[str, bytes] | None = None) -> dict[str, Any] | None:
     """Write one recorded LinuxCNC session (also a cut-short one) and return its summary.
 
     `stream_set` names an entry of STREAM_SETS: the streams (and columns) written; cycle time and motion
@@ -195,6 +205,7 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
         attachments.setdefault(f"hal/{hal_file.name}", hal_file.read_bytes())
     if program_bytes is not None:
         attachments[PROGRAM_ATTACHMENT] = program_bytes
+    attachments.update(extra_attachments or {})  # e.g. the subroutine files the program calls
     kept = select_streams(streams, stream_set)
     recording = Recording(streams=kept, metadata=metadata, attachments=attachments,
                           dropped_frames=missing + int(report.get("overruns", 0)), source=str(out))
@@ -230,6 +241,9 @@ def add_arguments(group: argparse._ArgumentGroup) -> None:
                             "zstd level 19 (about half the size; for training sessions)")
     group.add_argument("--feed-override", type=float, metavar="SCALE",
                        help="turn the feed override dial to SCALE (1.0 = 100 %%) before the program starts")
+    group.add_argument("--subroutine-path", action="append", default=[], type=Path, metavar="DIR",
+                       help="folder where LinuxCNC finds o<name> call files (before the INI's SUBROUTINE_PATH; "
+                            "repeatable); the files called are attached to the recording")
     group.add_argument("--priority", choices=("normal", "high", "realtime"), default="normal",
                        help="schedule LinuxCNC's processes above other work (root): high = nice -10, "
                             "realtime = SCHED_FIFO 20")
@@ -256,4 +270,5 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
                            overwrite=getattr(args, "overwrite", False),
                            streams=getattr(args, "streams", "full"), priority=getattr(args, "priority", "normal"),
                            stop_event=getattr(args, "stop_event", None),
-                           feed_override=getattr(args, "feed_override", None))
+                           feed_override=getattr(args, "feed_override", None),
+                           subroutine_path=tuple(getattr(args, "subroutine_path", None) or ()))

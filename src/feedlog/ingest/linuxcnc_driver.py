@@ -213,7 +213,19 @@ class Driver:
         def done(s):
             return (s.interp_state == linuxcnc.INTERP_IDLE and s.queue == 0 and s.inpos
                     and s.exec_state == linuxcnc.EXEC_DONE)
-        self.wait("program end", done, self.deadline - time.monotonic())
+        try:
+            self.wait("program end", done, self.deadline - time.monotonic())
+        except Abort as exc:  # say which end condition LinuxCNC left unset
+            if self.result["errors"] or self.stop_requested:
+                raise
+            s = self.stat
+            raise Abort(f"{exc} (interp_state {s.interp_state}, idle is {linuxcnc.INTERP_IDLE}; queue {s.queue}; "
+                        f"inpos {s.inpos}; exec_state {s.exec_state}, done is {linuxcnc.EXEC_DONE}; "
+                        f"motion_line {s.motion_line})") from None
+        s = self.stat  # as polled when the end was seen (what the tests and docs check)
+        self.result["end_state"] = {"interp_state": s.interp_state, "queue": s.queue, "inpos": bool(s.inpos),
+                                    "exec_state": s.exec_state, "state": s.state, "motion_line": s.motion_line,
+                                    "current_line": s.current_line, "queue_full": bool(s.queue_full)}
         time.sleep(0.05)  # a few servo periods of standstill after the last move
         self.result["motion_time_end_s"] = self.motion_time()
         self.result["run_wall_end"] = time.time()

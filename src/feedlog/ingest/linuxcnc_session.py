@@ -124,19 +124,30 @@ class MachineIni:
         except ValueError as exc:  # more axes and joints than the samplers hold
             raise IngestError(f"cannot record this machine: {exc}", file=str(self.path)) from None
 
-    def rewritten(self, *, display: str, recorder: Path | None) -> str:
+    def subroutine_dirs(self) -> list[Path]:
+        """The folders of [RS274NGC] SUBROUTINE_PATH (colon-separated; relative to the INI's folder)."""
+        value = self.get("RS274NGC", "SUBROUTINE_PATH") or ""
+        return [Path(d) if Path(d).is_absolute() else self.path.parent / d for d in value.split(":") if d.strip()]
+
+    def rewritten(self, *, display: str, recorder: Path | None, subroutine_path: tuple[Path, ...] = ()) -> str:
         """INI text with our DISPLAY and recorder HALFILE; relative file paths made absolute.
 
-        `recorder=None` drops the INI's recording HALFILE (a machine to attach to later)."""
+        `recorder=None` drops the INI's recording HALFILE (a machine to attach to later).
+        `subroutine_path` folders come first in [RS274NGC] SUBROUTINE_PATH, before the INI's own (which
+        are made absolute: LinuxCNC runs from a work folder)."""
         out: list[str] = []
         section = ""
         placed = False
         last_halfile = -1
+        sub_dirs = ":".join(str(Path(d).resolve()) for d in (*subroutine_path, *self.subroutine_dirs()))
         for raw in self.text.splitlines():
             m = _SECTION.match(raw)
             if m:
                 section = m.group(1).strip().upper()
                 out.append(raw)
+                if section == "RS274NGC" and sub_dirs:
+                    out.append(f"SUBROUTINE_PATH = {sub_dirs}")
+                    sub_dirs = ""
                 continue
             m = _KEY.match(raw) if not raw.lstrip().startswith("#") else None
             key = m.group(1).upper() if m else ""
@@ -157,6 +168,8 @@ class MachineIni:
                 out.append(f"HALFILE = {value}")
                 last_halfile = len(out) - 1
                 continue
+            if section == "RS274NGC" and key == "SUBROUTINE_PATH":
+                continue  # written above, absolute
             if section == "EMCIO" and key == "TOOL_TABLE" and not Path(value).is_absolute():
                 src = self.path.parent / value
                 out.append(f"TOOL_TABLE = {src if src.exists() else 'feedlog.tbl'}")
@@ -167,6 +180,8 @@ class MachineIni:
                 raise IngestError("LinuxCNC INI has no [HAL] HALFILE to attach the recorder after",
                                   file=str(self.path))
             out.insert(last_halfile + 1, f"HALFILE = {recorder}")
+        if sub_dirs:  # no [RS274NGC] section
+            out += ["", "[RS274NGC]", f"SUBROUTINE_PATH = {sub_dirs}"]
         return "\n".join(out) + "\n"
 
 
@@ -276,7 +291,8 @@ def _launch_command(ini_path: Path, *, isolate: bool, keep: tuple[Path, ...] = (
 
 def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeout_s: float = 600.0,
                 keep_workdir: bool = False, stop_event: threading.Event | None = None,
-                priority: str = "normal", feed_override: float | None = None) -> SessionResult:
+                priority: str = "normal", feed_override: float | None = None,
+                subroutine_path: tuple[Path, ...] = ()) -> SessionResult:
     """Run `program` on the machine `ini` from homing to program end; return the capture.
 
     Errors of the run itself (G-code errors, aborts) are in the report: see session_error(). Call
@@ -286,6 +302,8 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
     nice -10, 'realtime': SCHED_FIFO 20; root only) schedules the whole LinuxCNC process tree above other
     work on the host, so that a program whose block rate LinuxCNC's task limits runs as on a quiet host.
     `feed_override` sets the feed override dial (1.0 = 100 %) before the program starts.
+    `subroutine_path`: folders where LinuxCNC finds `o<name> call` files, before the INI's SUBROUTINE_PATH
+    (the program runs from a copy, so its own folder is not searched).
     """
     priority_prefix(priority)  # a bad or unavailable priority fails before anything starts
     reason = linuxcnc_available()
@@ -317,7 +335,8 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
                "timeout_s": timeout_s, "stop_file": str(workdir / "stop"), "feed_override": feed_override}
         job_path.write_text(json.dumps(job))
         ini_path = workdir / "machine.ini"
-        ini_path.write_text(ini.rewritten(display=f"{driver} {job_path}", recorder=recorder))
+        ini_path.write_text(ini.rewritten(display=f"{driver} {job_path}", recorder=recorder,
+                                          subroutine_path=tuple(subroutine_path)))
         fifo = workdir / "rtapi_fifo"
         fifo.mkdir(mode=0o777)
         fifo.chmod(0o777)
@@ -328,7 +347,8 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
         log_path = workdir / "linuxcnc.log"
         t0 = time.monotonic()
         with open(log_path, "w") as log:
-            command = _launch_command(ini_path, isolate=isolate, keep=(ini.path.parent,), priority=priority)
+            keep = (ini.path.parent, *subroutine_path, *ini.subroutine_dirs())
+            command = _launch_command(ini_path, isolate=isolate, keep=keep, priority=priority)
             proc = subprocess.Popen(command, cwd=workdir, env=env,
                                     stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
                                     start_new_session=True)

@@ -34,6 +34,7 @@ class SimTask:
     token: str = ""
     lenient: bool = False        # unsupported program codes skipped (listed in the summary) instead of failing
     dialect: str = "auto"        # G-code dialect (feedlog.toolpath.dialects)
+    interp: Any = None           # InterpOptions: subroutine folders, tool table, parameter file
 
 
 @dataclass
@@ -53,7 +54,8 @@ def simulate_one(task: SimTask) -> dict[str, Any]:
 
     name = storage.stem(task.label)
     with storage.local_input(task.program) as local:
-        program = load_program(Path(local), name=task.label, lenient=task.lenient, dialect=task.dialect)
+        program = load_program(Path(local), name=task.label, lenient=task.lenient, dialect=task.dialect,
+                               interp=task.interp)
     result = simulate(program, task.profile, mechanisms=task.mechanisms, dt_s=task.dt_s)
     summary = {"program": task.label, **result.summary(), **program_notes(program)}
     with storage.publish_dir(storage.join(task.outdir, name), token=task.token) as staging:
@@ -78,7 +80,7 @@ def program_notes(program: Any) -> dict[str, Any]:
 def simulate_many(programs: list[str | Path], outdir: str | Path, *, profile: Any, mechanisms: Any = None,
                   dt_s: float | None = None, jobs: int | None = None, scheduler: str | None = None,
                   overwrite: bool = False, progress: bool = True, log=None, lenient: bool = False,
-                  dialect: str = "auto") -> list[SimItem]:
+                  dialect: str = "auto", interp: Any = None) -> list[SimItem]:
     """Simulate every program into OUTDIR/<stem>/ and OUTDIR/dataset/; results in the input order.
 
     `profile` is a MachineProfile, a shipped name or a TOML path (read here once).
@@ -90,7 +92,7 @@ def simulate_many(programs: list[str | Path], outdir: str | Path, *, profile: An
         programs, outdir,
         lambda label, root, token: SimTask(program=storage.absolute(label), label=label, outdir=root, profile=prof,
                                            mechanisms=mechanisms, dt_s=dt_s, token=token, lenient=lenient,
-                                           dialect=dialect),
+                                           dialect=dialect, interp=interp),
         simulate_one, what="programs", files=FILES, tables=DATASET_TABLES, key=PARTITION_KEY, overwrite=overwrite,
         desc="sim", jobs=jobs, scheduler=scheduler, progress=progress, log=log)
     items = []

@@ -21,6 +21,7 @@ from feedlog.atomic import atomic_outputs
 from feedlog.cli_options import add_output, add_overwrite, add_quiet
 from feedlog.errors import FeedlogError, SimulationError
 from feedlog.execution import add_arguments as add_execution_arguments
+from feedlog.toolpath.cli import add_interpreter_arguments, interp_options
 from feedlog.toolpath.dialects import DIALECTS
 
 STREAM_BYTES = 16 << 20   # programs this large (~500k blocks) are simulated window by window
@@ -39,6 +40,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="skip unsupported program codes (listed in the summary) instead of failing")
     parser.add_argument("--dialect", choices=DIALECTS, default="auto",
                         help="G-code dialect: rs274ngc (LinuxCNC), fanuc/hurco, sinumerik (default: detected)")
+    add_interpreter_arguments(parser)
     add_execution_arguments(parser)
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     parser.add_argument("--set", action="append", default=[], metavar="MECH.PARAM=VALUE",
@@ -71,10 +73,10 @@ def parse_settings(settings: list[str], enable: list[str], disable: list[str]) -
     return spec
 
 
-def _program(path: str, *, lenient: bool = False, dialect: str = "auto"):
+def _program(path: str, *, lenient: bool = False, dialect: str = "auto", interp=None):
     from feedlog.toolpath import load_program
 
-    return load_program(path, lenient=lenient, dialect=dialect)
+    return load_program(path, lenient=lenient, dialect=dialect, interp=interp)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -95,7 +97,7 @@ def _run_many(args: argparse.Namespace) -> int:
     items = simulate_many(args.programs, str(args.out), profile=args.profile,
                           mechanisms=parse_settings(args.set, args.enable, args.disable) or None, dt_s=args.dt,
                           jobs=args.jobs, scheduler=args.scheduler, overwrite=args.overwrite, progress=not args.quiet,
-                          lenient=args.lenient, dialect=args.dialect)
+                          lenient=args.lenient, dialect=args.dialect, interp=interp_options(args))
     failed = [i for i in items if not i.ok]
     for item in failed:
         print(f"feedlog sim: error: {item.program}: {item.error}", file=sys.stderr)
@@ -123,7 +125,7 @@ def _run_one(args: argparse.Namespace, source: str, *, series: Path | None) -> i
         result = _run_windowed(args, source, mechanisms, series)
         notes = {"dialect": "rs274ngc"}
     else:
-        program = _program(source, lenient=args.lenient, dialect=args.dialect)
+        program = _program(source, lenient=args.lenient, dialect=args.dialect, interp=interp_options(args))
         _check_fits(args, program, series)
         result = simulate(program, args.profile, mechanisms=mechanisms, dt_s=args.dt)
         outputs = {path: table for path, table in ((series, lambda: result.series),

@@ -58,7 +58,16 @@ def load_program(source: str | Path | Program, *, lenient: bool = False, dialect
     if program is not None:
         pass
     elif native:
-        program = parse_program(source if path is not None else text, lenient=lenient, name=label)
+        try:
+            program = parse_program(source if path is not None else text, lenient=lenient, name=label)
+        except ProgramError as refused_by_parser:
+            # what LinuxCNC reads that the vectorised parser does not (a full circle without end point,
+            # two P words on a line): the interpreter, which follows LinuxCNC, decides
+            try:
+                program = interpret(source if path is not None else body, name=label, options=interp)
+                program.path = path
+            except ProgramError:   # both refuse: the parser's one-line error stays the answer
+                raise refused_by_parser from None
     else:
         body = translation.text if "\n" in translation.text else translation.text + "\n"
         program = parse_program(body, lenient=lenient, name=label)
