@@ -22,12 +22,11 @@ from pathlib import Path
 from feedlog.errors import ProgramError
 from feedlog.toolpath.dialects import _highest_z
 from feedlog.toolpath.interp.block import build, enhance, refuse
-from feedlog.toolpath.interp.canon import K_NONE, Canon, Source
+from feedlog.toolpath.interp.canon import K_NONE, Source
 from feedlog.toolpath.interp.codes import CYCLES, M_GROUP
 from feedlog.toolpath.interp.errors import InterpError
 from feedlog.toolpath.interp.fanuc_syntax import FLine, parse_line
-from feedlog.toolpath.interp.machine import INCH_PER_MM, MM_PER_INCH, Machine, rotate
-from feedlog.toolpath.interp.params import Parameters
+from feedlog.toolpath.interp.machine import INCH_PER_MM, MM_PER_INCH, build_machine, rotate
 from feedlog.toolpath.interp.runner import Interpreter, SourceFile
 from feedlog.toolpath.interp.tools import ToolTable
 from feedlog.toolpath.program import Program
@@ -179,18 +178,9 @@ class FanucInterpreter:
         text, path, label = read_source(source, name)
         self.main = FanucFile(label, text, path)
         self.search = ([path.parent] if path is not None else []) + [Path(p) for p in search_path]
-        self.tools = tool_table if isinstance(tool_table, ToolTable) else (
-            ToolTable.read(tool_table) if tool_table is not None else ToolTable(assumed=True))
-        self.params = Parameters(lambda name: None)
-        if parameter_file is not None:
-            self.params.load_var(parameter_file)
-        self.canon = Canon()
-        kw = {}
-        if arc_tolerance_mm is not None:
-            kw["arc_tolerance_mm"] = arc_tolerance_mm
-        if arc_tolerance_inch is not None:
-            kw["arc_tolerance_inch"] = arc_tolerance_inch
-        self.m = Machine(self.params, self.canon, self.tools, **kw)
+        self.m = build_machine(tool_table=tool_table, parameter_file=parameter_file,
+                               arc_tolerance_mm=arc_tolerance_mm, arc_tolerance_inch=arc_tolerance_inch)
+        self.tools, self.params, self.canon = self.m.tools, self.m.P, self.m.canon
         self.m.retract_r_plane = False          # Fanuc and Haas power up in G98 (LinuxCNC: G99)
         self.V = Variables(self)
         self.max_blocks = max_blocks

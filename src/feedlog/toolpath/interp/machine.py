@@ -36,6 +36,20 @@ def rotate(x: float, y: float, theta_deg: float) -> tuple[float, float]:
     return x * math.cos(t) - y * math.sin(t), x * math.sin(t) + y * math.cos(t)
 
 
+def build_machine(*, tool_table=None, parameter_file=None, lookup=lambda _name: None,
+                  arc_tolerance_mm: float | None = None, arc_tolerance_inch: float | None = None) -> Machine:
+    """A machine model with its tool table, parameters (a parameter file loaded; `lookup` gives the
+    front-end's predefined read-only names) and an empty Canon: what every front-end starts from."""
+    from feedlog.toolpath.interp.params import Parameters
+
+    params = Parameters(lookup)
+    if parameter_file is not None:
+        params.load_var(parameter_file)
+    kw = {k: v for k, v in (("arc_tolerance_mm", arc_tolerance_mm), ("arc_tolerance_inch", arc_tolerance_inch))
+          if v is not None}
+    return Machine(params, Canon(), ToolTable.of(tool_table), **kw)
+
+
 class Machine:
     """Modal state + the conversions. `emit(kind, end, centre, turns, dwell)` goes through `canon`."""
 

@@ -21,10 +21,9 @@ from pathlib import Path
 
 from feedlog.errors import ProgramError
 from feedlog.toolpath.interp.block import build, enhance, refuse
-from feedlog.toolpath.interp.canon import Canon, Source
+from feedlog.toolpath.interp.canon import Source
 from feedlog.toolpath.interp.errors import InterpError
-from feedlog.toolpath.interp.machine import Machine
-from feedlog.toolpath.interp.params import Parameters
+from feedlog.toolpath.interp.machine import build_machine
 from feedlog.toolpath.interp.syntax import parse_line
 from feedlog.toolpath.interp.tools import ToolTable
 from feedlog.toolpath.source import read_source
@@ -82,18 +81,9 @@ class Interpreter:
         text, path, label = read_source(source, name)
         self.main = SourceFile(label, text, path)
         self.search = ([path.parent] if path is not None else []) + [Path(p) for p in search_path]
-        self.tools = tool_table if isinstance(tool_table, ToolTable) else (
-            ToolTable.read(tool_table) if tool_table is not None else ToolTable(assumed=True))
-        self.params = Parameters(self._predefined)
-        if parameter_file is not None:
-            self.params.load_var(parameter_file)
-        self.canon = Canon()
-        kw = {}
-        if arc_tolerance_mm is not None:
-            kw["arc_tolerance_mm"] = arc_tolerance_mm
-        if arc_tolerance_inch is not None:
-            kw["arc_tolerance_inch"] = arc_tolerance_inch
-        self.m = Machine(self.params, self.canon, self.tools, **kw)
+        self.m = build_machine(tool_table=tool_table, parameter_file=parameter_file, lookup=self._predefined,
+                               arc_tolerance_mm=arc_tolerance_mm, arc_tolerance_inch=arc_tolerance_inch)
+        self.tools, self.params, self.canon = self.m.tools, self.m.P, self.m.canon
         self.max_blocks = max_blocks
         self.labels: dict[str, Label] = {}
         self.frames: list[Frame] = [Frame()]

@@ -20,13 +20,11 @@ from pathlib import Path
 
 from feedlog.errors import ProgramError
 from feedlog.toolpath.interp.block import Block
-from feedlog.toolpath.interp.canon import K_DWELL, Canon, Source
+from feedlog.toolpath.interp.canon import K_DWELL, Source
 from feedlog.toolpath.interp.errors import InterpError
 from feedlog.toolpath.interp.machine import (INCH_PER_MM, MM_PER_INCH, PATH_CONTINUOUS, PATH_EXACT_STOP,
-                                             Machine, rotate)
-from feedlog.toolpath.interp.params import Parameters
+                                             build_machine, rotate)
 from feedlog.toolpath.interp.sinumerik_syntax import CALL_CYCLES, SLine, num, parse_line
-from feedlog.toolpath.interp.tools import ToolTable
 from feedlog.toolpath.program import Program
 from feedlog.toolpath.source import read_source
 from feedlog.toolpath.words import STOP_M
@@ -139,10 +137,8 @@ class SinumerikInterpreter:
         self.search = ([path.parent] if path is not None else []) + [Path(p) for p in search_path]
         self.subprograms = {k.upper(): v for k, v in (subprograms or {}).items()}
         self.max_blocks = MAX_BLOCKS if max_blocks is None else max_blocks
-        self.tools = tool_table if isinstance(tool_table, ToolTable) else (
-            ToolTable.read(tool_table) if tool_table is not None else ToolTable(assumed=True))
-        self.canon = Canon()
-        self.m = Machine(Parameters(lambda _n: None), self.canon, self.tools)
+        self.m = build_machine(tool_table=tool_table)
+        self.tools, self.canon = self.m.tools, self.m.canon
         self.R = [0.0] * 1000
         self.frames = [Frame(file=self.main, name=Path(label).name)]
         self.file = self.main

@@ -38,6 +38,13 @@ class ToolTable:
         return tool
 
     @classmethod
+    def of(cls, table: ToolTable | str | Path | None) -> ToolTable:
+        """A table as given, read from a file, or (None) the assumed table of a program given none."""
+        if isinstance(table, ToolTable):
+            return table
+        return cls.read(table) if table is not None else cls(assumed=True)
+
+    @classmethod
     def read(cls, path: str | Path) -> ToolTable:
         path = Path(path)
         try:
