@@ -31,7 +31,7 @@ def readme_commands() -> list[str]:
     block = section.split("```bash\n", 1)[1].split("```", 1)[0]
     commands = []
     for line in block.splitlines():
-        if "needs LinuxCNC" in line:
+        if "needs LinuxCNC" in line or "needs a machine" in line:
             continue
         command = re.sub(r"\[[^\]]*\]", "", line.split("#", 1)[0]).strip()
         if command.startswith("feedlog "):

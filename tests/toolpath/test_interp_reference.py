@@ -193,6 +193,8 @@ def test_random_programs_match_linuxcnc(tmp_path_factory, text):
         assert error is not None, f"LinuxCNC: line {ref.line}: {ref.message}\n{text}"
         assert error.line in (ref.line, ref.line - 1), (error.line, ref.line, ref.message, str(error), text)
         return
+    if error is not None and "out of range (beyond +-1e9" in str(error):
+        return   # feedlog's documented bound on numbers and positions (1e9 mm); LinuxCNC has none
     assert error is None, f"{error}\n{text}"
     problems = compare(program.blocks, ref)
     assert not problems, (problems, text)

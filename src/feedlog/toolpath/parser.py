@@ -198,7 +198,8 @@ def parse_chunk(text: str, state: ParseState, *, file: str, lenient: bool = Fals
     rot_len = np.sqrt(((end[3:] - start[3:]) ** 2).sum(axis=0)) if has[[S[c] for c in "ABC"]].any() \
         else np.zeros(n)
     time_len = np.where(lin_len > 1e-12, lin_len, rot_len)  # LinuxCNC: F applies to XYZ, else to ABC
-    feed = np.where(inverse_time, time_len * W[S["F"]], modal_feed)
+    # G93: the block takes 1/F minutes, but LinuxCNC never feeds slower than 0.1 program units/min
+    feed = np.where(inverse_time, np.maximum(0.1 * unit, time_len * W[S["F"]]), modal_feed)
     feed = np.where(feed_move, feed, np.nan)
     missing_it = feed_move & inverse_time & ~f_here
     if missing_it.any():

@@ -106,9 +106,12 @@ def _rs274(program: Path, *, tools: Path, var: Path | None, subs, cwd) -> Refere
             text += "SUBROUTINE_PATH = " + ":".join(str(s) for s in subs) + "\n"
         ini.write_text(text)
         result = Path(tmp) / "out.txt"
-        run = subprocess.run(["rs274", "-g", "-i", str(ini), "-t", str(tbl), str(program), str(result)],
-                             capture_output=True, text=True, timeout=120, cwd=cwd or program.parent,
-                             stdin=subprocess.DEVNULL)
+        for _attempt in range(3):   # under load rs274 now and then exits non-zero without a word: run it again
+            run = subprocess.run(["rs274", "-g", "-i", str(ini), "-t", str(tbl), str(program), str(result)],
+                                 capture_output=True, text=True, timeout=120, cwd=cwd or program.parent,
+                                 stdin=subprocess.DEVNULL)
+            if run.returncode == 0 or len(run.stdout.strip().splitlines()) > 1:
+                break
         output = result.read_text() if result.exists() else ""
     scale, plane = 1.0, 1
     state = dict(feed=0.0, g5x=[0.0] * 6, g92=[0.0] * 6, rot=0.0, tool=[0.0] * 6)

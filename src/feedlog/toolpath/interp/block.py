@@ -8,6 +8,7 @@ import math
 from feedlog.toolpath.interp.codes import CYCLES, G_GROUP, M_GROUP, REFUSED_G, g_name
 from feedlog.toolpath.interp.errors import InterpError
 from feedlog.toolpath.interp.expr import as_int
+from feedlog.toolpath.limits import MAX_WORD, sci
 
 AXIS_LETTERS = "xyzabc"
 _AXES_OR_POLAR = "xyzabc@^"
@@ -85,7 +86,9 @@ def build(words, C, unknown_u: bool = True) -> Block:
                     value = float(as_int(value, "H word"))
                     if value < -1:
                         raise InterpError("negative H word used")
-            elif letter == "f" and value < 0.0:
+            if abs(value) > MAX_WORD:   # feedlog's bound on every number (toolpath.limits), LinuxCNC has none
+                raise InterpError(f"number out of range (beyond +-{sci(MAX_WORD)}): {letter.upper()}{value:.4g}")
+            if letter == "f" and value < 0.0:
                 raise InterpError("negative F word used")
             elif letter == "s" and value < 0.0:
                 raise InterpError("negative spindle speed used")
@@ -175,6 +178,8 @@ def _check(b: Block) -> None:
     for a in "abc":
         if a in v and cycle:
             raise InterpError(f"cannot put an {a.upper()} in a canned cycle")
+    if "e" in v and m.get("io") not in (66, 67, 68):
+        raise InterpError("E word with no G76, M66, M67 or M68 to use it")
     if "d" in v and g.get("comp", -1) not in (410, 420, 411, 421) and g.get("spindle_mode", -1) != 960:
         raise InterpError("D word with no G41, G41.1, G42, G42.1 or G96 to use it")
     if "h" in v and g.get("tool_length", -1) not in (430, 432):

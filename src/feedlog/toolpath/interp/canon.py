@@ -110,7 +110,8 @@ class Canon:
         tool = np.array([c.tool for c in contexts], dtype=np.float64).reshape(-1, 6)[ctx].T if n else np.zeros((6, 0))
         is_arc = (kind == K_ARC_CW) | (kind == K_ARC_CCW)
         d = end[:3] - start_pos[:3]
-        length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        with np.errstate(over="ignore", invalid="ignore"):   # beyond feedlog's bounds: checked by the runner
+            length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
         radius = np.full(n, np.nan)
         sweep_deg = np.full(n, np.nan)
         if is_arc.any():

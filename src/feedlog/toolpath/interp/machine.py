@@ -15,6 +15,7 @@ import math
 from feedlog.toolpath.arcwords import (CENTER_ARC_RADIUS_TOLERANCE_INCH, CENTER_ARC_RADIUS_TOLERANCE_MM,
                                        spiral_too_large)
 from feedlog.toolpath.interp import cycles
+from feedlog.toolpath.limits import MAX_ARC_TURNS, MAX_WORD, sci
 from feedlog.toolpath.interp.block import Block
 from feedlog.toolpath.interp.canon import (K_ARC_CCW, K_ARC_CW, K_DWELL, K_LINEAR, K_NONE, K_RAPID, Canon,
                                            Context)
@@ -176,6 +177,9 @@ class Machine:
                 and (motion in (0, 10) or (motion == -1 and self.motion_mode in (0, 10))))
 
     def fast_line(self, motion: int, v: dict) -> None:
+        for letter, value in v.items():
+            if abs(value) > MAX_WORD:
+                raise InterpError(f"number out of range (beyond +-{sci(MAX_WORD)}): {letter.upper()}{value:.4g}")
         if "f" in v:
             f = v["f"]
             if f < 0.0:
@@ -666,6 +670,8 @@ class Machine:
         end = self._ends(b)
         self.motion_mode = motion
         p_words = int(round(v["p"])) if "p" in v else 1
+        if p_words > MAX_ARC_TURNS:
+            raise InterpError(f"arc P (turns) must be a whole number from 1 to {MAX_ARC_TURNS}")
         if self.comp.active and self.plane in (170, 180):
             self.comp.arc(motion, end, v, p_words)
             return

@@ -19,6 +19,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from feedlog.errors import ProgramError
 from feedlog.toolpath.interp.block import build, enhance, refuse
 from feedlog.toolpath.interp.canon import Source
@@ -26,6 +28,7 @@ from feedlog.toolpath.interp.errors import InterpError
 from feedlog.toolpath.interp.machine import build_machine
 from feedlog.toolpath.interp.syntax import parse_line
 from feedlog.toolpath.interp.tools import ToolTable
+from feedlog.toolpath.limits import check_positions, check_run_time
 from feedlog.toolpath.source import read_source
 from feedlog.toolpath.words import STOP_M
 
@@ -180,6 +183,7 @@ class Interpreter:
     def batches(self, batch_rows: int = BATCH_ROWS) -> Iterator:
         """Block-table batches (DataFrames) as the program runs."""
         start = (0.0,) * 6
+        run_time = 0.0
         while not self.finished:
             self._run(batch_rows)
             if self.canon.rows or self.finished:
@@ -187,6 +191,7 @@ class Interpreter:
                 table = self.canon.table(start)
                 if first_end is not None:
                     start = tuple(first_end)
+                run_time = _check_bounds(table, run_time)
                 if len(table) or self.finished:
                     yield table
 
@@ -570,3 +575,27 @@ def _first_comment(lines: list[str]) -> str | None:
         if m:
             return (m.group(1) if m.group(1) is not None else m.group(2)).strip()
     return None
+
+
+def _check_bounds(table, before: float) -> float:
+    """feedlog's bounds on a batch (toolpath.limits, as the vectorised parser applies them): positions
+    within 1e9 mm, the program's feed and dwell time within 1e9 s. Returns the time so far."""
+    n = len(table)
+    if not n:
+        return before
+    files, lines = table["file"].astype(str).to_numpy(), table["line"].to_numpy()
+
+    def fail(r: int, message: str, code: str) -> ProgramError:
+        return ProgramError(message, file=files[r], line=int(lines[r]), code=code)
+
+    kind = table["kind"].astype(str).to_numpy()
+    moving = np.isin(kind, ("rapid", "linear", "arc_cw", "arc_ccw"))
+    start = table[["x0_mm", "y0_mm", "z0_mm", "a0_deg", "b0_deg", "c0_deg"]].to_numpy(float).T
+    end = table[["x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"]].to_numpy(float).T
+    check_positions(start, end, moving, fail)
+    feed = table["feed_mm_min"].to_numpy(float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        seconds = np.where(moving & (kind != "rapid") & (feed > 0), table["length_mm"].to_numpy(float) / feed * 60.0,
+                           0.0) + table["dwell_s"].to_numpy(float)
+    return check_run_time(seconds, fail, what="feed too slow or dwell too long", before=before,
+                          code=lambda r: f"F{feed[r]:g}" if kind[r] != "dwell" else "G4")
