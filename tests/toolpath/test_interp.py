@@ -77,6 +77,15 @@ def test_tool_length_offset_shifts_program_coordinates(tmp_path):
     assert m["tool_z_mm"].tolist() == [0.0, 12.5, 0.0]
 
 
+def test_units_change_under_a_tool_offset_keeps_the_offset_in_its_length():
+    # LinuxCNC's task canon hands the interpreter the offset in the new units at G20 (emccanon's
+    # TO_PROG_LEN): 0.1 mm stays 0.1 mm, so clearing it returns program Z to the machine's 10 mm
+    p = run("G21 G0 X1 Y1 Z10\nG43.1 Z0.1\nG20\nG43.1 Z0\nG90 G0 X0 Y0\nM2\n")
+    z = p.motion["z_mm"].to_numpy()
+    assert z[-1] == pytest.approx(10.0, abs=1e-9)
+    assert p.motion["tool_z_mm"].iloc[-1] == 0.0
+
+
 def test_subroutine_files_along_the_search_path(tmp_path):
     subs = tmp_path / "subs"
     subs.mkdir()

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from pathlib import Path
 
 import pytest
@@ -196,8 +197,30 @@ def test_random_programs_match_linuxcnc(tmp_path_factory, text):
     if error is not None and "out of range (beyond +-1e9" in str(error):
         return   # feedlog's documented bound on numbers and positions (1e9 mm); LinuxCNC has none
     assert error is None, f"{error}\n{text}"
+    if units_change_under_a_tool_offset(text):
+        return   # the gcode module's quirk, not the kernel's (units_change_under_a_tool_offset)
     problems = compare(program.blocks, ref)
     assert not problems, (problems, text)
+
+
+def units_change_under_a_tool_offset(text: str) -> bool:
+    """Whether G20/G21 switches units while a G43 offset is in force. LinuxCNC re-reads the tool offset
+    from its canon at a units change: the task's canon gives it in the new program units, but the `gcode`
+    module (our reference) gives it back unconverted, so a later G43/G49 shifts program Z by the offset
+    read in the wrong unit (0.1 mm taken as 0.1 inch). feedlog follows the kernel (test_interp.py)."""
+    units, offset = "G21", False
+    for line in text.upper().splitlines():
+        for word in re.findall(r"G\s*(\d+(?:\.\d+)?)", line.split("(")[0]):
+            code = f"G{float(word):g}"
+            if code in ("G43", "G43.1", "G43.2"):
+                offset = True
+            elif code == "G49":
+                offset = False
+            elif code in ("G20", "G21"):
+                if offset and code != units:
+                    return True
+                units = code
+    return False
 
 
 @st.composite
@@ -248,6 +271,18 @@ def test_random_cutter_compensation_matches_linuxcnc(tmp_path_factory, text):
     assert error is None, f"{error}\n{text}"
     problems = compare(program.blocks, ref)
     assert not problems, (problems, text)
+
+
+def test_the_reference_module_misreads_a_tool_offset_across_a_units_change(tmp_path):
+    """Why the random test passes over such programs: the `gcode` module shifts program Z by 0.1 inch
+    (12.44 mm, not 10) where the kernel and feedlog keep 0.1 mm (test_interp.py)."""
+    text = "G21 G0 X1 Y1 Z10\nG43.1 Z0.1\nG20\nG43.1 Z0\nG90 G0 X0 Y0\nM2\n"
+    assert units_change_under_a_tool_offset(text)
+    assert not units_change_under_a_tool_offset(text.replace("G20\n", "G21\n"))
+    path = tmp_path / "units.ngc"
+    path.write_text(text)
+    ref = reference(path)
+    assert not ref.error and ref.moves[-1]["end"][2] == pytest.approx(10 - 0.1 + 2.54, abs=1e-6)
 
 
 def test_parameter_file_offsets_and_homes_match_linuxcnc(tmp_path):
