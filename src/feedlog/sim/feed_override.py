@@ -24,8 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feedlog.errors import SimulationError
-from feedlog.sim.mechanism import MAX_OVERRIDE, MIN_OVERRIDE, Mechanism
+from feedlog.sim.mechanism import Mechanism, check_override
 from feedlog.sim.path import KIND_RAPID
 
 
@@ -39,9 +38,7 @@ class FeedOverride(Mechanism):
     override: float = 1.0  # 1.0 = 100 %
 
     def __post_init__(self) -> None:
-        if not MIN_OVERRIDE <= self.override <= MAX_OVERRIDE:
-            raise SimulationError(f"mechanism {self.name!r}: override must be from {MIN_OVERRIDE:g} to "
-                                  f"{MAX_OVERRIDE:g} (0.1 % to 1000 %), got {self.override}")
+        check_override(self.name, self.override)
 
     def limit(self, ctx) -> None:
         b = ctx.blocks

@@ -37,6 +37,13 @@ KINDS = ("limits", "corner", "interpolator", "series", "feedback", "measurement"
 MAX_PARAM_S = 3600.0  # a mechanism's time parameter (a dwell, a lag, a period): at most an hour
 MIN_OVERRIDE, MAX_OVERRIDE = 0.001, 10.0  # override dials: 0.1 % to 1000 %
 
+
+def check_override(name: str, override: float) -> None:
+    """An override dial's value must lie in MIN_OVERRIDE..MAX_OVERRIDE (a SimulationError naming `name`)."""
+    if not MIN_OVERRIDE <= override <= MAX_OVERRIDE:
+        raise SimulationError(f"mechanism {name!r}: override must be from {MIN_OVERRIDE:g} to "
+                              f"{MAX_OVERRIDE:g} (0.1 % to 1000 %), got {override}")
+
 # name -> "module:Class" (imported on first use). One line per mechanism.
 REGISTRY: dict[str, str] = {
     "cam": "feedlog.sim.cam:CamEstimate",
