@@ -19,7 +19,6 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from feedlog.errors import ProgramError
 from feedlog.toolpath.dialects import _highest_z
 from feedlog.toolpath.interp.block import build, enhance, refuse
 from feedlog.toolpath.interp.canon import K_NONE, Source
@@ -222,11 +221,7 @@ class FanucInterpreter:
             self._stack_str = " > ".join(f"{Path(f.call_file).name}:{f.call_line}" for f in self.frames[1:])
         return self._stack_str
 
-    def _error(self, message: str, raw: str | None = None) -> ProgramError:
-        stack = self._stack()
-        if stack:
-            message = f"{message} (called from {stack})"
-        return ProgramError(message, file=self.file.name, line=self.seq, code=(raw or "").strip()[:40] or None)
+    _error = Interpreter._error       # the error naming file, line and call stack, as the RS274/NGC loop
 
     def _note(self, what: str) -> None:
         self.notes.setdefault(what, []).append(self.seq)

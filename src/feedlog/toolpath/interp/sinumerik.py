@@ -24,6 +24,7 @@ from feedlog.toolpath.interp.canon import K_DWELL, Source
 from feedlog.toolpath.interp.errors import InterpError
 from feedlog.toolpath.interp.machine import (INCH_PER_MM, MM_PER_INCH, PATH_CONTINUOUS, PATH_EXACT_STOP,
                                              build_machine, rotate)
+from feedlog.toolpath.interp.runner import Interpreter
 from feedlog.toolpath.interp.sinumerik_syntax import CALL_CYCLES, SLine, num, parse_line
 from feedlog.toolpath.program import Program
 from feedlog.toolpath.source import read_source
@@ -180,11 +181,7 @@ class SinumerikInterpreter:
         return " > ".join(f"{Path(f.ret_file.name).name}:{f.call_line}" for f in self.frames[1:]
                           if f.ret_file is not None)
 
-    def _error(self, message: str, raw: str | None = None) -> ProgramError:
-        stack = self._stack()
-        if stack:
-            message = f"{message} (called from {stack})"
-        return ProgramError(message, file=self.file.name, line=self.seq, code=(raw or "").strip()[:40] or None)
+    _error = Interpreter._error       # the error naming file, line and call stack, as the RS274/NGC loop
 
     def _warn(self, key: str, message: str) -> None:
         if key not in self._warned:
