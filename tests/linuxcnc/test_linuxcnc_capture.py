@@ -129,6 +129,37 @@ def test_samplers_out_of_step_are_refused(tmp_path):
         load_capture(files, layout, period_ns=PERIOD_NS)
 
 
+def _retag(path: Path, lines: list[list[str]]) -> None:
+    for k, fields in enumerate(lines):
+        fields[0] = str(k)
+    path.write_text("\n".join(" ".join(f) for f in lines) + "\n")
+
+
+def test_a_gate_opened_between_two_samplers_drops_the_lone_leading_sample(tmp_path):
+    # the enable signal is set from user space: sampler 1 may take one servo period sampler 0 never saw
+    layout = standard_layout("XYZ", 3)
+    data = fake_session(300)
+    files = write_captures(tmp_path, data, layout)
+    lines = [line.split() for line in files[1].read_text().splitlines()]
+    early = list(lines[0])
+    early[1] = f"{data['clock'][0] - 1e-3:.6f}"
+    _retag(files[1], [early] + lines)
+    streams, missing = load_capture(files, layout, period_ns=PERIOD_NS)
+    assert len(streams["axes"]) == 300
+    np.testing.assert_allclose(streams["axes"]["x_mm"], data["x"], atol=1e-6)
+    assert streams["axes"]["t_ns"].iloc[0] == servo_t_ns(data["clock"][:1], PERIOD_NS)[0]
+    assert missing == 0  # the lone sample lies before the session: nothing inside it is missing
+
+
+def test_a_sampler_that_loses_a_sample_mid_run_is_out_of_step(tmp_path):
+    layout = standard_layout("XYZ", 3)
+    files = write_captures(tmp_path, fake_session(300), layout)
+    lines = [line.split() for line in files[1].read_text().splitlines()]
+    _retag(files[1], lines[:150] + lines[151:])
+    with pytest.raises(IngestError, match="out of step with sampler 0 at sample 151"):
+        load_capture(files, layout, period_ns=PERIOD_NS)
+
+
 def test_wrong_field_count_is_refused(tmp_path):
     layout = standard_layout("XYZAC", 5)
     files = write_captures(tmp_path, fake_session(200), standard_layout("XYZ", 3))

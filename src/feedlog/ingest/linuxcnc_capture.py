@@ -60,19 +60,37 @@ def read_capture(path: Path, names: list[str]) -> pd.DataFrame:
     return table
 
 
-def join_captures(tables: list[pd.DataFrame], *, source: str = "") -> pd.DataFrame:
-    """Join per-sampler tables on the sample tag; the clocks must agree where the tags do."""
+def join_captures(tables: list[pd.DataFrame], *, source: str = "", period_ns: int | None = None) -> pd.DataFrame:
+    """Join per-sampler tables row by row: on the shared servo clock when there is one, else on the tag.
+
+    The gate opens from user space, so it can open between two samplers' functions in one servo
+    period: one sampler then holds a leading sample the others lack, and their tags differ by one
+    from there on. The shared clock names the servo period itself, so joining on it drops that
+    lone sample instead of pairing rows one period apart. Within the joined rows every sampler's
+    tag must keep the same offset from sampler 0's: a sampler that lost a sample mid-run (or a
+    clock that disagrees) is out of step and refused.
+    """
+    clocked = period_ns is not None and "clock_s" in tables[0]
+    key = "tick" if clocked else "sample"
+    if clocked:
+        tables = [t.assign(tick=servo_t_ns(t["clock_s"].to_numpy(), period_ns)) for t in tables]
     joined = tables[0]
     for k, table in enumerate(tables[1:], start=1):
-        joined = joined.merge(table, on="sample", how="inner", suffixes=("", f"_{k}"))
+        joined = joined.merge(table, on=key, how="inner", suffixes=("", f"_{k}"))
         if "clock_s" not in joined:
             continue
         clash = np.flatnonzero(np.abs(joined["clock_s"] - joined[f"clock_s_{k}"]) > 1e-6)
+        if clocked:
+            offset = joined[f"sample_{k}"].to_numpy() - joined["sample"].to_numpy()
+            clash = np.flatnonzero(offset != offset[0]) if len(offset) else clash
+            if not len(joined) and len(table) and len(tables[0]):
+                raise IngestError(f"sampler {k} is out of step with sampler 0: their clocks never "
+                                  "meet", file=source or None)
         if len(clash):
             raise IngestError(f"sampler {k} is out of step with sampler 0 at sample "
                               f"{int(joined['sample'].iloc[clash[0]])}", file=source or None)
-        joined = joined.drop(columns=[f"clock_s_{k}"])
-    return joined.reset_index(drop=True)
+        joined = joined.drop(columns=[c for c in (f"clock_s_{k}", f"sample_{k}") if c in joined])
+    return joined.drop(columns=["tick"], errors="ignore").reset_index(drop=True)
 
 
 def servo_t_ns(clock_s: np.ndarray, period_ns: int) -> np.ndarray:
@@ -151,8 +169,10 @@ def load_capture(files: list[Path], layout: SamplerLayout, *, period_ns: int, li
     if len(files) != len(layout.groups):
         raise ValueError(f"{len(files)} capture files for {len(layout.groups)} samplers")
     tables = [read_capture(f, layout.column_names(k)) for k, f in enumerate(files)]
-    lost_rows = max(len(t) for t in tables) - min(len(t) for t in tables)
-    joined = join_captures(tables, source=source)
+    # joined on the clock, a sampler's lone samples at the gate's edges are outside the session and a
+    # sample lost mid-run is refused as out of step; joined on tags, a shorter sampler lost rows
+    lost_rows = 0 if layout.clock else max(len(t) for t in tables) - min(len(t) for t in tables)
+    joined = join_captures(tables, source=source, period_ns=period_ns)
     streams = capture_streams(joined, layout, period_ns=period_ns, linear_units=linear_units)
     missing = missing_periods(streams["axes"]["t_ns"].to_numpy(), period_ns) + lost_rows
     return streams, missing
