@@ -18,7 +18,6 @@ The replay is faster than the original: the wall-clock pause between two times o
 
 from __future__ import annotations
 
-import time
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -133,18 +132,6 @@ class NistAgent(ReplayAgent):
 
     def _of_device(self, entries: list, device: str | None) -> list:
         return entries if device is None else [e for e in entries if self.nist_items[e[1]].device == device]
-
-    def _produce(self) -> None:
-        while time.time_ns() < self.t0_ns and not self.closed.is_set():
-            time.sleep(0.005)
-        for wall, item, text, stamp in self.observations:
-            due = self.t0_ns + wall
-            while time.time_ns() < due and not self.closed.is_set():
-                time.sleep(min(0.002, max(0.0, (due - time.time_ns()) / 1e9)))
-            if self.closed.is_set():
-                return
-            self._add(item, stamp, text)
-        self.finished.set()
 
     def _entry(self, seq: int, item: str, t_ns: int, text: str) -> tuple[str, str]:
         it = self.nist_items[item]

@@ -170,13 +170,13 @@ class ReplayAgent:
     def _produce(self) -> None:
         while time.time_ns() < self.t0_ns and not self.closed.is_set():
             time.sleep(0.005)
-        for t_rel, item, text in self.observations:
+        for t_rel, item, text, *stamp in self.observations:   # (an agent replaying a log keeps its times)
             due = self.t0_ns + t_rel
             while time.time_ns() < due and not self.closed.is_set():
                 time.sleep(min(0.002, max(0.0, (due - time.time_ns()) / 1e9)))
             if self.closed.is_set():
                 return
-            self._add(item, due, text)
+            self._add(item, stamp[0] if stamp else due, text)
         self.finished.set()
 
     def restart(self) -> None:
