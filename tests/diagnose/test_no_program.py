@@ -107,6 +107,27 @@ def test_a_slower_machine_hidden_in_the_data_is_found(tmp_path, capsys):
     assert dx["feed"]["plateaus"][0]["level_mm_min"] == pytest.approx(3000.0 / 1.25, rel=0.001)
 
 
+def test_a_feed_stream_that_disagrees_with_the_positions_is_a_warning(tmp_path, capsys):
+    # the slowed-down copy keeps its recorded feed stream: it now reads 1.25 x what the positions move at
+    dx = _json(["diagnose", str(_stripped(tmp_path, "circle_f3000_p001", time_scale=1.25))], capsys)
+    assert any("the feed stream reads 1.250 x the path speed of the positions" in w for w in dx["warnings"])
+    assert dx["feed"]["plateaus"][0]["level_mm_min"] == pytest.approx(3000.0)   # the stream's, and said so
+    (tmp_path / "plain").mkdir()
+    dx = _json(["diagnose", str(_stripped(tmp_path / "plain", "circle_f3000_p001"))], capsys)
+    assert dx["warnings"] == []
+
+
+def test_an_output_that_cannot_be_written_is_exit_1_and_leaves_nothing(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    rec = _stripped(tmp_path, "corners_f3000_p001")
+    capsys.readouterr()
+    assert main(["diagnose", str(rec), "-o", str(blocker / "dx")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("feedlog diagnose: error: ") and "\n" not in err and "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["corners_f3000_p001.mcap", "file"]
+
+
 def test_five_axes_rotary_limits_and_no_generic_profile(tmp_path, capsys):
     out = tmp_path / "dx5"
     dx = _json(["diagnose", str(_stripped(tmp_path, "5ax_far_f2000_g61")), "-o", str(out)], capsys)

@@ -140,6 +140,13 @@ def test_two_real_devices_through_one_agent_recorded_end_to_end(tmp_path, capsys
     assert columns["line"] == ["t_ns", "line"] and columns["feed"] == ["t_ns", "feed_mm_min"]
     assert "feed.feed_mm_min=Hurco02-path_9(PATH_FEEDRATE ACTUAL MILLIMETER/SECOND)" in info["metadata"]["data_items"]
     assert info["metadata"]["units"] == "mm, deg, mm/min"
+    # and diagnose, with no program, says what the live recording alone supports: what it says on the import
+    assert main(["diagnose", str(hurco_out), "--json"]) == 0
+    live_dx = json.loads(capsys.readouterr().out)
+    assert main(["diagnose", str(imported), "--json"]) == 0
+    file_dx = json.loads(capsys.readouterr().out)
+    assert live_dx["mode"] == "no_program" and live_dx["axes"] == {} and live_dx["lines"] == file_dx["lines"]
+    assert live_dx["lines"]["last"] == 1209
 
     # -- Mazak01: positions (B and C too), feed, line, conditions and UNAVAILABLE in the stream ---------------
     rec = read_recording(mazak_out)

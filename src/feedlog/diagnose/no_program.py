@@ -286,6 +286,21 @@ def _feed(rec: Recording, t: np.ndarray | None, path: np.ndarray | None) -> tupl
     return None
 
 
+def feed_check(tf: np.ndarray, f: np.ndarray, t: np.ndarray, path: np.ndarray, *, tol: float = 0.05) -> str:
+    """The feed stream against the path speed of the linear axes' positions: a sentence when their median
+    ratio over moving samples is off by more than `tol` (a unit, a scale or a clock that is off), else ""."""
+    at = np.interp(tf, t, path)
+    moving = (at > 0.05 * at.max()) & (f > 0.05 * max(float(f.max()), 1e-9)) if len(at) and at.max() > 0 else []
+    if np.count_nonzero(moving) < 10:
+        return ""
+    ratio = float(np.median(f[moving] / at[moving]))
+    if abs(ratio - 1.0) <= tol:
+        return ""
+    return (f"the feed stream reads {ratio:.3f} x the path speed of the positions (median over "
+            f"{int(np.count_nonzero(moving))} moving samples): a unit, a scale or a clock that is off? The feed "
+            "plateaus above are the stream's")
+
+
 def measure(recordings: Sequence[Recording]) -> DataOnly:
     """What the recordings alone say (see the module docstring); recordings of one machine."""
     from feedlog.diagnose.cases import DiagnoseError
@@ -313,6 +328,10 @@ def measure(recordings: Sequence[Recording]) -> DataOnly:
         if period is not None:
             periods.append(period)
         found = _feed(rec, t, path)
+        if found is not None and found[0] == "feed stream" and path is not None and (period or 1.0) <= SPARSE_S:
+            check = feed_check(found[1], found[2], t, path)
+            if check:
+                warnings.append(f"{name}: {check}")
         if found is not None:
             source, tf, f = found
             feed_sources.add(source)
