@@ -36,9 +36,11 @@ def test_plateaus_are_runs_inside_their_band(xs, dts, rel, min_s):
 
 @FUZZ
 @given(st.lists(st.tuples(st.floats(-1e3, 1e3, allow_nan=False), st.floats(-1e3, 1e3, allow_nan=False)),
-                min_size=0, max_size=80), st.integers(1, 100_000_000), st.booleans())
-def test_measure_takes_any_finite_recording_or_says_why_not(rows, step_ns, with_feed):
+                min_size=0, max_size=80), st.integers(1, 100_000_000), st.booleans(), st.integers(0, 3))
+def test_measure_takes_any_finite_recording_or_says_why_not(rows, step_ns, with_feed, repeat):
     t = np.arange(len(rows), dtype=np.int64) * step_ns
+    if repeat:   # times stamped in bunches (several samples at one time), as some sources do
+        t = t // (repeat + 1) * (repeat + 1)
     streams = {"axes": pd.DataFrame({"t_ns": t, "x_mm": [r[0] for r in rows], "y_mm": [r[1] for r in rows]})}
     if with_feed:
         streams["feed"] = pd.DataFrame({"t_ns": t, "feed_mm_min": np.abs([r[1] for r in rows])})
@@ -49,4 +51,9 @@ def test_measure_takes_any_finite_recording_or_says_why_not(rows, step_ns, with_
         return
     for facts in dx.axes.values():
         assert facts.minimum <= facts.maximum
-        assert facts.peak_speed is None or facts.peak_speed >= 0
+        assert facts.peak_speed is None or 0 <= facts.peak_speed < np.inf
+        assert facts.peak_acc is None or 0 <= facts.peak_acc < np.inf
+    from feedlog.diagnose.no_program_report import summary_lines, to_json
+    import json
+    json.dumps(to_json(dx), allow_nan=False)   # what --json prints: finite everywhere
+    assert summary_lines(dx)

@@ -220,11 +220,15 @@ def _speeds(rec: Recording, gathered: dict[str, _Axis], notes: list[str]) -> tup
                                                                                      np.ndarray | None]:
     """Speeds and accelerations of one recording into `gathered`; its period and linear path speed."""
     axes = rec.streams.get("axes")
+    if axes is not None:
+        axes = _distinct_times(axes)
     if axes is None or len(axes) < 3:
         return None, None, None
     t = axes["t_ns"].to_numpy(np.int64)
     columns = _axis_columns(axes, ("mm", "deg"))
     velocity = rec.streams.get("velocity")
+    if velocity is not None:
+        velocity = _distinct_times(velocity)
     vcols = _axis_columns(velocity, ("mm_s", "deg_s")) if velocity is not None and len(velocity) >= 3 else {}
     speeds: dict[str, np.ndarray] = {}
     accs: dict[str, np.ndarray] = {}
@@ -269,6 +273,13 @@ def _speeds(rec: Recording, gathered: dict[str, _Axis], notes: list[str]) -> tup
     linear = [speeds[a] for a in speeds if a in LINEAR]
     path = np.sqrt(np.sum(np.square(linear), axis=0)) * 60.0 if linear else None
     return period, t, path
+
+
+def _distinct_times(table: pd.DataFrame) -> pd.DataFrame:
+    """Samples sharing a time (a source that stamps in bunches): the last one holds."""
+    if len(table) < 2:
+        return table
+    return table[np.append(np.diff(table["t_ns"].to_numpy(np.int64)) > 0, True)]
 
 
 def _alone(signals: dict[str, np.ndarray], axis: str, i: int, j: int, level: float) -> bool:
