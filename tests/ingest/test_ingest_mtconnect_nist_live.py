@@ -133,6 +133,10 @@ def test_two_real_devices_through_one_agent_recorded_end_to_end(tmp_path, capsys
     for stream, column in (("line", "line"), ("feed", "feed_mm_min")):
         t = rec.streams[stream]["t_ns"].to_numpy()
         np.testing.assert_array_equal(rec.streams[stream][column].to_numpy(), _held(ref.streams[stream], column, t))
+    again = tmp_path / "reimported.mcap"     # the live recording is a recording like any: `feedlog import` takes it
+    assert main(["import", str(hurco_out), "-o", str(again), "-q"]) == 0
+    for stream in ("line", "feed"):
+        assert read_recording(again).streams[stream].equals(rec.streams[stream])
     capsys.readouterr()
     assert main(["info", str(hurco_out), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
