@@ -12,7 +12,8 @@ fixtures against the source:
 What is taken (see tests/fixtures/ingest/nist/README.md):
 - `tdp/mtc/Split/Box-OP2-Hurco02-01of20.txt`: whole (Split SHDR of the box part's operation 2, part 1 of 20);
 - `tdp/mtc/NC-Code/NIST_MTC_CRADA_BOX_REV-A OP2 (Front).NC`: whole (the published program of that operation);
-- `raw/Mazak01/Mazak01-20161006-20161007.txt`: its first 4000 lines (2016-10-05T05:27 .. 2016-10-06T10:23 UTC).
+- `raw/Mazak01/Mazak01-20161006-20161007.txt`: its first 4000 lines (2016-10-05T05:27 .. 2016-10-06T10:23 UTC);
+- `mtconnect/agent/Devices.xml`: whole (the test bed agent's device file: the probe the live-source tests serve).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ FILES = {
     "tdp/mtc/Split/Box-OP2-Hurco02-01of20.txt": ("Box-OP2-Hurco02-01of20.txt", None),
     "tdp/mtc/NC-Code/NIST_MTC_CRADA_BOX_REV-A OP2 (Front).NC": ("NIST_MTC_CRADA_BOX_REV-A OP2 (Front).NC", None),
     "raw/Mazak01/Mazak01-20161006-20161007.txt": ("Mazak01-20161006-head4000.txt", 4000),
+    "mtconnect/agent/Devices.xml": ("Devices.xml", None),
 }
 
 

@@ -90,7 +90,8 @@ def test_readme_commands_run_in_order_and_chain(tmp_path):
         assert "Traceback" not in proc.stderr, (command, proc.stderr[-2000:])
         ran.append((words, proc))
     commands = [words[0] for words, _ in ran]
-    assert commands.count("diagnose") == 1  # the generic-xyz line has placeholder inputs (exp*.mcap)
+    assert commands.count("diagnose") == 2  # the generic-xyz line has placeholder inputs (exp*.mcap)
+    assert (tmp_path / "dx-hurco" / "report.md").is_file()   # the NIST Hurco: no program, the data alone
     assert {"program", "sim", "record", "import", "info", "align", "train", "predict", "view"} <= set(commands)
     # align: the refused recording is a warning and a count, --json a summary, not every block of every recording
     align = next(proc for words, proc in ran if words[0] == "align")

@@ -111,7 +111,9 @@ def _no_axes(src: Recording) -> Recording:
 
 
 BAD = [
-    ("no program", _without_program, [], "no program given and none attached"),
+    # no program anywhere is no longer an error: what the data alone says (tests/diagnose/test_no_program.py)
+    ("no program but --program names a missing file", _without_program, ["--program", "missing.ngc",
+                                                                         "--profile", "linuxcnc-xyz"], "missing.ngc"),
     ("no motion", _motionless, [], "shows no motion"),
     ("no positions", _no_axes, [], "has no 'axes' stream"),
     ("wrong kinematics", lambda r: r, ["--profile", "linuxcnc-xyzac"], "no A, C positions"),

@@ -108,6 +108,11 @@ class ReplayAgent:
         self.table = table if table is not None else replay_table(recording, rate_hz)
         self.items = {**ITEMS, **{k: v for k, v in ROTARY_ITEMS.items() if k[0].lower() in self.table}}
         self.device = device
+        self._init_agent(buffer_size=buffer_size, start_delay_s=start_delay_s, port=port)
+        self.observations = self._observations()
+
+    def _init_agent(self, *, buffer_size: int, start_delay_s: float, port: int, initial_ns: int | None = None) -> None:
+        """The agent's buffer, fault switches and HTTP server (shared with agents replaying other data)."""
         self.buffer_size = buffer_size
         self.start_delay_s = start_delay_s
         self.instance = str(int(time.time()))
@@ -127,14 +132,13 @@ class ReplayAgent:
         self.finished = threading.Event()
         self.closed = threading.Event()
         self.t0_ns = (time.time_ns() // 1_000_000 + int(start_delay_s * 1000)) * 1_000_000
-        now = time.time_ns() // 1000 * 1000
+        now = time.time_ns() // 1000 * 1000 if initial_ns is None else initial_ns
         for item in self.items:
             self._add(item, now, "UNAVAILABLE" if item != "avail" else "AVAILABLE")
         self.server = ThreadingHTTPServer(("127.0.0.1", port), self._handler())
         self.server.daemon_threads = True
         self.port = self.server.server_address[1]
         self.url = f"http://127.0.0.1:{self.port}"
-        self.observations = self._observations()
 
     # -- the replayed data ----------------------------------------------------------------------------
     def _observations(self) -> list[tuple[int, str, str]]:
@@ -166,13 +170,13 @@ class ReplayAgent:
     def _produce(self) -> None:
         while time.time_ns() < self.t0_ns and not self.closed.is_set():
             time.sleep(0.005)
-        for t_rel, item, text in self.observations:
+        for t_rel, item, text, *stamp in self.observations:   # (an agent replaying a log keeps its times)
             due = self.t0_ns + t_rel
             while time.time_ns() < due and not self.closed.is_set():
                 time.sleep(min(0.002, max(0.0, (due - time.time_ns()) / 1e9)))
             if self.closed.is_set():
                 return
-            self._add(item, due, text)
+            self._add(item, stamp[0] if stamp else due, text)
         self.finished.set()
 
     def restart(self) -> None:
@@ -233,11 +237,19 @@ class ReplayAgent:
                 f'version="1.3.0" bufferSize="{self.buffer_size}"/><Errors><Error errorCode="{code}">{text}</Error>'
                 "</Errors></MTConnectError>").encode()
 
-    def _range(self, start: int, count: int) -> tuple[list, int]:
+    def _range(self, start: int, count: int, device: str | None = None) -> tuple[list, int]:
+        """The entries of sequences start .. start+count-1 (of `device` only, when given) and the next
+        sequence to ask for (the scan's end, whatever the device filter kept)."""
         with self.lock:
             entries = [e for e in self.buffer if start <= e[0] < start + count]
             nxt = entries[-1][0] + 1 if entries else self.next_seq
-        return entries, nxt
+        return self._of_device(entries, device), nxt
+
+    def serves(self, device: str) -> bool:
+        return device == self.device
+
+    def _of_device(self, entries: list, device: str | None) -> list:
+        return entries     # one device: everything is its
 
     # -- HTTP -------------------------------------------------------------------------------------------
     def _handler(self):
@@ -261,8 +273,9 @@ class ReplayAgent:
             def do_GET(self) -> None:
                 url = urllib.parse.urlsplit(self.path)
                 parts = [p for p in url.path.split("/") if p]
-                if len(parts) == 2 and parts[0] == agent.device:
-                    parts = parts[1:]
+                device = None
+                if len(parts) == 2 and agent.serves(parts[0]):
+                    device, parts = parts[0], parts[1:]
                 elif len(parts) == 2:
                     return self._send(404, agent._error("NO_DEVICE", f"no device {parts[0]}"))
                 query = dict(urllib.parse.parse_qsl(url.query))
@@ -279,7 +292,7 @@ class ReplayAgent:
                                 return self._send(400, agent._error("OUT_OF_RANGE", "'at' outside the buffer"))
                             state = {e[1]: e for e in agent.history[:at]}   # sequences start at 1
                             entries = sorted(state.values())
-                    return self._send(200, agent._streams(entries))
+                    return self._send(200, agent._streams(agent._of_device(entries, device)))
                 if what != "sample":
                     return self._send(400, agent._error("UNSUPPORTED", f"{what}"))
                 try:
@@ -298,9 +311,9 @@ class ReplayAgent:
                     agent.events.append(("out_of_range", start, agent.first_seq()))
                     return self._send(400, agent._error("OUT_OF_RANGE", f"'from' must be >= {agent.first_seq()}"))
                 if "interval" not in query:
-                    entries, nxt = agent._range(start, count)
+                    entries, nxt = agent._range(start, count, device)
                     return self._send(200, agent._streams(entries, next_seq=nxt))
-                self._stream(start, count, int(query["interval"]), int(query.get("heartbeat", 10000)))
+                self._stream(start, count, int(query["interval"]), int(query.get("heartbeat", 10000)), device)
 
             def _chunk(self, body: bytes) -> None:
                 part = (f"--{BOUNDARY}\r\nContent-type: text/xml\r\nContent-length: {len(body)}\r\n\r\n").encode()
@@ -308,7 +321,8 @@ class ReplayAgent:
                 self.wfile.write(f"{len(part):X}\r\n".encode() + part + b"\r\n")
                 self.wfile.flush()
 
-            def _stream(self, pos: int, count: int, interval_ms: int, heartbeat_ms: int) -> None:
+            def _stream(self, pos: int, count: int, interval_ms: int, heartbeat_ms: int,
+                        device: str | None = None) -> None:
                 self.send_response(200)
                 self.send_header("Content-Type", f"multipart/x-mixed-replace;boundary={BOUNDARY}")
                 self.send_header("Transfer-Encoding", "chunked")
@@ -323,7 +337,7 @@ class ReplayAgent:
                             agent.events.append(("out_of_range", pos, agent.first_seq()))
                             self._chunk(agent._error("OUT_OF_RANGE", "Client can't keep up with event stream"))
                             break
-                        entries, nxt = agent._range(pos, count)
+                        entries, nxt = agent._range(pos, count, device)
                         if agent.drop_at_seq is not None and entries and entries[-1][0] >= agent.drop_at_seq:
                             agent.drop_at_seq = None
                             agent.events.append(("drop", pos, agent.first_seq()))
@@ -343,7 +357,7 @@ class ReplayAgent:
                         if entries or time.monotonic() - last_sent >= heartbeat_ms / 1000:
                             self._chunk(agent._streams(entries, next_seq=nxt))
                             last_sent = time.monotonic()
-                            pos = nxt
+                        pos = nxt      # (sequences of other devices are passed over)
                         if agent.stall_at_seq is not None and pos > agent.stall_at_seq:
                             agent.stall_at_seq = None
                             agent.events.append(("stall", pos, agent.first_seq()))

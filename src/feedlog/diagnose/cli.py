@@ -23,7 +23,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("recordings", nargs="+", metavar="RECORDING", help="recordings of one machine (.mcap)")
     parser.add_argument("--profile", help="machine profile to diagnose: shipped name or .toml (default: the "
                                           "profile the recordings carry)")
-    parser.add_argument("--program", "-p", help="part program (default: each recording's program.ngc)")
+    parser.add_argument("--program", "-p", help="part program (default: each recording's program.ngc; with none "
+                                                "anywhere: what the data alone says, docs/diagnose.md)")
     add_output(parser, type=Path, metavar="DIR", help="output folder (report.md, diagnose.json, profile.toml, "
                                                      "diagnose.rrd); nothing is written without it")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the text summary")
@@ -43,14 +44,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from feedlog.diagnose import no_program_report
+
+    if no_program_report.applies(args):   # no program anywhere: what the data alone says
+        return no_program_report.run(args)
     from feedlog.diagnose.engine import DiagnoseConfig, diagnose
     from feedlog.diagnose.summary import summary_lines, to_json
     from feedlog.diagnose.write import write_outputs
 
     try:
-        if args.out is not None and args.out.exists() and not args.overwrite and (
-                not args.out.is_dir() or any(args.out.iterdir())):
-            raise FeedlogError(f"{args.out} exists; pass --overwrite to replace it")
+        refuse_taken_output(args)
         families = tuple(f.strip() for f in args.families.split(",")) if args.families else None
         scheduler = args.scheduler or (os.environ.get("FEEDLOG_SCHEDULER") if args.jobs is None else None)
         jobs = args.jobs if args.jobs is not None else (None if scheduler else 1)
@@ -65,12 +68,23 @@ def run(args: argparse.Namespace) -> int:
     except FeedlogError as exc:
         print(f"feedlog diagnose: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    wrote = [] if args.out is None else [f"wrote {args.out}/: report.md, diagnose.json, profile.toml"
+                                         + ("" if args.no_rrd else ", diagnose.rrd (rerun FILE)")]
+    return answer(args, to_json(dx), summary_lines(dx) + wrote)
+
+
+def refuse_taken_output(args: argparse.Namespace) -> None:
+    """An output folder that exists and holds something is replaced only with --overwrite."""
+    if args.out is not None and args.out.exists() and not args.overwrite and (
+            not args.out.is_dir() or any(args.out.iterdir())):
+        raise FeedlogError(f"{args.out} exists; pass --overwrite to replace it")
+
+
+def answer(args: argparse.Namespace, doc: dict, lines: list[str]) -> int:
+    """Print the result: one JSON object with --json, else the summary lines."""
     if args.json:
-        json.dump(to_json(dx), sys.stdout, allow_nan=False)
+        json.dump(doc, sys.stdout, allow_nan=False)
         sys.stdout.write("\n")
     else:
-        print("\n".join(summary_lines(dx)))
-        if args.out is not None:
-            print(f"wrote {args.out}/: report.md, diagnose.json, profile.toml"
-                  + ("" if args.no_rrd else ", diagnose.rrd (rerun FILE)"))
+        print("\n".join(lines))
     return 0

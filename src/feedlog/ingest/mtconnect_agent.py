@@ -48,6 +48,8 @@ class DataItem:
     component_name: str = ""  # its name (or id): X, Y, C, path1
     name: str = ""
     device: str = ""
+    native_units: str = ""  # the adapter's unit the agent converts from (`nativeUnits`), when given
+    coordinate_system: str = ""  # MACHINE or WORK, when given
 
 
 @dataclass
@@ -141,7 +143,9 @@ def parse_probe(data: bytes, where: str = "probe") -> list[Device]:
                     id=item_id, category=attrs.get("category", "").upper(), type=attrs.get("type", "").upper(),
                     sub_type=attrs.get("subType", "").upper(), units=attrs.get("units", "").upper(),
                     component=owner[0], component_name=owner[1].get("name") or owner[1].get("id", ""),
-                    name=attrs.get("name", ""), device=devices[-1].name))
+                    name=attrs.get("name", ""), device=devices[-1].name,
+                    native_units=attrs.get("nativeUnits", "").upper(),
+                    coordinate_system=attrs.get("coordinateSystem", "").upper()))
             elif local == "Error" and root and root[0] == "MTConnectError":
                 errors.append(attrs.get("errorCode", ""))
             stack.append((local, attrs))

@@ -52,7 +52,8 @@ LENGTH_UNITS = {"MILLIMETER": 1.0, "INCH": 25.4, "": 1.0}           # MTConnect'
 ANGLE_UNITS = {"DEGREE": 1.0, "RADIAN": 180.0 / np.pi, "": 1.0}      # ... and DEGREE
 FEED_UNITS = {"MILLIMETER/SECOND": 60.0, "": 60.0, "MILLIMETER/MINUTE": 1.0, "INCH/MINUTE": 25.4,
               "INCH/SECOND": 25.4 * 60.0, "FOOT/MINUTE": 304.8}
-EVENT_TYPES = {"EXECUTION": "execution", "PROGRAM": "program", "TOOL_NUMBER": "tool_number", "BLOCK": "block"}
+EVENT_TYPES = {"EXECUTION": "execution", "PROGRAM": "program", "TOOL_NUMBER": "tool_number", "BLOCK": "block",
+               "TOOL_ASSET_ID": "tool_asset_id"}
 _LINEAR = re.compile(r"^([XYZ])\d*$", re.IGNORECASE)
 _ROTARY = re.compile(r"^([ABC])\d*$", re.IGNORECASE)
 MAX_BAD_DOCUMENTS = 3   # damaged documents in a row for the same sequence before the recording stops
@@ -91,12 +92,15 @@ def choose_device(devices: list[Device], name: str | None, where: str) -> Device
 
 def plan_items(device: Device, where: str = "probe") -> Plan:
     """The data items to record and where they go: see the module docstring."""
-    plan = Plan(device.name, labels={i.id: f"{i.type} {i.sub_type or '-'} {i.units or '-'}" for i in device.items})
+    plan = Plan(device.name, labels={i.id: " ".join(filter(None, (i.type, i.sub_type or "-", i.units or "-",
+                                                                  i.coordinate_system))) for i in device.items})
     axes: dict[str, dict[str, DataItem]] = {}      # axis letter -> subType -> item
     feed: dict[str, DataItem] = {}
     line: dict[str, DataItem] = {}
     for item in device.items:
         sub = item.sub_type
+        if item.category == "CONDITION":   # a travel-limit or load condition is a state, not a value
+            continue
         if item.type == "POSITION" and item.component == "Linear" and _LINEAR.match(item.component_name):
             axes.setdefault(_LINEAR.match(item.component_name).group(1).lower(), {}).setdefault(sub, item)
         elif item.component == "Rotary" and _ROTARY.match(item.component_name) and (
@@ -109,7 +113,7 @@ def plan_items(device: Device, where: str = "probe") -> Plan:
         elif item.type == "LINE":
             line.setdefault("LINE", item)
         elif item.type in EVENT_TYPES and item.category == "EVENT":
-            plan.events.setdefault(item.id, EVENT_TYPES[item.type])
+            plan.events.setdefault(item.id, event_name(item))
     for axis in "xyzabc":
         subs = axes.get(axis)
         if not subs:
@@ -136,7 +140,20 @@ def plan_items(device: Device, where: str = "probe") -> Plan:
                           f"{', '.join(kinds) or 'no data items'})", file=where)
     if not any(c.stream == "axes" for c in plan.columns.values()):
         plan.notes.append("no axis positions: align and diagnose use the line stream")
+    by_id = {i.id: i for i in device.items}
+    for item_id in plan.columns:
+        item = by_id[item_id]
+        if item.native_units and item.units and item.native_units != item.units:
+            plan.notes.append(f"{item_id} ({item.type}): the agent converts the adapter's {item.native_units} "
+                              f"to {item.units}; a wrong nativeUnits scales every value")
     return plan
+
+
+def event_name(item: DataItem) -> str:
+    """The `events` name of an event data item: its type's name, with its subType where it has one
+    (a Mazak lists PROGRAM and PROGRAM subType x:SUB: `program` and `program_sub`)."""
+    sub = item.sub_type.rsplit(":", 1)[-1].lower()
+    return EVENT_TYPES[item.type] + (f"_{sub}" if sub else "")
 
 
 # -- observations -> rows --------------------------------------------------------------------------------
@@ -301,13 +318,38 @@ class AgentReader(threading.Thread):
 
 # -- the recorder --------------------------------------------------------------------------------------
 class _Session(RowSession):
-    def document(self, doc: StreamsDocument, *, counted: bool = True, stamp_ns: int | None = None) -> None:
-        """A streams document's observations -> rows; `stamp_ns`: the /current state's observations
-        are stamped no earlier than this (the time the state held)."""
+    """`begin(current)`: the agent's state when the recording starts. It is applied at the time of the
+    first new observation: the observations carry the adapter's clock, which need not be the agent's
+    (the header's creationTime); stamped by the agent's clock, a state could lie after everything
+    that follows and push it all to one time. With no new observation at all it is applied at the
+    header's time when the recording ends."""
+
+    start_state: list[Observation] | None = None
+    start_ns: int = 0
+
+    def begin(self, doc: StreamsDocument, stamp_ns: int) -> None:
+        self.start_state, self.start_ns = list(doc.observations), stamp_ns
+
+    def _apply_start(self, t_ns: int) -> None:
+        state, self.start_state = self.start_state, None
+        if state:
+            self.observations(state, np.full(len(state), t_ns, dtype=np.int64), counted=False)
+
+    def document(self, doc: StreamsDocument) -> None:
+        """A streams document's observations -> rows."""
         times = observation_times(doc.observations, _header_time(doc) or time.time_ns())
-        if stamp_ns is not None:
-            times = np.maximum(times, stamp_ns)
-        self.observations(doc.observations, times, counted=counted)
+        if self.start_state is not None and len(times):
+            self._apply_start(int(times.min()))
+        self.observations(doc.observations, times)
+
+    def gap(self, gap: Gap) -> None:
+        self.start_state = None      # what held at the start no longer does; the resume state follows
+        super().gap(gap)
+
+    def finish(self) -> None:
+        if self.start_state is not None:
+            self._apply_start(self.start_ns)
+        super().finish()
 
 
 def _header_time(doc: StreamsDocument) -> int | None:
@@ -376,7 +418,7 @@ def record_agent(url: str, out, *, device: str | None = None, interval_ms: int =
     start, cpu0 = time.monotonic(), time.process_time()
     fatal: BaseException | None = None
     try:
-        session.document(current, counted=False, stamp_ns=start_ns)
+        session.begin(current, start_ns)
         reader.start()
         while True:
             stats.stopped_by = stop_reason(stop, duration_s, time.monotonic() - start)
