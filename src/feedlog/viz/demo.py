@@ -9,6 +9,7 @@ It prints where everything is and how to open it. `--json` prints only the table
 from __future__ import annotations
 
 import argparse
+import gc
 import shutil
 import sys
 import time
@@ -100,13 +101,16 @@ def detail_runs(result: DemoResult, count: int) -> set[str]:
 
 
 def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PLOTS,
-                  mystery: Mystery | None = None, rrd: bool = True, started: float | None = None) -> dict[str, Path]:
+                  mystery: Mystery | None = None, rrd: bool = True, started: float | None = None,
+                  release: bool = True) -> dict[str, Path]:
     """Plots, .rrd files, JSON table and the Markdown report; returns what was written (and `answer`,
     the sentences the report starts with).
 
     Every recording gets its feed plot and .rrd; `detail` recordings also get the axis, path and
     block-time plots (matplotlib is the slow part of the demo). `started` (`time.perf_counter()` when
     the demo began): the run time the report and the console both quote, taken before the report is written.
+    `release`: drop each recording's samples (`run.data`, `run.gathered`, `run.recording`) once its plots
+    and .rrd are written.
     """
     demo_started, plots_started = started, time.perf_counter()
     plots_dir, rerun_dir = out / "plots", out / "rerun"
@@ -123,6 +127,10 @@ def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PL
             run.rrd = rerun_dir / f"{run.entry.name}.rrd"
             save_view(run.data, run.rrd)
         log(f"[{k}/{len(result.runs)}] {run.entry.name}: plots" + (f" and {run.rrd.name}" if rrd else "") + " written")
+        run.view_notes = list(run.data.notes)
+        if release:  # written: the recording's samples are not needed again (peak memory, benchmarks/bench_demo.py)
+            run.data = run.gathered = run.recording = None
+            gc.collect()  # matplotlib's figures are reference cycles: free them now, not at the next full collection
     bars = plot_cycle_times(table, plots_dir / "cycle_times.png") if len(table) else None
     result.timings_s["plots_and_rrd"] = time.perf_counter() - plots_started
     if demo_started is not None:
@@ -156,7 +164,7 @@ def _mystery_answer(mystery: Mystery | None) -> list[str]:
     if mystery.error:
         return [f"The mystery machine (recordings/mystery/) could not be diagnosed: {mystery.error}"]
     return ["The mystery machine (recordings/mystery/: a LinuxCNC machine that differs from its profile in one "
-            "undisclosed way), diagnosed by `feedlog diagnose`:", *mystery.answer, ""]
+            "undisclosed way), diagnosed by `feedlog diagnose`:", "", *mystery.answer, ""]
 
 
 def _intro(result: DemoResult, out: Path) -> list[str]:
@@ -223,8 +231,7 @@ def _sections(result: DemoResult) -> list[ReportSection]:
         if run.rrd is not None:
             s.lines.append(f"Rerun: `rerun {run.rrd}`")
         s.lines += [f"- error: {e}" for e in run.errors] + [f"- note: {n}" for n in run.notes]
-        if run.data is not None:
-            s.lines += [f"- note: {n}" for n in run.data.notes]
+        s.lines += [f"- note: {n}" for n in run.view_notes]
         s.images = [(f"{run.entry.name} {kind}", path) for kind, path in run.plots.items()]
         sections.append(s)
     return sections

@@ -75,6 +75,7 @@ class RecordingRun:
     errors: list[str] = field(default_factory=list)
     plots: dict[str, Path] = field(default_factory=dict)
     rrd: Path | None = None
+    view_notes: list[str] = field(default_factory=list)   # the overlays' notes, kept when `data` is released
 
 
 @dataclass
