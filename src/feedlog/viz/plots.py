@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")  # no display: figures only go to files
 
@@ -191,8 +192,9 @@ def _cycle_time_scatter(table: pd.DataFrame, sources: list[str], path: Path) -> 
     ax.grid(alpha=0.3)
     err.axhline(0.0, color="0.5", lw=0.8)
     err.set_yscale("symlog", linthresh=1.0)
+    err.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g} %"))
     err.set_xlabel(f"{ref[:-2]} cycle time (s)")
-    err.set_ylabel(f"(estimate - {ref[:-2]}) / {ref[:-2]} (%), linear within +-1 %")
+    err.set_ylabel(f"(estimate - {ref[:-2]}) / {ref[:-2]}, linear within +-1 %")
     err.set_title("error of each estimate")
     err.grid(alpha=0.3, which="both")
     hollow = [c[:-2] for c in sources[1:] if c[:-2] in HOLLOW]
