@@ -174,3 +174,14 @@ def test_fuzzed_rows_read_or_fail_cleanly(tmp_path_factory, rows, keyed):
         assert e.name and e.file and e.split in ("train", "test")
         for k in ("samples", "dropped_frames"):
             assert k not in e.fields or (isinstance(e[k], int) and e[k] >= 0)
+
+
+def test_the_demo_refuses_a_wrong_row_before_writing_anything(tmp_path, capsys):
+    from feedlog.cli import main
+
+    write(tmp_path, '[[recording]]\nname = "a"\nsamples = -3\n')
+    assert main(["demo", "--recordings", str(tmp_path), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (f"feedlog demo: error: {tmp_path / 'manifest.toml'}:1: recording entry 1: 'samples' must be "
+                   "a whole number >= 0, got -3")
+    assert not (tmp_path / "out").exists()

@@ -20,7 +20,7 @@ from feedlog.cli_options import add_output
 from feedlog.execution import add_arguments as add_execution_arguments
 from feedlog.viz.overlay import save_view
 from feedlog.viz.mystery import Mystery, diagnose_mystery
-from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, run_demo
+from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, discover, run_demo
 from feedlog.viz.plots import plot_cycle_times, plot_view
 from feedlog.viz.answer import TERMS, summary_sentences
 from feedlog.viz.report import ReportSection, TableRow, cycle_time_table, headline, table_json, write_report
@@ -244,6 +244,7 @@ def run(args: argparse.Namespace) -> int:
     models = tuple(m.strip() for m in args.models.split(",") if m.strip()) if args.models else None
     config = DemoConfig(recordings=recordings, out=args.out, train=not args.no_train, models=models, log=log,
                         jobs=args.jobs, scheduler=args.scheduler, progress=not args.json)
+    discover(config.recordings)  # a broken manifest is refused before the output folder is touched
     prepare_out(args.out)
     result = run_demo(config)
     mystery = diagnose_mystery(recordings, args.out, log=log)
