@@ -31,6 +31,8 @@ def test_the_summary_explains_a_hybrid_that_equals_the_simulation_and_only_then(
     assert lines[0] == "40 recordings, 40 with a measured cycle time (10 held out for testing)."
     assert "The CAM time misses it by 40.0 % (held out: 40.0 %)" in lines[2]
     assert "learned almost none here, so it equals the simulation within 0.1 % on 100 % of the recordings" in lines[3]
+    assert lines[3].startswith("Best learned model on held-out recordings: hybrid, 0.2 % mean error")
+    assert "Without the simulation underneath: mlp, " in lines[3]
     assert lines[-1] == "The demo ran for 12.3 s."
     apart = _table(1.01)
     assert hybrid_equals_sim(apart) == 0.0

@@ -53,6 +53,10 @@ def summary_sentences(table: pd.DataFrame, *, run_time_s: float | None = None,
         best = min(learned, key=lambda m: scores[m])
         where = "on held-out recordings" if scores is held else "over all recordings"
         text = f"Best learned model {where}: {best}, {pct(scores[best])} mean error (demo's quick preset)."
+        alone = [m for m in learned if m != "hybrid"]
+        if best == "hybrid" and alone:
+            second = min(alone, key=lambda m: scores[m])
+            text += f" Without the simulation underneath: {second}, {pct(scores[second])}."
         share = hybrid_equals_sim(table)
         if "hybrid" in learned and share >= 0.5:
             text += (f" The hybrid model multiplies the simulation by a learned correction; it learned almost "
