@@ -24,7 +24,6 @@ import argparse
 import os
 import tempfile
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +33,7 @@ from feedlog.align.batch import align_many
 from feedlog.align.tables import write_alignment
 from feedlog.errors import FeedlogError
 from feedlog.ingest import Recording, read_recording, write_recording
+from feedlog.manifest import read_manifest
 from feedlog.profile import load_profile
 from feedlog.sim import simulate
 from feedlog.toolpath import parse_program
@@ -91,8 +91,7 @@ def load() -> str:
 
 
 def bundled_files() -> list[Path]:
-    manifest = tomllib.loads((RECORDINGS / "manifest.toml").read_text())
-    return [RECORDINGS / r["file"] for r in manifest["recording"] if (RECORDINGS / r["file"]).exists()]
+    return [e.path for e in read_manifest(RECORDINGS / "manifest.toml") if e.path.exists()]
 
 
 def bench_bundled(repeat: int, jobs: int, files: list[Path]) -> None:

@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import json
 import time
-import tomllib
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import pandas as pd
 from feedlog.align import align_recording
 from feedlog.errors import FeedlogError
 from feedlog.ingest import Recording, read_recording
+from feedlog.manifest import read_manifest
 
 ROOT = Path(__file__).resolve().parents[1] / "recordings"
 PAD_S = 0.5
@@ -79,7 +79,7 @@ def main() -> None:
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     phases = tuple(int(p) for p in args.phases.split(","))
-    names = [r["name"] for r in tomllib.loads((ROOT / "manifest.toml").read_text())["recording"]]
+    names = [e.name for e in read_manifest(ROOT / "manifest.toml")]
     if args.names:
         names = [n for n in names if n in args.names.split(",")]
     t0 = time.perf_counter()

@@ -24,9 +24,10 @@ import random
 import sys
 import tempfile
 import time
-import tomllib
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+
+from feedlog.manifest import read_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "scripts"))
@@ -78,12 +79,11 @@ def draw_machine(rng: random.Random, programs: dict[str, list[str]]) -> dict:
 
 
 def bundled_programs(max_cycle_s: float) -> dict[str, list[str]]:
-    manifest = tomllib.loads((ROOT / "recordings" / "manifest.toml").read_text())
     out: dict[str, list[str]] = {"xyz": [], "xyzac": []}
-    for r in manifest["recording"]:
+    for r in read_manifest(ROOT / "recordings" / "manifest.toml"):
         base = Path(r["machine_ini"]).stem
         if base in out and r["cycle_time_s"] <= max_cycle_s:
-            out[base].append(r["name"])
+            out[base].append(r.name)
     return out
 
 

@@ -15,9 +15,10 @@ import argparse
 import json
 import sys
 import time
-import tomllib
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+
+from feedlog.manifest import read_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
 RECORDINGS = ROOT / "recordings"
@@ -48,15 +49,15 @@ def main() -> None:
     ap.add_argument("--only", help="comma-separated recording names")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
-    entries = tomllib.loads((RECORDINGS / "manifest.toml").read_text())["recording"]
+    entries = read_manifest(RECORDINGS / "manifest.toml")
     if args.only:
         keep = set(args.only.split(","))
-        entries = [e for e in entries if e["name"] in keep]
-    items = [(e["name"], [str(RECORDINGS / e["file"])], e["profile"]) for e in entries]
+        entries = [e for e in entries if e.name in keep]
+    items = [(e.name, [str(e.path)], e.profile) for e in entries]
     if args.families:
         groups: dict[tuple[str, str], list[str]] = {}
         for e in entries:
-            groups.setdefault((e["family"], e["profile"]), []).append(str(RECORDINGS / e["file"]))
+            groups.setdefault((e.family, e.profile), []).append(str(e.path))
         items += [(f"family {fam} ({len(p)})", p, prof) for (fam, prof), p in groups.items() if len(p) > 1]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:

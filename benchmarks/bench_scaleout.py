@@ -28,17 +28,16 @@ import logging
 import os
 import tempfile
 import time
-import tomllib
 from pathlib import Path
 
 from feedlog.align.batch import align_many
+from feedlog.manifest import read_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def bundled(limit: int | None) -> list[Path]:
-    manifest = tomllib.loads((ROOT / "recordings" / "manifest.toml").read_text())
-    files = [ROOT / "recordings" / r["file"] for r in manifest["recording"]]
+    files = [e.path for e in read_manifest(ROOT / "recordings" / "manifest.toml")]
     return files[:limit] if limit else files
 
 

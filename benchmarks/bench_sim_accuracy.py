@@ -13,12 +13,12 @@ from __future__ import annotations
 import argparse
 import json
 import time
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from feedlog.manifest import read_manifest
 from feedlog.sim import simulate
 from feedlog.toolpath import parse_program
 
@@ -31,10 +31,10 @@ def cases() -> list[dict]:
     out: list[dict] = []
     manifest = ROOT / "recordings" / "manifest.toml"
     if manifest.is_file():
-        for rec in tomllib.loads(manifest.read_text())["recording"]:
-            out.append({"name": rec["name"], "source": "recording", "split": rec.get("split", "-"),
-                        "path": manifest.parent / rec["program"], "profile": rec["profile"],
-                        "measured_s": float(rec["cycle_time_s"]), "recording": manifest.parent / rec["file"]})
+        for rec in read_manifest(manifest):
+            out.append({"name": rec.name, "source": "recording", "split": rec.split,
+                        "path": rec.program_path, "profile": rec.profile,
+                        "measured_s": float(rec["cycle_time_s"]), "recording": rec.path})
     return out
 
 

@@ -19,11 +19,12 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tomllib
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 import tomli_w
+
+from feedlog.manifest import read_manifest
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "recordings" / "interp"
@@ -83,7 +84,8 @@ def main(argv: list[str] | None = None) -> int:
     force = set(todo) if args.force == [] else set(args.force or ())
     outdir.mkdir(parents=True, exist_ok=True)
     manifest_path = outdir / "manifest.toml"
-    manifest = tomllib.loads(manifest_path.read_text()) if manifest_path.exists() else {"recording": {}}
+    manifest = {"recording": {e.name: dict(e.fields) for e in read_manifest(manifest_path)}
+                if manifest_path.exists() else {}}
     pending = {n: v for n, v in todo.items() if n in force or not (outdir / f"{n}.mcap").exists()}
     failed = 0
     with ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:

@@ -18,12 +18,13 @@ import argparse
 import shutil
 import sys
 import time
-import tomllib
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 
 import tomli_w
+
+from feedlog.manifest import read_manifests
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import linuxcnc_programs as progs
@@ -219,12 +220,8 @@ def manifest_entry(entry: Entry, summary: dict) -> dict:
 
 def load_manifest() -> dict[str, dict]:
     """Rows of manifest.toml and held_back.toml by name."""
-    rows: dict[str, dict] = {}
-    for name in ("manifest.toml", "held_back.toml"):
-        path = RECORDINGS / name
-        if path.exists():
-            rows.update({r["name"]: r for r in tomllib.loads(path.read_text()).get("recording", [])})
-    return rows
+    entries = read_manifests(RECORDINGS / "manifest.toml", RECORDINGS / "held_back.toml")
+    return {name: dict(e.fields) for name, e in entries.items()}
 
 
 def save_manifest(rows: dict[str, dict], entries: list[Entry]) -> None:

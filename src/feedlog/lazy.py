@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from feedlog.errors import FeedlogError
+from feedlog.registry import unknown_name
 
 
 def load_entry(registry: Mapping[str, str], name: str, *, what: str, error: type[FeedlogError] = FeedlogError) -> Any:
@@ -14,6 +15,6 @@ def load_entry(registry: Mapping[str, str], name: str, *, what: str, error: type
     try:
         target = registry[name]
     except KeyError:
-        raise error(f"unknown {what} {name!r}; known: {', '.join(sorted(registry))}") from None
+        raise unknown_name(what, name, sorted(registry), error=error) from None
     module, attribute = target.split(":")
     return getattr(importlib.import_module(module), attribute)

@@ -14,12 +14,14 @@ import math
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
+from importlib.resources.abc import Traversable
 from pathlib import Path
 from typing import Any
 
 import tomli_w
 
 from feedlog.errors import ProfileError
+from feedlog.registry import Registry
 
 def check_number(name: str, value: Any, low: float, high: float, *, integer: bool = False) -> None:
     """A real number (not a bool, a string or NaN) from `low` to `high`; ProfileError otherwise. Bounds
@@ -240,9 +242,19 @@ def path_acc_limit(profile: MachineProfile | None) -> float:
     return float(min(lin)) if lin else math.inf
 
 
+def _find_shipped(registry: Registry[Traversable]) -> None:
+    for p in sorted(resources.files("feedlog.profiles").iterdir(), key=lambda p: p.name):
+        if p.name.endswith(".toml"):
+            registry.add(p.name[:-5], p)
+
+
+SHIPPED: Registry[Traversable] = Registry("machine profile", error=ProfileError, load=_find_shipped,
+                                          known_word="shipped", hint=" (or give a path to a .toml file)")
+
+
 def shipped_profiles() -> list[str]:
     """Short names of the profiles that ship with feedlog."""
-    return sorted(p.name[:-5] for p in resources.files("feedlog.profiles").iterdir() if p.name.endswith(".toml"))
+    return SHIPPED.names()
 
 
 def load_profile(name_or_path: str | Path) -> MachineProfile:
@@ -259,8 +271,4 @@ def load_profile(name_or_path: str | Path) -> MachineProfile:
         except OSError as exc:
             raise ProfileError(f"cannot read the profile: {exc.strerror or exc}", file=text_name) from None
         return MachineProfile.from_toml(text, source=text_name)
-    shipped = resources.files("feedlog.profiles").joinpath(f"{text_name}.toml")
-    if not shipped.is_file():
-        raise ProfileError(f"unknown machine profile {text_name!r}; shipped: {', '.join(shipped_profiles())} "
-                           "(or give a path to a .toml file)")
-    return MachineProfile.from_toml(shipped.read_text(), source=f"profile {text_name}")
+    return MachineProfile.from_toml(SHIPPED.get(text_name).read_text(), source=f"profile {text_name}")

@@ -5,7 +5,6 @@ LinuxCNC's own motion time (servo periods with in-position false)."""
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +15,7 @@ from feedlog.align import align_recording, estimate_offset, feed_from_positions
 from feedlog.align.blocks import compare_blocks
 from feedlog.align.moves import geometry_blocks_by_moves
 from feedlog.ingest import Recording, read_recording
+from feedlog.manifest import read_manifest
 
 ROOT = Path(__file__).resolve().parents[2] / "recordings"
 SERVO_S = 0.001
@@ -40,7 +40,7 @@ def _manifest_names() -> list[str]:
     path = ROOT / "manifest.toml"
     if not path.exists():
         return []
-    return [r["name"] for r in tomllib.loads(path.read_text())["recording"]]
+    return [e.name for e in read_manifest(path)]
 
 
 # every other recording in the manifest (sessions added later included)

@@ -55,6 +55,16 @@ def test_the_demo_shows_the_mystery_machine_first(tmp_path, capsys):
     report = (out / "report.md").read_text()
     assert report.index("The mystery machine") < report.index("test_p001 (test)")
     assert (out / "diagnose" / "report.md").is_file() and (out / "diagnose" / "profile.toml").is_file()
+    # the answer first, in plain sentences with the controller's own name for the key
+    answer = report[report.index("## The answer"):report.index("## Summary")]
+    assert "The machine took longer than simulated" in answer and "short of the measured time" in answer
+    assert "Y-axis maximum acceleration" in answer and "`[AXIS_Y] MAX_ACCELERATION`" in answer
+    assert console.index("The machine took longer than simulated") < console.index("report (Markdown")
+    # the diagnosis' own report: no raw Python objects, its terms explained where they are used
+    dx_report = (out / "diagnose" / "report.md").read_text()
+    assert "{'" not in dx_report and "Noise floor: segment timing" in dx_report
+    assert "*held-out gain*:" in dx_report and "*misplaced time*:" in dx_report
+    assert dx_report.index("## The answer") < dx_report.index("## Findings")
 
 
 def _cut(source: Path, out: Path, start_s: float, seconds: float) -> Path:

@@ -7,7 +7,6 @@ finds every block, also inside subroutines where LinuxCNC's line stream shows th
 from __future__ import annotations
 
 import json
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +19,7 @@ from feedlog.errors import AlignmentError, ProgramError
 from feedlog.ingest import PROGRAM_ATTACHMENT, read_recording
 from feedlog.ingest.recording import PROFILE_ATTACHMENT
 from feedlog.ingest.subroutine_files import SUBROUTINE_PREFIX, load_recorded_program, subroutine_attachments
+from feedlog.manifest import read_manifest
 from feedlog.profile import MachineProfile
 from feedlog.sim import simulate
 from feedlog.toolpath import load_program
@@ -27,7 +27,7 @@ from feedlog.toolpath.interp import InterpOptions
 
 ROOT = Path(__file__).resolve().parents[2]
 INTERP = ROOT / "recordings" / "interp"
-MANIFEST = tomllib.loads((INTERP / "manifest.toml").read_text())["recording"]
+MANIFEST = {e.name: e for e in read_manifest(INTERP / "manifest.toml")}
 # the recorder's placeholder tool table (ingest/linuxcnc_session.py): T1, 6 mm, what cutter_comp ran with
 PLACEHOLDER_TOOLS = "T1 P1 D6.0\n"
 SIMULATED = sorted(n for n in MANIFEST if n != "cutter_comp")

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import sys
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from feedlog.ingest import PROGRAM_ATTACHMENT, read_recording
+from feedlog.manifest import ManifestEntry, read_manifest
 
 ROOT = Path(__file__).resolve().parents[2]
 RECORDINGS = ROOT / "recordings"
@@ -20,13 +20,13 @@ import make_recordings  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def manifest() -> list[dict]:
-    return tomllib.loads((RECORDINGS / "manifest.toml").read_text())["recording"]
+def manifest() -> list[ManifestEntry]:
+    return read_manifest(RECORDINGS / "manifest.toml")
 
 
 @pytest.fixture(scope="module")
-def held_back() -> list[dict]:
-    return tomllib.loads((RECORDINGS / "held_back.toml").read_text())["recording"]
+def held_back() -> list[ManifestEntry]:
+    return read_manifest(RECORDINGS / "held_back.toml")
 
 
 def test_manifest_covers_the_catalogue_with_train_and_test_splits(manifest, held_back):

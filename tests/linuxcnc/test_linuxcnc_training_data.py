@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import sys
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +14,7 @@ from feedlog.errors import IngestError
 from feedlog.ingest import read_recording
 from feedlog.ingest.linuxcnc import STREAM_SETS, select_streams
 from feedlog.ingest.linuxcnc_session import _launch_command, priority_prefix
+from feedlog.manifest import read_manifest
 from feedlog.toolpath import parse_program
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -115,7 +115,7 @@ def test_random_mix_is_seeded_and_has_dense_runs():
 
 def test_committed_training_sessions_are_compact_and_test_sessions_full():
     path = RECORDINGS / "manifest.toml"
-    rows = tomllib.loads(path.read_text())["recording"]
+    rows = read_manifest(path)
     for split, streams, expected in (("train", "compact", {"axes", "line", "feed"}),
                                      ("test", "full", {"axes", "joints", "feed", "line", "status"})):
         row = next(r for r in rows if r["split"] == split and r.get("streams") == streams)

@@ -3,7 +3,6 @@ the recordings in recordings/ with their manifest)."""
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +11,7 @@ import pytest
 
 from feedlog.sim import simulate
 from feedlog.toolpath import parse_program
+from feedlog.manifest import ManifestEntry, read_manifest
 
 ROOT = Path(__file__).resolve().parents[2]
 SHARED = ROOT / "recordings" / "programs"  # the shared LinuxCNC programs, kept in the repo
@@ -36,10 +36,10 @@ def test_cycle_time_within_two_percent(name):
     assert abs(res.cam_time_s - measured) / measured > 0.2
 
 
-def _recordings() -> list[dict]:
+def _recordings() -> list[ManifestEntry]:
     if not MANIFEST.is_file():
         return []
-    return tomllib.loads(MANIFEST.read_text())["recording"]
+    return read_manifest(MANIFEST)
 
 
 @pytest.mark.skipif(not MANIFEST.is_file(), reason="recordings/manifest.toml not present")

@@ -4,7 +4,6 @@ Block times are compared to the nanosecond and the series to the bit (the issue 
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -15,9 +14,10 @@ from feedlog.sim import simulate
 from feedlog.sim.window import WindowedSimulation, simulate_windowed
 from feedlog.toolpath import load_program, parse_program
 from feedlog.toolpath.synthetic import tangent_arc
+from feedlog.manifest import read_manifest
 
 ROOT = Path(__file__).resolve().parents[2]
-MANIFEST = tomllib.loads((ROOT / "recordings" / "manifest.toml").read_text())["recording"]
+MANIFEST = read_manifest(ROOT / "recordings" / "manifest.toml")
 
 
 def assert_same(program, profile, *, mechanisms=None, window=16, series=True, **kw):

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import tomllib
 from pathlib import Path
 
 import pandas as pd
@@ -14,9 +13,10 @@ from feedlog.profile import load_profile
 from feedlog.toolpath import parse_program
 from feedlog.toolpath.stream import ProgramReader
 from feedlog.toolpath.summary import Summary, summarize
+from feedlog.manifest import read_manifest
 
 ROOT = Path(__file__).resolve().parents[2]
-MANIFEST = tomllib.loads((ROOT / "recordings" / "manifest.toml").read_text())["recording"]
+MANIFEST = read_manifest(ROOT / "recordings" / "manifest.toml")
 PROGRAMS = sorted({(r["program"], r["profile"]) for r in MANIFEST})[::12] + [
     ("../examples/work_offsets.ngc", "linuxcnc-xyz"), ("../examples/fiveaxis_ac.ngc", "linuxcnc-xyzac"),
     ("../examples/arcs_g18_g19.ngc", "linuxcnc-xyz")]

@@ -16,8 +16,8 @@ from feedlog.profile import load_profile
 from feedlog.toolpath import parse_program
 from feedlog.train import ProgramTable, make_model
 from feedlog.train.features import build_inputs, kin_time, limited_time, profile_constants, with_program_columns
-from feedlog.train.load import read_manifest
 from feedlog.train.kinematic import blend_radius, junction_kink, kinematic_time, path_limits, trapezoid_time
+from feedlog.manifest import read_manifest
 
 A = 1000.0  # mm/s^2
 CYCLE = 0.001
@@ -195,7 +195,7 @@ RECORDINGS = Path(__file__).resolve().parents[2] / "recordings"
 def test_on_linuxcnc_recordings_the_kinematic_time_is_far_closer_than_cam(name):
     """Training recordings (3-axis G61 and G64, five-axis G64 with parabolic blends and G61): the kinematic
     time is within 4 % of LinuxCNC's time and has at most a quarter of the limited CAM time's error."""
-    entry = read_manifest(RECORDINGS / "manifest.toml")[name]
+    entry = {e.name: e for e in read_manifest(RECORDINGS / "manifest.toml")}[name]
     assert entry["split"] == "train"
     profile = load_profile(entry["profile"])
     program = parse_program((RECORDINGS / entry["program"]).read_text(), name=entry["program"])

@@ -186,7 +186,15 @@ def test_demo_answers_first_counts_recordings_and_can_skip_rrd(recordings_dir, t
     assert sorted(name for _, name in counted) == ["broken", "square_a", "square_b"]
     assert not (out / "rerun").exists() and (out / "plots" / "square_b_feed.png").is_file()
     finished = printed[printed.index("feedlog demo finished"):]
-    assert finished.splitlines()[1].startswith("3 recordings, 2 with a measured cycle time.")
+    assert finished.splitlines()[1].startswith("3 recordings, 2 with a measured cycle time (2 held out")
     assert "- cam: " in finished
-    report = (out / "report.md").read_text().splitlines()
-    assert report[2] == "## Summary" and report[4].startswith("3 recordings, 2 with a measured cycle time")
+    # one run time: the console's equals the report's (to the printed digit)
+    seconds = re.search(r"feedlog demo finished in ([\d.]+) s", finished).group(1)
+    text = (out / "report.md").read_text()
+    assert f"The demo ran for {seconds} s." in text and f"Run time {seconds} s" in text
+    # the long table is not printed: the console ends by saying where it is
+    assert "| program |" not in finished and finished.rstrip().endswith("cycle_times.json.")
+    report = text.splitlines()
+    assert report[2] == "## The answer" and report[4].startswith("3 recordings, 2 with a measured cycle time")
+    # the answer comes before the long table and the per-recording sections
+    assert text.index("## The answer") < text.index("## Cycle times") < text.index("## square_a")

@@ -18,7 +18,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from feedlog.colors import source_color
+from feedlog.controller_names import with_names
 from feedlog.diagnose.attribution import class_table
+from feedlog.diagnose.plain import answer, glossary, noise_floor_text, timings_text
 from feedlog.diagnose.summary import _fmt, summary_lines
 
 DPI = 100
@@ -143,25 +145,30 @@ def write_report(dx, out: Path) -> Path:
     plots = out / "plots"
     figures = {"profiles": plot_profiles(dx, plots), "classes": plot_classes(dx, plots),
                "segments": plot_segments(dx, plots), "evidence": plot_evidence(dx, plots)}
-    lines = ["# feedlog diagnose", "", "```", *summary_lines(dx), "```", ""]
+    controller = getattr(dx.profile, "controller", "") or ""
+    lines = ["# feedlog diagnose", "", "## The answer", "", *answer(dx), "",
+             "The same in short (as `feedlog diagnose` prints it; errors are simulated against measured time, "
+             "\"short\": the simulation predicts less time than the machine took):", "",
+             "```", *summary_lines(dx), "```", "", "Terms used below:", "", *glossary(), ""]
     lines += [f"Profile diagnosed: `{dx.profile.name}`; recordings: " + ", ".join(f"`{c.name}`" for c in dx.cases), ""]
     lines += [f"- note on {c.name}: {n}" for c in dx.cases for n in c.notes] + ([""] if any(c.notes for c in dx.cases) else [])
     lines += ["## Findings", ""]
     if dx.findings:
-        lines += _table([{"parameter": f"`{f.parameter}`", "profile": "off" if f.profile_value is None else
+        lines += _table([{"parameter": with_names(f.parameter, controller), "profile": "off" if f.profile_value is None else
                           _fmt(f.profile_value, f.unit), "fitted": _fmt(f.fitted_value, f.unit),
                           "interval": None if f.interval is None else f"{f.interval[0]:.4g} - {f.interval[1]:.4g}",
                           "gain": f"{f.gain_pct:.1f} %", "kind": f.kind, "evidence": f.evidence, "where": f.where,
                           "held_out": f.scheme} for f in dx.findings],
                         [("parameter", "parameter"), ("profile", "profile"), ("fitted", "fitted"),
                          ("interval", "interval"), ("gain", "held-out gain"), ("kind", "kind"),
-                         ("evidence", "evidence from the data"), ("where", "where it acts"), ("held_out", "held out")])
+                         ("evidence", "evidence from the data"), ("where", "where its change acts"),
+                         ("held_out", "held out")])
     else:
         lines.append("No cause: no registered hypothesis removes a material, repeatable share of the held-out "
                      "residual.")
     if dx.diff:
         lines += ["", "Extended profile (`profile.toml`), changes from the given one:", ""]
-        lines += _table([{"key": f"`{k}`", "before": a, "after": b} for k, a, b in dx.diff],
+        lines += _table([{"key": with_names(k, controller), "before": a, "after": b} for k, a, b in dx.diff],
                         [("key", "key"), ("before", "given"), ("after", "extended")])
     rejected = [(lvl, j) for lvl, sel in dx.selections.items() for j in sel.rejected[:5]]
     if rejected:
@@ -217,7 +224,9 @@ def write_report(dx, out: Path) -> Path:
         lines += _table(rows, [("recording", "recording"), ("axis", "axis"), ("pos_b", "position given"),
                                ("pos_a", "position extended"), ("vel_b", "velocity given"), ("vel_a", "velocity extended"),
                                ("acc_b", "acceleration given"), ("acc_a", "acceleration extended")])
-    lines += ["", "## Where the time goes", "", f"Given profile: {dx.where.get('before') or 'n/a'}.", ""]
+    lines += ["", "## Where the time goes", "",
+              f"Where the given profile loses time: {dx.where.get('before') or 'n/a'} (a cause's \"where its "
+              "change acts\" counts the time its change moves, so its shares can differ by a point or two).", ""]
     top = dx.where.get("top_segments") or []
     if top:
         lines += _table([{**r, "residual_ms": 1e3 * r["residual_s"], "lines": f"{r['first_line']}-{r['line']}"}
@@ -238,7 +247,7 @@ def write_report(dx, out: Path) -> Path:
     for key in ("classes", "segments", "evidence"):
         if figures[key]:
             lines.append(f"![{figures[key]}](plots/{figures[key]})")
-    lines += ["", f"Noise floor: {dx.noise_floor}. Wall time: {dx.timings_s}.", ""]
+    lines += ["", noise_floor_text(dx.noise_floor), timings_text(dx.timings_s), ""]
     path = out / "report.md"
     path.write_text("\n".join(lines))
     return path

@@ -71,7 +71,10 @@ def train_and_evaluate(tables: Sequence[ProgramTable], *, out_dir: str | Path,
     unlisted = [t for t in tables if t.split == "train" and t.metadata.get("unlisted_in")]
     for t in unlisted:
         log(f"{t.name}: not trained on: not listed in {t.metadata['unlisted_in']}")
-    train = [t for t in tables if t.split == "train" and not t.metadata.get("unlisted_in")]
+    # in name order whatever order they came in (a shell glob's locale, the demo's manifest order): the same
+    # recordings and seed give the same models from `feedlog train` and `feedlog demo`
+    train = sorted((t for t in tables if t.split == "train" and not t.metadata.get("unlisted_in")),
+                   key=lambda t: t.name)
     test = [t for t in tables if t.split == "test"]
     if not train:
         raise ModelError("no training recordings (split = 'train')")

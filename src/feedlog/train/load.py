@@ -11,7 +11,6 @@ like the others: the learners train on them.
 
 from __future__ import annotations
 
-import tomllib
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,29 +18,16 @@ from typing import Any
 
 from feedlog.errors import FeedlogError, ModelError
 from feedlog.execution import TaskRunner
+from feedlog.manifest import MANIFEST, ManifestEntry, with_held_back
 from feedlog.profile import load_profile
 from feedlog.train.dataset import ProgramTable
 
-MANIFEST = "manifest.toml"
-HELD_BACK = "held_back.toml"
-
-
-def read_manifest(path: str | Path) -> dict[str, dict[str, Any]]:
-    """Recording name -> its manifest entry (with `_dir`, the manifest's folder)."""
-    path = Path(path)
+def _entries(manifest: Path) -> dict[str, ManifestEntry]:
+    """A manifest's rows and those of the `held_back.toml` beside it; its errors as the learners' errors."""
     try:
-        data = tomllib.loads(path.read_text())
-    except (OSError, tomllib.TOMLDecodeError) as exc:
-        raise ModelError(f"{path}: cannot read the recordings manifest ({exc})") from None
-    entries = data.get("recording", [])
-    if not isinstance(entries, list):
-        raise ModelError(f"{path}: [[recording]] entries expected")
-    out = {}
-    for i, entry in enumerate(entries):
-        if not isinstance(entry, dict) or "name" not in entry:
-            raise ModelError(f"{path}: recording entry {i + 1} has no name")
-        out[str(entry["name"])] = {**entry, "_dir": str(path.parent)}
-    return out
+        return with_held_back(manifest)
+    except FeedlogError as exc:
+        raise ModelError(str(exc)) from None
 
 
 def _manifest_candidates(folder: Path, meta: dict[str, Any]) -> Iterable[Path]:
@@ -70,35 +56,34 @@ def load_aligned(folder: str | Path, *, manifest: str | Path | None = None, spli
     except FeedlogError as exc:
         raise ModelError(str(exc)) from None
     name = folder.name
-    entries: dict[str, dict[str, Any]] = {}
+    entries: dict[str, ManifestEntry] = {}
     found: list[Path] = []
     candidates = [Path(manifest)] if manifest is not None else _manifest_candidates(folder, meta)
     for cand in candidates:
         if cand.is_file():
-            held_back = cand.parent / HELD_BACK
-            entries = {**(read_manifest(held_back) if held_back.is_file() else {}), **read_manifest(cand)}
+            entries = _entries(cand)
             found.append(cand)
             if name in entries:
                 break
-    entry = entries.get(name, {})
+    listed = entries.get(name)
     # left out of the manifest beside its recording (or the one given): not part of that data set
     beside = {Path(meta[k]).parent / MANIFEST for k in ("recording", "recording_path") if meta.get(k)}
-    unlisted = ({"unlisted_in": str(found[0])} if found and not entry and (manifest is not None or found[0] in beside)
+    unlisted = ({"unlisted_in": str(found[0])} if found and listed is None and (manifest is not None or found[0] in beside)
                 else {})
     profile = None
-    if entry.get("profile"):
-        profile = load_profile(entry["profile"])
+    if listed is not None and listed.profile:
+        profile = load_profile(listed.profile)
     program_text = None
-    if entry.get("program"):
-        program_path = Path(entry["_dir"]) / entry["program"]
-        if program_path.is_file():
-            program_text = program_path.read_text()
+    program_path = None if listed is None else listed.program_path
+    if program_path is not None and program_path.is_file():
+        program_text = program_path.read_text()
     if program_text is not None:
         blocks = _attach_program_columns(blocks, program_text, name, profile)
+    fields = {} if listed is None else listed.fields
     return ProgramTable(
-        name, blocks, program=str(entry.get("family", name)), split=split or str(entry.get("split", "train")),
+        name, blocks, program=str(fields.get("family", name)), split=split or (listed.split if listed else "train"),
         points=points, profile=profile, program_text=program_text,
-        metadata={k: str(v) for k, v in entry.items() if not k.startswith("_")} | {
+        metadata={k: str(v) for k, v in fields.items()} | {
             "aligned_dir": str(folder), "recording": str(meta.get("recording", ""))} | unlisted)
 
 

@@ -1,4 +1,5 @@
-"""Model registry: name -> model class, each with a config dataclass checked in `__post_init__`.
+"""Model registry (`MODELS`, a `feedlog.registry.Registry`): name -> model class, each with a config
+dataclass checked in `__post_init__`.
 
 A model registers itself with `@register_model`; `make_model("bilstm-block", preset="quick", hidden=32)`
 builds one. Presets are named overrides of a config's defaults (`quick` is sized for the demo).
@@ -16,10 +17,10 @@ import numpy as np
 from torch import nn
 
 from feedlog.errors import ModelError
+from feedlog.registry import Registry
 from feedlog.train.dataset import ProgramTable
 from feedlog.train.features import Normaliser, base_time, planner_inputs, profile_constants, raw_columns
 
-MODELS: dict[str, type[Model]] = {}
 PRESETS = ("full", "quick")
 
 
@@ -135,18 +136,11 @@ class Model(abc.ABC):
 
 
 def register_model(cls: type[Model]) -> type[Model]:
-    if cls.name in MODELS and MODELS[cls.name] is not cls:
-        raise ModelError(f"model name {cls.name!r} is already registered by {MODELS[cls.name].__name__}")
-    MODELS[cls.name] = cls
-    return cls
+    return MODELS.add(cls.name, cls)
 
 
 def model_class(name: str) -> type[Model]:
-    _load_builtins()
-    try:
-        return MODELS[name]
-    except KeyError:
-        raise ModelError(f"unknown model {name!r}; known: {', '.join(MODELS)}") from None
+    return MODELS.get(name)
 
 
 def make_config(name: str, *, preset: str = "full", **overrides: Any) -> ModelConfig:
@@ -163,13 +157,15 @@ def make_model(name: str, *, preset: str = "full", **overrides: Any) -> Model:
 
 
 def model_names() -> list[str]:
-    _load_builtins()
-    return list(MODELS)
+    return MODELS.names()
 
 
-def _load_builtins() -> None:
+def _load_builtins(_registry: Registry[type[Model]]) -> None:
     # the built-in models register themselves on import, in this order
     import feedlog.train.model_mlp
     import feedlog.train.model_seq
     import feedlog.train.model_final
     import feedlog.train.model_hybrid  # noqa: F401
+
+
+MODELS: Registry[type[Model]] = Registry("model", error=ModelError, load=_load_builtins)

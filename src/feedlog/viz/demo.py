@@ -9,6 +9,7 @@ It prints where everything is and how to open it. `--json` prints only the table
 from __future__ import annotations
 
 import argparse
+import gc
 import shutil
 import sys
 import time
@@ -19,10 +20,10 @@ from feedlog.cli_options import add_output
 from feedlog.execution import add_arguments as add_execution_arguments
 from feedlog.viz.overlay import save_view
 from feedlog.viz.mystery import Mystery, diagnose_mystery
-from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, run_demo
+from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, discover, run_demo
 from feedlog.viz.plots import plot_cycle_times, plot_view
-from feedlog.viz.report import (ReportSection, TableRow, cycle_time_table, headline, table_json, table_markdown,
-                                write_report)
+from feedlog.viz.answer import TERMS, summary_sentences
+from feedlog.viz.report import ReportSection, TableRow, cycle_time_table, headline, table_json, write_report
 
 DEFAULT_RECORDINGS = Path("recordings")
 DEFAULT_OUT = Path("demo-out")
@@ -100,13 +101,18 @@ def detail_runs(result: DemoResult, count: int) -> set[str]:
 
 
 def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PLOTS,
-                  mystery: Mystery | None = None, rrd: bool = True) -> dict[str, Path]:
-    """Plots, .rrd files, JSON table and the Markdown report; returns what was written.
+                  mystery: Mystery | None = None, rrd: bool = True, started: float | None = None,
+                  release: bool = True) -> dict[str, Path]:
+    """Plots, .rrd files, JSON table and the Markdown report; returns what was written (and `answer`,
+    the sentences the report starts with).
 
     Every recording gets its feed plot and .rrd; `detail` recordings also get the axis, path and
-    block-time plots (matplotlib is the slow part of the demo).
+    block-time plots (matplotlib is the slow part of the demo). `started` (`time.perf_counter()` when
+    the demo began): the run time the report and the console both quote, taken before the report is written.
+    `release`: drop each recording's samples (`run.data`, `run.gathered`, `run.recording`) once its plots
+    and .rrd are written.
     """
-    started = time.perf_counter()
+    demo_started, plots_started = started, time.perf_counter()
     plots_dir, rerun_dir = out / "plots", out / "rerun"
     model_names = list(result.training.checkpoints) if result.training and result.training.available else []
     table = cycle_time_table(_rows(result), model_names=model_names)
@@ -121,23 +127,50 @@ def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PL
             run.rrd = rerun_dir / f"{run.entry.name}.rrd"
             save_view(run.data, run.rrd)
         log(f"[{k}/{len(result.runs)}] {run.entry.name}: plots" + (f" and {run.rrd.name}" if rrd else "") + " written")
+        run.view_notes = list(run.data.notes)
+        if release:  # written: the recording's samples are not needed again (peak memory, benchmarks/bench_demo.py)
+            run.data = run.gathered = run.recording = None
+            gc.collect(1)  # matplotlib's figures are young reference cycles: free them now (a full collection takes ~0.5 s)
     bars = plot_cycle_times(table, plots_dir / "cycle_times.png") if len(table) else None
-    result.timings_s["plots_and_rrd"] = time.perf_counter() - started
-    result.timings_s["total"] = result.timings_s.get("total", 0.0) + result.timings_s["plots_and_rrd"]
+    result.timings_s["plots_and_rrd"] = time.perf_counter() - plots_started
+    if demo_started is not None:
+        result.timings_s["total"] = time.perf_counter() - demo_started
+    else:
+        result.timings_s["total"] = result.timings_s.get("total", 0.0) + result.timings_s["plots_and_rrd"]
     json_path = out / "cycle_times.json"
     json_path.write_text(table_json(table) + "\n")
-    sections = _sections(result, bars)
-    if mystery is not None:
-        sections.insert(0, _mystery_section(mystery, out))
+    front = [_mystery_section(mystery, out)] if mystery is not None else []
+    if bars is not None:
+        front.append(ReportSection("Cycle time per program", images=[("cycle times", bars)],
+                                   lines=[_BARS_CAPTION]))
+    answer = [*_mystery_answer(mystery),
+              *summary_sentences(table, run_time_s=result.timings_s["total"], models=model_names)]
     report = write_report(out / "report.md", title="feedlog demo: cycle times on the bundled recordings",
-                          intro=_intro(result, out), table=table, sections=sections)
+                          answer=[*answer, "", *TERMS], front=front, intro=_intro(result, out), table=table,
+                          sections=_sections(result))
     return {"report": report, "json": json_path, "rerun": rerun_dir, "plots": plots_dir,
-            "models": out / "models", "table": table}
+            "models": out / "models", "table": table, "answer": answer}
+
+
+_BARS_CAPTION = ("Left: each estimate against the measured cycle time; right: its error in percent (a "
+                 "symmetric-log axis: linear within +-1 %, logarithmic beyond, so the simulation's 0.1 % and "
+                 "the CAM time's 60 % both show). The hybrid is drawn as rings: it is the simulation times a "
+                 "learned correction, and where it learned none its rings sit around the simulation's points.")
+
+
+def _mystery_answer(mystery: Mystery | None) -> list[str]:
+    if mystery is None:
+        return []
+    if mystery.error:
+        return [f"The mystery machine (recordings/mystery/) could not be diagnosed: {mystery.error}"]
+    return ["The mystery machine (recordings/mystery/: a LinuxCNC machine that differs from its profile in one "
+            "undisclosed way), diagnosed by `feedlog diagnose`:", "", *mystery.answer, ""]
 
 
 def _intro(result: DemoResult, out: Path) -> list[str]:
-    lines = [f"Recordings: {len(result.runs)}. Run time {result.timings_s.get('total', 0):.1f} s "
-             f"({', '.join(f'{k} {v:.1f} s' for k, v in result.timings_s.items() if k != 'total')}).", "",
+    lines = ["## How the demo ran", "",
+             f"Recordings: {len(result.runs)}. Run time {result.timings_s.get('total', 0):.1f} s, of which "
+             f"{', '.join(f'{k} {v:.1f} s' for k, v in result.timings_s.items() if k != 'total')}.", "",
              "Columns: measured cycle time (first block start to last block end), CAM (every block at its "
              "programmed feed), simulation (feedlog.sim on the recording's machine profile), and each trained "
              "model; errors are (predicted - measured) / measured. `n/a`: not available (see below).", "",
@@ -182,10 +215,8 @@ def _rel(path: Path, root: Path) -> str:
     return path.relative_to(root).as_posix() if path.is_relative_to(root) else str(path)
 
 
-def _sections(result: DemoResult, bars: Path | None) -> list[ReportSection]:
+def _sections(result: DemoResult) -> list[ReportSection]:
     sections = []
-    if bars is not None:
-        sections.append(ReportSection("Cycle time per program", images=[("cycle times", bars)]))
     for run in result.runs:
         s = ReportSection(f"{run.entry.name} ({run.entry.split})")
         s.lines.append(f"File `{run.entry.path}`; program `{run.entry.program}`.")
@@ -200,8 +231,7 @@ def _sections(result: DemoResult, bars: Path | None) -> list[ReportSection]:
         if run.rrd is not None:
             s.lines.append(f"Rerun: `rerun {run.rrd}`")
         s.lines += [f"- error: {e}" for e in run.errors] + [f"- note: {n}" for n in run.notes]
-        if run.data is not None:
-            s.lines += [f"- note: {n}" for n in run.data.notes]
+        s.lines += [f"- note: {n}" for n in run.view_notes]
         s.images = [(f"{run.entry.name} {kind}", path) for kind, path in run.plots.items()]
         sections.append(s)
     return sections
@@ -214,18 +244,22 @@ def run(args: argparse.Namespace) -> int:
     models = tuple(m.strip() for m in args.models.split(",") if m.strip()) if args.models else None
     config = DemoConfig(recordings=recordings, out=args.out, train=not args.no_train, models=models, log=log,
                         jobs=args.jobs, scheduler=args.scheduler, progress=not args.json)
+    discover(config.recordings)  # a broken manifest is refused before the output folder is touched
     prepare_out(args.out)
     result = run_demo(config)
     mystery = diagnose_mystery(recordings, args.out, log=log)
     if mystery is not None:
         result.timings_s["diagnose"] = mystery.seconds
-    written = write_outputs(result, args.out, log=log, detail=args.detail_plots, mystery=mystery, rrd=not args.no_rrd)
+    written = write_outputs(result, args.out, log=log, detail=args.detail_plots, mystery=mystery, rrd=not args.no_rrd,
+                            started=started)
     if args.json:
         print(table_json(written["table"]))
         return 0
     rrds = [r.rrd for r in result.runs if r.rrd is not None]
     print()
-    print(f"feedlog demo finished in {time.perf_counter() - started:.1f} s")
+    print(f"feedlog demo finished in {result.timings_s['total']:.1f} s")
+    print("\n".join(written["answer"]).strip("\n"))
+    print()
     print("\n".join(headline(written["table"])))
     print()
     print(f"  report (Markdown + PNG plots): {written['report']}")
@@ -246,5 +280,5 @@ def run(args: argparse.Namespace) -> int:
         print("The mystery machine (recordings/mystery/, one undisclosed change), feedlog diagnose:")
         print("\n".join(f"  {line}" for line in mystery.lines) if mystery.lines else f"  error: {mystery.error}")
     print()
-    print(table_markdown(written["table"]))
+    print(f"The cycle time of every recording: {written['report']} (section \"Cycle times\") and {written['json']}.")
     return 0

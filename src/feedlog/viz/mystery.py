@@ -20,6 +20,7 @@ MANIFEST = "mystery.toml"
 @dataclass
 class Mystery:
     lines: list[str]
+    answer: list[str] = field(default_factory=list)    # the diagnosis in plain sentences (diagnose.plain)
     report: Path | None = None
     images: list[tuple[str, Path]] = field(default_factory=list)
     error: str | None = None
@@ -28,6 +29,7 @@ class Mystery:
 
 def diagnose_mystery(recordings: Path, out: Path, *, log: Callable[[str], None] = print) -> Mystery | None:
     from feedlog.diagnose.engine import DiagnoseConfig, diagnose
+    from feedlog.diagnose.plain import answer
     from feedlog.diagnose.summary import summary_lines
     from feedlog.diagnose.write import write_outputs
     from feedlog.errors import FeedlogError
@@ -48,5 +50,5 @@ def diagnose_mystery(recordings: Path, out: Path, *, log: Callable[[str], None] 
     except FeedlogError as exc:
         return Mystery(lines=[], error=str(exc), seconds=time.perf_counter() - started)
     images = [(p.stem, p) for p in sorted((target / "plots").glob("*.png"))]
-    return Mystery(lines=summary_lines(dx), report=target / "report.md", images=images,
+    return Mystery(lines=summary_lines(dx), answer=answer(dx), report=target / "report.md", images=images,
                    seconds=time.perf_counter() - started)

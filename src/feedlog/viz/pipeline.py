@@ -9,7 +9,6 @@ recordings go on. Nothing is estimated in place of a missing stage.
 from __future__ import annotations
 
 import time
-import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -19,6 +18,7 @@ import numpy as np
 
 from feedlog import storage
 from feedlog.errors import FeedlogError
+from feedlog.manifest import MANIFEST, read_manifest
 from feedlog.execution import TaskRunner, task_runner
 from feedlog.recording import PROGRAM_ATTACHMENT, Recording
 from feedlog.viz.prepare import ModelPrediction, ViewData, prepare_view
@@ -26,8 +26,6 @@ from feedlog.viz.sources import Gathered, finite_or_none, gather
 from feedlog.viz.stages import StageMissing, availability, stage_function
 from feedlog.viz.training import TrainOutcome, predict_for, train_models
 
-MANIFEST = "manifest.toml"
-SPLITS = ("train", "test")
 
 
 @dataclass
@@ -77,6 +75,7 @@ class RecordingRun:
     errors: list[str] = field(default_factory=list)
     plots: dict[str, Path] = field(default_factory=dict)
     rrd: Path | None = None
+    view_notes: list[str] = field(default_factory=list)   # the overlays' notes, kept when `data` is released
 
 
 @dataclass
@@ -88,33 +87,14 @@ class DemoResult:
 
 
 def discover(folder: Path) -> list[RecordingEntry]:
-    """Recordings listed in `manifest.toml` (when present), else every `*.mcap` in the folder."""
+    """Recordings listed in `manifest.toml` (when present, `feedlog.manifest`), else every `*.mcap` in the folder."""
     manifest = folder / MANIFEST
     if not manifest.is_file():
         return [RecordingEntry(path=p, name=p.stem, program=p.stem) for p in sorted(folder.glob("*.mcap"))]
-    try:
-        data = tomllib.loads(manifest.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise FeedlogError(f"{manifest}: not valid TOML: {exc}") from None
-    items = data.get("recording") or data.get("recordings") or []
-    if isinstance(items, dict):  # [recordings.<name>] tables
-        items = [{"name": k, **v} for k, v in items.items()]
-    entries = []
-    for i, item in enumerate(items):
-        file = item.get("file") or item.get("path")
-        if not file:
-            raise FeedlogError(f"{manifest}: recording entry {i + 1} has no 'file'")
-        path = folder / file
-        split = str(item.get("split", "train"))
-        if split not in SPLITS:
-            raise FeedlogError(f"{manifest}: recording {file}: split must be one of {', '.join(SPLITS)}, got {split!r}")
-        name = str(item.get("name", path.stem))
-        program = item.get("program")
-        expected = {k: item[k] for k in ("samples", "dropped_frames", "cycle_time_s") if k in item}
-        entries.append(RecordingEntry(path=path, name=name, program=Path(program).stem if program else name,
-                                      split=split, family=str(item.get("family", "")), program_path=folder / program if program else None,
-                                      profile=item.get("profile"), expected=expected))
-    return entries
+    return [RecordingEntry(path=e.path, name=e.name, program=Path(e.program).stem if e.program else e.name,
+                           split=e.split, family=e.family, program_path=e.program_path, profile=e.profile,
+                           expected=e.expected)
+            for e in read_manifest(manifest)]
 
 
 def verify(run: RecordingRun) -> bool:

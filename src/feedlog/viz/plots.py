@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib
+import matplotlib.ticker
 
 matplotlib.use("Agg")  # no display: figures only go to files
 
@@ -20,6 +21,8 @@ from feedlog.colors import source_color
 from feedlog.viz.prepare import ViewData
 
 DPI = 100
+MARKERS = ("o", "s", "^", "D", "v", "P", "X")
+HOLLOW = ("hybrid",)   # sources built on another (hybrid = sim x a learned factor): rings, so the base shows
 
 
 def _c(name: str, index: int = 0) -> tuple[float, float, float]:
@@ -110,16 +113,28 @@ def plot_block_times(data: ViewData, path: str | Path) -> Path:
     top = 0.0
     for i, col in enumerate(predicted):
         ok = b["measured_s"].notna() & b[col].notna() if "measured_s" in b.columns else b[col].isna()
-        ax.scatter(b.loc[ok, "measured_s"], b.loc[ok, col], s=10, color=_c(col[:-2], i - 1), label=col[:-2])
+        color = _c(col[:-2], i - 1)
+        style = (dict(s=30, facecolors="none", edgecolors=[color], linewidths=1.0) if col[:-2] in HOLLOW
+                 else dict(s=10, color=color))
+        ax.scatter(b.loc[ok, "measured_s"], b.loc[ok, col], label=col[:-2], **style)
         top = max(top, float(b.loc[ok, ["measured_s", col]].to_numpy().max(initial=0.0)))
     if not predicted:
         ax.text(0.5, 0.5, "no predicted block times", ha="center", va="center", transform=ax.transAxes)
     else:
-        ax.plot([0, top], [0, top], color="k", lw=0.8, ls=":")
+        values = b[["measured_s", *predicted]].to_numpy(dtype=np.float64) if "measured_s" in b.columns else np.array([])
+        if spans_decades(values):
+            low = float(values[np.isfinite(values) & (values > 0)].min())
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.plot([low, top], [low, top], color="k", lw=0.8, ls=":")
+            ax.set_title(f"{data.name}: block times (log axes)")
+        else:
+            ax.plot([0, top], [0, top], color="k", lw=0.8, ls=":")
         ax.legend(loc="upper left", fontsize=8)
     ax.set_xlabel("measured block time (s)")
     ax.set_ylabel("predicted block time (s)")
-    ax.set_title(f"{data.name}: block times")
+    if not ax.get_title():
+        ax.set_title(f"{data.name}: block times")
     ax.grid(alpha=0.3)
     return _save(fig, Path(path))
 
@@ -150,12 +165,23 @@ def plot_cycle_times(table: pd.DataFrame, path: str | Path) -> Path:
 
 
 def _cycle_time_scatter(table: pd.DataFrame, sources: list[str], path: Path) -> Path:
+    """Left: every estimate against the reference (first source); right: its error in percent on a
+    symmetric-log axis, so 0.1 % and 60 % errors both show. A source drawn as rings (`HOLLOW`) leaves the
+    points it covers visible."""
     ref = sources[0]
     x = table[ref].to_numpy(dtype=np.float64)
-    fig, ax = plt.subplots(figsize=(7, 6))
+    fig, (ax, err) = plt.subplots(1, 2, figsize=(13, 6))
+    fig.subplots_adjust(left=0.06, right=0.98, top=0.9, bottom=0.16, wspace=0.22)
     for i, col in enumerate(sources[1:]):
         name = col[:-2]
-        ax.scatter(x, table[col].to_numpy(dtype=np.float64), s=12, label=name, color=_c(name, i - 2), alpha=0.8)
+        y = table[col].to_numpy(dtype=np.float64)
+        color = _c(name, i - 2)
+        style = (dict(s=40, facecolors="none", edgecolors=[color], linewidths=1.2) if name in HOLLOW
+                 else dict(s=14, color=color))
+        marker = MARKERS[i % len(MARKERS)]
+        ax.scatter(x, y, marker=marker, label=name, zorder=3 + i, **style)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            err.scatter(x, (y - x) / x * 100.0, marker=marker, label=name, zorder=3 + i, **style)
     finite = x[np.isfinite(x)]
     hi = float(finite.max()) * 1.05 if len(finite) else 1.0
     ax.plot([0, hi], [0, hi], color="0.5", lw=0.8, label=f"= {ref[:-2]}")
@@ -164,7 +190,27 @@ def _cycle_time_scatter(table: pd.DataFrame, sources: list[str], path: Path) -> 
     ax.set_title(f"cycle time of {len(table)} programs against {ref[:-2]}")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
+    err.axhline(0.0, color="0.5", lw=0.8)
+    err.set_yscale("symlog", linthresh=1.0)
+    err.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g} %"))
+    err.set_xlabel(f"{ref[:-2]} cycle time (s)")
+    err.set_ylabel(f"(estimate - {ref[:-2]}) / {ref[:-2]}, linear within +-1 %")
+    err.set_title("error of each estimate")
+    err.grid(alpha=0.3, which="both")
+    hollow = [c[:-2] for c in sources[1:] if c[:-2] in HOLLOW]
+    if hollow:
+        fig.text(0.5, 0.02, f"{', '.join(hollow)}: rings. The hybrid is the simulation times a learned factor per "
+                 "block; where it learns no correction, its rings sit around the simulation's points.",
+                 ha="center", fontsize=9)
     return _save(fig, path)
+
+
+def spans_decades(values: np.ndarray, decades: float = 2.0) -> bool:
+    """Positive values spread over more than `decades` powers of ten: a log axis shows them, a linear one
+    squashes the small ones into a corner."""
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v) & (v > 0)]
+    return len(v) > 1 and float(np.log10(v.max() / v.min())) > decades
 
 
 PLOTS = {"feed": plot_feed, "axes": plot_axes, "path": plot_path, "blocks": plot_block_times}

@@ -68,7 +68,9 @@ def table_json(table: pd.DataFrame) -> str:
 def _fmt(value, *, pct: bool = False) -> str:
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "n/a"
-    return f"{value:+.1f} %" if pct else f"{value:.3f}"
+    if pct:
+        return "0.0 %" if round(float(value), 1) == 0 else f"{value:+.1f} %"   # never "-0.0 %"
+    return f"{value:.3f}"
 
 
 def table_markdown(table: pd.DataFrame) -> str:
@@ -121,11 +123,15 @@ def headline(table: pd.DataFrame) -> list[str]:
 
 
 def write_report(path: Path, *, title: str, intro: Sequence[str], table: pd.DataFrame,
-                 sections: Sequence[ReportSection]) -> Path:
-    """Markdown report next to its images (image links are relative to the report); the headline
-    (`headline`) first."""
-    out = [f"# {title}", "", "## Summary", "", *headline(table), "", *intro, "", "## Cycle times", "",
-           table_markdown(table), ""]
+                 sections: Sequence[ReportSection], answer: Sequence[str] = (),
+                 front: Sequence[ReportSection] = ()) -> Path:
+    """Markdown report next to its images (image links are relative to the report): the answer first
+    (`answer` sentences, then the `headline`), then the `front` sections (the diagnosis, the overview
+    plot), then `intro` and the long cycle-time table, then the per-recording `sections`."""
+    out = [f"# {title}", "", "## The answer", "", *answer, "", "## Summary", "", *headline(table), ""]
+    for section in front:
+        out += _section(section, path)
+    out += [*intro, "", "## Cycle times", "", table_markdown(table), ""]
     summary = error_summary(table)
     if summary:
         out.append("Mean absolute cycle-time error over all rows: "
@@ -136,9 +142,14 @@ def write_report(path: Path, *, title: str, intro: Sequence[str], table: pd.Data
                        + ", ".join(f"{k} {v:.1f} %" for k, v in held_out.items()) + ".")
         out.append("")
     for section in sections:
-        out += [f"## {section.title}", "", *section.lines, ""]
-        for caption, image in section.images:
-            rel = Path(image).relative_to(path.parent) if Path(image).is_relative_to(path.parent) else Path(image)
-            out += [f"![{caption}]({rel.as_posix()})", ""]
+        out += _section(section, path)
     path.write_text("\n".join(out))
     return path
+
+
+def _section(section: ReportSection, path: Path) -> list[str]:
+    out = [f"## {section.title}", "", *section.lines, ""]
+    for caption, image in section.images:
+        rel = Path(image).relative_to(path.parent) if Path(image).is_relative_to(path.parent) else Path(image)
+        out += [f"![{caption}]({rel.as_posix()})", ""]
+    return out
