@@ -1,0 +1,132 @@
+"""A session is more than motion: tool changes, stops, dwells, waits and standstills in the data.
+
+Read from the line stream, the feed and the spindle (positions are not needed):
+
+- a *standstill* is a stretch of at least MIN_STILL_S where the recorded feed (held until the next
+  sample) is at most STILL_MM_MIN; the spindle is *off* where its speed is at most SPINDLE_OFF_RPM;
+- each recorded line run that holds a standstill (or that stands on a program line with no motion at
+  all and lasts MIN_STILL_S) is an event, named by what the program asks on that line: `tool change`
+  (M6), `program stop` (M0), `optional stop` (M1), `dwell` (G4), `wait on M codes` (M3/M4/M5/M7/M8/M9:
+  spindle and coolant), else `standstill` (a feed hold or a wait the program does not ask for);
+- an event's time is the run's whole duration on a line without motion, else the standstill inside
+  the run (the motion the program asks for stays in the motion comparison).
+
+`anchors` pins the recorded line numbers to the program where the data itself says which block ran:
+the spindle starting again after it was off is the program's first M3/M4 after an M6, and the last
+recorded line is the program's last block (M2/M30).
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pandas as pd
+
+from feedlog.recording import Recording
+from feedlog.toolpath import Program
+from feedlog.toolpath.schema import DWELL, MOTION_KINDS
+
+STILL_MM_MIN = 6.0       # feed at or below this (mm/min, 0.1 mm/s) is standing still
+MIN_STILL_S = 1.0        # shorter standstills are part of motion (reversals, exact stops)
+SPINDLE_OFF_RPM = 1.0
+SPINDLE_ON_S = 1.0       # a restart: the spindle stays on this long (not an orientation blip)
+_M = re.compile(r"M0*(\d+)")
+KINDS = {6: "tool change", 0: "program stop", 1: "optional stop"}
+WAIT_CODES = {3, 4, 5, 7, 8, 9}
+
+
+def line_codes(program: Program) -> pd.DataFrame:
+    """Per program line: its M codes (set), whether it moves, whether it dwells."""
+    b = program.blocks
+    kinds = b["kind"].astype(str)
+    codes = b["mcodes"].fillna("").astype(str).map(lambda s: {int(m) for m in _M.findall(s.upper())})
+    frame = pd.DataFrame({"line": b["line"].to_numpy(np.int64), "codes": codes.to_numpy(),
+                          "moves": kinds.isin(MOTION_KINDS).to_numpy(), "dwell": (kinds == DWELL).to_numpy()})
+    return frame.groupby("line").agg(codes=("codes", lambda c: set().union(*c)), moves=("moves", "any"),
+                                     dwell=("dwell", "any"))
+
+
+def _held(table: pd.DataFrame | None, column: str, t_ns: np.ndarray) -> np.ndarray:
+    """The stream's last value at each of `t_ns` (NaN before its first sample or without the stream)."""
+    if table is None or column not in table.columns or not len(table):
+        return np.full(len(t_ns), np.nan)
+    ts = table["t_ns"].to_numpy(np.int64)
+    idx = np.searchsorted(ts, t_ns, side="right") - 1
+    v = table[column].to_numpy(np.float64)
+    return np.where(idx >= 0, v[np.clip(idx, 0, len(v) - 1)], np.nan)
+
+
+def still_ns(recording: Recording, t0: int, t1: int, *, step_ns: int = 10_000_000) -> int:
+    """Nanoseconds within [t0, t1) where the recorded feed stands still (held-value, 10 ms grid)."""
+    if t1 <= t0:
+        return 0
+    grid = np.arange(t0, t1, step_ns, dtype=np.int64)
+    feed = _held(recording.streams.get("feed"), "feed_mm_min", grid)
+    return int(np.count_nonzero(feed <= STILL_MM_MIN) * step_ns)
+
+
+def find_events(recording: Recording, runs: pd.DataFrame, program_line: np.ndarray, program: Program,
+                *, span_ns: tuple[int, int]) -> pd.DataFrame:
+    """Events (one row per recorded line run that holds one; columns: kind, recorded_line, program_line,
+    t_start_ns, t_end_ns, duration_s, spindle_off) inside `span_ns` (the motion span). `runs`: line,
+    t_start_ns, t_end_ns; `program_line`: per run (NaN: unknown, then the event is a `standstill`)."""
+    info = line_codes(program)
+    rows = []
+    for k, r in enumerate(runs.itertuples(index=False)):
+        t0, t1 = max(int(r.t_start_ns), span_ns[0]), min(int(r.t_end_ns), span_ns[1])
+        if t1 - t0 < MIN_STILL_S * 1e9:
+            continue
+        p = program_line[k]
+        known = np.isfinite(p) and int(p) in info.index
+        codes = info.at[int(p), "codes"] if known else set()
+        moves = bool(info.at[int(p), "moves"]) if known else True
+        still = (t1 - t0) if known and not moves else still_ns(recording, t0, t1)
+        if still < MIN_STILL_S * 1e9:
+            continue
+        kind = next((KINDS[c] for c in (6, 0, 1) if c in codes), None)
+        if kind is None:
+            kind = ("dwell" if known and bool(info.at[int(p), "dwell"]) else
+                    "wait on M codes" if codes & WAIT_CODES else "standstill")
+        grid = np.arange(t0, t1, 10_000_000, dtype=np.int64)
+        spindle = _held(recording.streams.get("spindle"), "spindle_rpm", grid)
+        rows.append({"kind": kind, "recorded_line": int(r.line), "program_line": int(p) if known else None,
+                     "m_codes": " ".join(f"M{c}" for c in sorted(codes)), "t_start_ns": t0, "t_end_ns": t1,
+                     "duration_s": still / 1e9,
+                     "spindle_off": bool(np.any(spindle <= SPINDLE_OFF_RPM))})
+    cols = ["kind", "recorded_line", "program_line", "m_codes", "t_start_ns", "t_end_ns", "duration_s", "spindle_off"]
+    return pd.DataFrame(rows, columns=cols)
+
+
+def anchors(recording: Recording, runs: pd.DataFrame, program: Program, expected: pd.Series) -> list[dict]:
+    """Recorded lines the data ties to program lines: the spindle's restart after each M6 inside the
+    motion (the program's first M3/M4 line after it), and the program end (its last block's line against
+    the last recorded). A restart is the spindle turning on and staying on for SPINDLE_ON_S after being off
+    inside the motion span; `expected`: seconds per program line (the first line > 0 starts the motion)."""
+    info = line_codes(program)
+    out = []
+    spindle = recording.streams.get("spindle")
+    moving = expected[expected > 0]
+    if spindle is not None and "spindle_rpm" in spindle.columns and len(runs) and len(moving):
+        t = spindle["t_ns"].to_numpy(np.int64)
+        on = spindle["spindle_rpm"].to_numpy(np.float64) > SPINDLE_OFF_RPM
+        edge = np.flatnonzero(on[1:] != on[:-1]) + 1          # sample indices where on/off changes
+        t_edge = np.r_[t[edge], np.iinfo(np.int64).max]
+        restarts = [t[k] for j, k in enumerate(edge) if on[k] and j > 0 and t[edge[j - 1]] >= runs["t_start_ns"].iloc[0]
+                    and t_edge[j + 1] - t[k] >= SPINDLE_ON_S * 1e9]
+        m6 = [int(ln) for ln, c in info["codes"].items() if 6 in c and ln > moving.index[0]]
+        starts = [int(ln) for ln, c in info["codes"].items() if c & {3, 4}]
+        for tool_line, t_on in zip(m6, restarts):
+            after = [s for s in starts if s > tool_line]
+            k = int(np.searchsorted(runs["t_start_ns"].to_numpy(np.int64), t_on, side="right") - 1)
+            if after and k >= 0:
+                out.append({"what": f"the spindle restart after the tool change (program line {tool_line})",
+                            "recorded_line": int(runs["line"].iloc[k]), "program_line": after[0],
+                            "tool_change_line": tool_line})
+    if len(runs) and len(program.blocks):
+        out.append({"what": "the program end", "recorded_line": int(runs["line"].iloc[-1]),
+                    "program_line": int(program.blocks["line"].max())})
+    return out
+
+
+__all__ = ["KINDS", "MIN_STILL_S", "STILL_MM_MIN", "anchors", "find_events", "line_codes", "still_ns"]
