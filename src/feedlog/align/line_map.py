@@ -60,11 +60,15 @@ class LineMap:
         if self.first_mismatch is None:
             return None
         m = self.first_mismatch
-        text = (f"the recorded lines are not {program_name} line for line: recorded line {m['recorded_line']} "
-                f"(at {m['t_s']:.2f} s) lasts {m['measured_s']:.2f} s where the program expects "
-                f"{m['expected_s']:.2f} s" + (f" (program line {m['likely_line']} expects "
+        if m.get("found_by") == "anchor":
+            text = (f"the recorded lines are not {program_name} line for line: the line times do not say where "
+                    "they begin to differ")
+        else:
+            text = (f"the recorded lines are not {program_name} line for line: recorded line {m['recorded_line']} "
+                    f"(at {m['t_s']:.2f} s) lasts {m['measured_s']:.2f} s where the program expects "
+                    f"{m['expected_s']:.2f} s" + (f" (program line {m['likely_line']} expects "
                                              f"{m['likely_expected_s']:.2f} s: {m['recorded_line'] - m['likely_line']:+d} "
-                                             "lines?)" if m.get("likely_line") is not None else ""))
+                                                 "lines?)" if m.get("likely_line") is not None else ""))
         if self.anchors:
             a = self.anchors[0]
             text += (f"; {a['what']} recorded on line {a['recorded_line']} is program line {a['program_line']} "
@@ -88,11 +92,17 @@ def map_lines(run_lines: np.ndarray, run_s: np.ndarray, run_t_s: np.ndarray, exp
     moving_s = dur - (0.0 if still_s is None else np.asarray(still_s, dtype=np.float64))  # standstills are events
     bad = ((moving_s >= MISMATCH_S) & np.isfinite(exp) & (exp > 0) & ((moving_s + EPS_S) > MISMATCH_RATIO * (exp + EPS_S))
            & ~np.isin(lines, list(event_lines | set(rapid_lines))))
-    if not bad.any():
+    moved = [a for a in anchors if a["recorded_line"] != a["program_line"] and np.any(lines == a["recorded_line"])]
+    if not bad.any() and not moved:
         return LineMap([0] * n)
-    i = int(np.flatnonzero(bad)[0])
+    # no line time gives the place away: the first anchor off by some lines says the lines differ somewhere
+    # before it, and nothing before it can be placed
+    i = int(np.flatnonzero(bad)[0]) if bad.any() else int(np.flatnonzero(lines == moved[0]["recorded_line"])[0])
     first = {"run": i, "recorded_line": int(lines[i]), "t_s": float(run_t_s[i]), "measured_s": float(dur[i]),
-             "expected_s": float(exp[i])}
+             "expected_s": float(exp[i]) if np.isfinite(exp[i]) else None,
+             "found_by": "line time" if bad.any() else "anchor"}
+    if not bad.any():
+        i = 0
     near = expected.reindex(np.arange(lines[i] - MAX_OFFSET, lines[i] + MAX_OFFSET + 1)).dropna()
     near = near[near > 0]
     if len(near):

@@ -223,6 +223,9 @@ def diagnose_lines(recording: Recording, profile: MachineProfile | str | None, p
         "predicted_after_s": float(after.cycle_time_s) + not_tool,
         "line_period_s": float(np.median(np.diff(stream["t_ns"].to_numpy(np.int64)))) / 1e9,
     }
+    runs = session.runs
+    figures["unplaced_s"] = float(runs.loc[runs["program_line"].isna(), "dur_s"].sum())
+    figures["remaining_s"] = measured - figures["predicted_after_s"]
     figures["error_before_pct"] = 100 * (figures["simulated_cycle_s"] - measured) / measured
     figures["error_after_pct"] = 100 * (figures["predicted_after_s"] - measured) / measured
     return LineDiagnosis(recording=name, program=prog.name, profile=prof, extended=extended, session=session,

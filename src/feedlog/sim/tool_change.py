@@ -4,7 +4,8 @@ A tool change is no motion the interpolator plans, but it is part of the cycle: 
 changer swaps the tool, the spindle starts again (on the NIST Hurco VMX the line stream stays 6.9 s on
 `T21M6`; docs/diagnose.md). The simulation adds `time_s` per M6 as a standstill after the last move
 before it (that move stops exactly). An M6 before the program's first move is not counted: the cycle
-starts at the first move. Off unless a profile sets it (`[sim.tool_change] time_s = ...`);
+starts at the first move. Off unless a profile switches it on (`[sim.tool_change] enabled = true`,
+`time_s = ...`);
 `feedlog diagnose` fits it from a recording's line stream (diagnose.line_level).
 
 Source: the tool-change time is a machine-tool datasheet figure (chip-to-chip time, typically 1.5-10 s
