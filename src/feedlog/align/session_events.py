@@ -13,7 +13,7 @@ Read from the line stream, the feed and the spindle (positions are not needed):
 
 `anchors` pins the recorded line numbers to the program where the data itself says which block ran:
 the spindle starting again after it was off is the program's first M3/M4 after an M6, and the last
-recorded line is the program's last move or a block after it (M2/M30), whichever it names.
+recorded line, when past the program's last move, is a block after it (M2/M30): at most its last.
 """
 
 from __future__ import annotations
@@ -125,9 +125,10 @@ def anchors(recording: Recording, runs: pd.DataFrame, program: Program, expected
                             "tool_change_line": tool_line})
     if len(runs) and len(program.blocks) and len(moving):
         # the stream ends on the last move or on a block after it (M30 shows on some controllers, not others)
+        # (a stream that stops on or before the last move says nothing: the recording may end early)
         last, end = int(runs["line"].iloc[-1]), int(program.blocks["line"].max())
-        out.append({"what": "the program end", "recorded_line": last,
-                    "program_line": min(max(last, int(moving.index[-1])), end)})
+        if last > int(moving.index[-1]):
+            out.append({"what": "the program end", "recorded_line": last, "program_line": min(last, end)})
     return out
 
 

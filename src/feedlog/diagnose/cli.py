@@ -58,13 +58,18 @@ def _run_lines(args: argparse.Namespace) -> int:
                         numbering=args.numbering)
     if args.out is not None:
         write_line_outputs(ld, args.out)
+    return _emit(args, lambda: to_json(ld), lambda: summary_lines(ld), "report.md, diagnose.json, profile.toml")
+
+
+def _emit(args: argparse.Namespace, payload, lines, written: str) -> int:
+    """Print the JSON object (`--json`) or the summary lines and what was written."""
     if args.json:
-        json.dump(to_json(ld), sys.stdout, allow_nan=False)
+        json.dump(payload(), sys.stdout, allow_nan=False)
         sys.stdout.write("\n")
     else:
-        print("\n".join(summary_lines(ld)))
+        print("\n".join(lines()))
         if args.out is not None:
-            print(f"wrote {args.out}/: report.md, diagnose.json, profile.toml")
+            print(f"wrote {args.out}/: {written}")
     return 0
 
 
@@ -94,12 +99,5 @@ def run(args: argparse.Namespace) -> int:
     except FeedlogError as exc:
         print(f"feedlog diagnose: error: {exc}", file=sys.stderr)
         return exc.exit_code
-    if args.json:
-        json.dump(to_json(dx), sys.stdout, allow_nan=False)
-        sys.stdout.write("\n")
-    else:
-        print("\n".join(summary_lines(dx)))
-        if args.out is not None:
-            print(f"wrote {args.out}/: report.md, diagnose.json, profile.toml"
-                  + ("" if args.no_rrd else ", diagnose.rrd (rerun FILE)"))
-    return 0
+    return _emit(args, lambda: to_json(dx), lambda: summary_lines(dx),
+                 "report.md, diagnose.json, profile.toml" + ("" if args.no_rrd else ", diagnose.rrd (rerun FILE)"))
