@@ -38,6 +38,7 @@ from feedlog.recording import Recording
 from feedlog.toolpath.schema import RAPID
 
 MIN_INTERVALS = 8    # fewer placed intervals: nothing is fitted
+MIN_CHANGE = 0.02    # an override is proposed only when it differs from 1 by this much (the sampling's noise)
 BLIND = ("corner speeds, acceleration and jerk limits inside a stretch of blocks (they only change how long "
          "the stretch takes, which the feed factor absorbs)",
          "path deviation and blending tolerance (G64 P): where the tool went",
@@ -200,9 +201,9 @@ def diagnose_lines(recording: Recording, profile: MachineProfile | str | None, p
     weights = np.array([fs.get(s, 0.0) for s in fit["sections"]])
     known = np.isfinite(fit["k_feed"]) & (weights > 0)
     k_feed = float(np.average(np.asarray(fit["k_feed"])[known], weights=weights[known])) if known.any() else np.nan
-    if np.isfinite(k_feed) and k_feed > 0:
+    if np.isfinite(k_feed) and k_feed > 0 and abs(1.0 / k_feed - 1.0) >= MIN_CHANGE:
         values["sim.feed_override.override"] = round(1.0 / k_feed, 4)
-    if np.isfinite(fit["k_rapid"]) and fit["k_rapid"] > 0:
+    if np.isfinite(fit["k_rapid"]) and fit["k_rapid"] > 0 and abs(1.0 / fit["k_rapid"] - 1.0) >= MIN_CHANGE:
         values["sim.rapid_override.override"] = round(min(1.0 / fit["k_rapid"], 10.0), 4)
     if len(tool):
         values["sim.tool_change.time_s"] = round(float(tool.median()), 3)

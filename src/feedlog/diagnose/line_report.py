@@ -63,11 +63,15 @@ def summary_lines(ld: LineDiagnosis) -> list[str]:
     out.append(f"  after: simulated {f['simulated_after_s']:.2f} s + {f['predicted_after_s'] - f['simulated_after_s']:.2f} s "
                f"of stops and waits the program does not time = {f['predicted_after_s']:.2f} s "
                f"({f['error_after_pct']:+.1f} % against measured)")
-    out.append(f"  remains: {f['remaining_s']:+.2f} s; why: the line stream times a boundary to one sample "
-               f"({f['line_period_s']:.3f} s); {f['unplaced_s']:.2f} s ran on lines the data cannot place on the "
-               "program (the program that ran differs there), predicted with the factors fitted elsewhere; a "
-               "factor is one median per kind, so an override turned for a while (slow first approaches) stays "
-               "in the rest; the rapid factor cannot tell a slower rapid rate from a rapid override")
+    why = [f"the line stream times a boundary to one sample ({f['line_period_s']:.3f} s)"]
+    if f["unplaced_s"] > 0:
+        why.append(f"{f['unplaced_s']:.2f} s ran on lines the data cannot place on the program (the program that "
+                   "ran differs there), predicted with the factors fitted elsewhere")
+    why.append("a factor is one median per kind, so an override turned for a while (slow first approaches) "
+               "stays in the rest")
+    if np.isfinite(fit["k_rapid"]):
+        why.append("the rapid factor cannot tell a slower rapid rate from a rapid override")
+    out.append(f"  remains: {f['remaining_s']:+.2f} s; why: " + "; ".join(why))
     out.append("  the block level cannot see: " + "; ".join(BLIND))
     return out
 
