@@ -22,7 +22,7 @@ import pandas as pd
 from feedlog.align.blocks import line_runs
 from feedlog.align.line_map import LineMap, map_lines
 from feedlog.align.line_numbering import Numbering, detect, program_line
-from feedlog.align.session_events import MIN_STILL_S, anchors, find_events, line_codes, still_ns
+from feedlog.align.session_events import MIN_STILL_S, anchors, find_events, line_codes, motion_feed, still_ns
 from feedlog.profile import MachineProfile, load_profile
 from feedlog.recording import Recording
 from feedlog.toolpath import Program
@@ -74,7 +74,8 @@ def session_lines(recording: Recording, program: Program, profile: MachineProfil
     t0 = int(t_ns[0]) if len(t_ns) else 0
     codes = line_codes(program)
     event_lines = {int(ln) for ln, row in codes.iterrows() if row["codes"] or not row["moves"]}
-    still = np.array([still_ns(recording, int(a), int(b)) / 1e9 if d >= MIN_STILL_S else 0.0
+    feed = motion_feed(recording)
+    still = np.array([still_ns(feed, int(a), int(b)) / 1e9 if d >= MIN_STILL_S else 0.0
                       for a, b, d in zip(runs["t_start_ns"], runs["t_end_ns"], runs["dur_s"])])
     lmap = map_lines(runs["line"].to_numpy(), runs["dur_s"].to_numpy(), (runs["t_start_ns"].to_numpy() - t0) / 1e9,
                      expected, event_lines, anchors(recording, runs, program, expected), still,

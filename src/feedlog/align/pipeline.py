@@ -37,6 +37,7 @@ from feedlog.align.feed import LINEAR, ROTARY, FeedSmoothing, feed_at_checked
 from feedlog.align.line_sequence import shares_next_run
 from feedlog.align.match import MatchConfig, match_cl_points
 from feedlog.align.partial import auto_lines, program_lines, slice_program
+from feedlog.align.session_events import events_report
 from feedlog.align.subsample import refine_span
 from feedlog.align.timing import stream_timing
 from feedlog.align.work_offset import estimate_work_offset
@@ -360,6 +361,8 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
     lap("geometry_blocks")
     line_blocks = _line_blocks(recording, cfg, motion, span, geo, report)
     lap("line_blocks")
+    report["events"] = events_report(recording, cfg.line_stream, prog, (span.t_start_ns, span.t_end_ns))
+    lap("events")
     primary = line_blocks if line_blocks is not None else geo
 
     feats = block_features(prog, prof)

@@ -1,6 +1,6 @@
 """A session is more than motion: tool changes, stops, dwells, waits and standstills in the data.
 
-Read from the line stream, the feed and the spindle (positions are not needed):
+Read from the line stream, the feed (else the positions' speed) and the spindle:
 
 - a *standstill* is a stretch of at least MIN_STILL_S where the recorded feed (held until the next
   sample) is at most STILL_MM_MIN; the spindle is *off* where its speed is at most SPINDLE_OFF_RPM;
@@ -23,6 +23,7 @@ import re
 import numpy as np
 import pandas as pd
 
+from feedlog.align.blocks import line_runs
 from feedlog.recording import Recording
 from feedlog.toolpath import Program
 from feedlog.toolpath.schema import DWELL, MOTION_KINDS
@@ -30,6 +31,7 @@ from feedlog.toolpath.schema import DWELL, MOTION_KINDS
 STILL_MM_MIN = 6.0       # feed at or below this (mm/min, 0.1 mm/s) is standing still
 MIN_STILL_S = 1.0        # shorter standstills are part of motion (reversals, exact stops)
 SPINDLE_OFF_RPM = 1.0
+SPEED_WINDOW_S = 0.1     # positions: speed over this window (noise at rest stays below STILL_MM_MIN)
 SPINDLE_ON_S = 1.0       # a restart: the spindle stays on this long (not an orientation blip)
 _M = re.compile(r"M0*(\d+)")
 KINDS = {6: "tool change", 0: "program stop", 1: "optional stop"}
@@ -57,13 +59,31 @@ def _held(table: pd.DataFrame | None, column: str, t_ns: np.ndarray) -> np.ndarr
     return np.where(idx >= 0, v[np.clip(idx, 0, len(v) - 1)], np.nan)
 
 
-def still_ns(recording: Recording, t0: int, t1: int, *, step_ns: int = 10_000_000) -> int:
-    """Nanoseconds within [t0, t1) where the recorded feed stands still (held-value, 10 ms grid)."""
+def motion_feed(recording: Recording) -> pd.DataFrame | None:
+    """The path speed the data gives (t_ns, feed_mm_min): the recorded feed, else the positions' speed
+    over SPEED_WINDOW_S (a window long enough that position noise at rest reads as standing still)."""
+    feed = recording.streams.get("feed")
+    if feed is not None and "feed_mm_min" in feed.columns and len(feed):
+        return feed
+    axes = recording.streams.get("axes")
+    cols = [c for c in ("x_mm", "y_mm", "z_mm") if axes is not None and c in axes.columns]
+    if not cols or len(axes) < 2:
+        return None
+    t = axes["t_ns"].to_numpy(np.int64)
+    pos = axes[cols].to_numpy(np.float64)
+    j = np.minimum(np.searchsorted(t, t + int(SPEED_WINDOW_S * 1e9)), len(t) - 1)
+    dt = (t[j] - t) / 6e10    # minutes
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speed = np.where(dt > 0, np.linalg.norm(pos[j] - pos, axis=1) / dt, 0.0)
+    return pd.DataFrame({"t_ns": t, "feed_mm_min": np.nan_to_num(speed)})
+
+
+def still_ns(feed: pd.DataFrame | None, t0: int, t1: int, *, step_ns: int = 10_000_000) -> int:
+    """Nanoseconds within [t0, t1) where the feed (`motion_feed`) stands still (held-value, 10 ms grid)."""
     if t1 <= t0:
         return 0
     grid = np.arange(t0, t1, step_ns, dtype=np.int64)
-    feed = _held(recording.streams.get("feed"), "feed_mm_min", grid)
-    return int(np.count_nonzero(feed <= STILL_MM_MIN) * step_ns)
+    return int(np.count_nonzero(_held(feed, "feed_mm_min", grid) <= STILL_MM_MIN) * step_ns)
 
 
 def find_events(recording: Recording, runs: pd.DataFrame, program_line: np.ndarray, program: Program,
@@ -72,6 +92,7 @@ def find_events(recording: Recording, runs: pd.DataFrame, program_line: np.ndarr
     t_start_ns, t_end_ns, duration_s, spindle_off) inside `span_ns` (the motion span). `runs`: line,
     t_start_ns, t_end_ns; `program_line`: per run (NaN: unknown, then the event is a `standstill`)."""
     info = line_codes(program)
+    feed = motion_feed(recording)
     rows = []
     for k, r in enumerate(runs.itertuples(index=False)):
         t0, t1 = max(int(r.t_start_ns), span_ns[0]), min(int(r.t_end_ns), span_ns[1])
@@ -81,7 +102,7 @@ def find_events(recording: Recording, runs: pd.DataFrame, program_line: np.ndarr
         known = np.isfinite(p) and int(p) in info.index
         codes = info.at[int(p), "codes"] if known else set()
         moves = bool(info.at[int(p), "moves"]) if known else True
-        still = (t1 - t0) if known and not moves else still_ns(recording, t0, t1)
+        still = (t1 - t0) if known and not moves else still_ns(feed, t0, t1)
         if still < MIN_STILL_S * 1e9:
             continue
         kind = next((KINDS[c] for c in (6, 0, 1) if c in codes), None)
@@ -96,6 +117,21 @@ def find_events(recording: Recording, runs: pd.DataFrame, program_line: np.ndarr
                      "spindle_off": bool(np.any(spindle <= SPINDLE_OFF_RPM))})
     cols = ["kind", "recorded_line", "program_line", "m_codes", "t_start_ns", "t_end_ns", "duration_s", "spindle_off"]
     return pd.DataFrame(rows, columns=cols)
+
+
+def events_report(recording: Recording, stream: str, program: Program, span_ns: tuple[int, int]) -> list[dict] | None:
+    """A recording with positions and a line stream (its values program lines): its events as report
+    rows (kind, lines, M codes, start from the span's start and duration in s, spindle off), or None
+    without a line stream. Reported only: the motion comparison there is the geometric one."""
+    table = recording.streams.get(stream)
+    if table is None or "line" not in table.columns or len(table) < 2:
+        return None
+    runs = line_runs(table["t_ns"].to_numpy(np.int64), table["line"].to_numpy())
+    lines = runs["line"].to_numpy(np.float64)
+    events = find_events(recording, runs, np.where(lines > 0, lines, np.nan), program, span_ns=span_ns)
+    return [{"kind": e["kind"], "recorded_line": e["recorded_line"], "program_line": e["program_line"],
+             "m_codes": e["m_codes"], "t_s": (e["t_start_ns"] - span_ns[0]) / 1e9, "duration_s": e["duration_s"],
+             "spindle_off": e["spindle_off"]} for e in events.to_dict("records")]
 
 
 def anchors(recording: Recording, runs: pd.DataFrame, program: Program, expected: pd.Series) -> list[dict]:
@@ -132,4 +168,5 @@ def anchors(recording: Recording, runs: pd.DataFrame, program: Program, expected
     return out
 
 
-__all__ = ["KINDS", "MIN_STILL_S", "STILL_MM_MIN", "anchors", "find_events", "line_codes", "still_ns"]
+__all__ = ["KINDS", "MIN_STILL_S", "STILL_MM_MIN", "anchors", "events_report", "find_events", "line_codes",
+           "motion_feed", "still_ns"]
