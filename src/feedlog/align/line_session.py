@@ -73,7 +73,7 @@ def session_lines(recording: Recording, program: Program, profile: MachineProfil
     runs = runs[runs["line"] > 0].reset_index(drop=True)
     t0 = int(t_ns[0]) if len(t_ns) else 0
     codes = line_codes(program)
-    event_lines = {int(ln) for ln, row in codes.iterrows() if row["codes"] or not row["moves"]}
+    event_lines = set(codes.index[(codes["codes"].map(len) > 0).to_numpy() | ~codes["moves"].to_numpy()].tolist())
     feed = motion_feed(recording)
     still = np.array([still_ns(feed, int(a), int(b)) / 1e9 if d >= MIN_STILL_S else 0.0
                       for a, b, d in zip(runs["t_start_ns"], runs["t_end_ns"], runs["dur_s"])])

@@ -39,14 +39,21 @@ WAIT_CODES = {3, 4, 5, 7, 8, 9}
 
 
 def line_codes(program: Program) -> pd.DataFrame:
-    """Per program line: its M codes (set), whether it moves, whether it dwells."""
+    """Per program line (index): `codes` (the set of its M-code numbers), `moves`, `dwell`. Only the rows
+    with M codes are parsed (most have none)."""
     b = program.blocks
+    lines = b["line"].to_numpy(np.int64)
     kinds = b["kind"].astype(str)
-    codes = b["mcodes"].fillna("").astype(str).map(lambda s: {int(m) for m in _M.findall(s.upper())})
-    frame = pd.DataFrame({"line": b["line"].to_numpy(np.int64), "codes": codes.to_numpy(),
-                          "moves": kinds.isin(MOTION_KINDS).to_numpy(), "dwell": (kinds == DWELL).to_numpy()})
-    return frame.groupby("line").agg(codes=("codes", lambda c: set().union(*c)), moves=("moves", "any"),
-                                     dwell=("dwell", "any"))
+    frame = pd.DataFrame({"moves": kinds.isin(MOTION_KINDS).to_numpy(), "dwell": (kinds == DWELL).to_numpy()})
+    out = frame.groupby(lines).any()
+    mc = b["mcodes"].fillna("").astype(str) if "mcodes" in b.columns else pd.Series("", index=b.index)
+    some = np.flatnonzero(mc.str.len().to_numpy() > 0)
+    found: dict[int, set[int]] = {}
+    for ln, text in zip(lines[some], mc.to_numpy()[some]):
+        found.setdefault(int(ln), set()).update(int(m) for m in _M.findall(text.upper()))
+    empty = frozenset()
+    out["codes"] = [found.get(int(ln), empty) for ln in out.index]
+    return out
 
 
 def _held(table: pd.DataFrame | None, column: str, t_ns: np.ndarray) -> np.ndarray:
@@ -91,17 +98,24 @@ def find_events(recording: Recording, runs: pd.DataFrame, program_line: np.ndarr
     """Events (one row per recorded line run that holds one; columns: kind, recorded_line, program_line,
     t_start_ns, t_end_ns, duration_s, spindle_off) inside `span_ns` (the motion span). `runs`: line,
     t_start_ns, t_end_ns; `program_line`: per run (NaN: unknown, then the event is a `standstill`)."""
+    cols = ["kind", "recorded_line", "program_line", "m_codes", "t_start_ns", "t_end_ns", "duration_s", "spindle_off"]
+    lo = np.maximum(runs["t_start_ns"].to_numpy(np.int64), span_ns[0])
+    hi = np.minimum(runs["t_end_ns"].to_numpy(np.int64), span_ns[1])
+    long = np.flatnonzero(hi - lo >= MIN_STILL_S * 1e9)       # only runs this long can hold an event
+    if not len(long):
+        return pd.DataFrame([], columns=cols)
     info = line_codes(program)
-    feed = motion_feed(recording)
+    feed = None          # the path speed, computed when a run first needs it
     rows = []
-    for k, r in enumerate(runs.itertuples(index=False)):
-        t0, t1 = max(int(r.t_start_ns), span_ns[0]), min(int(r.t_end_ns), span_ns[1])
-        if t1 - t0 < MIN_STILL_S * 1e9:
-            continue
+    for k in long:
+        r = runs.iloc[k]
+        t0, t1 = int(lo[k]), int(hi[k])
         p = program_line[k]
         known = np.isfinite(p) and int(p) in info.index
         codes = info.at[int(p), "codes"] if known else set()
         moves = bool(info.at[int(p), "moves"]) if known else True
+        if not (known and not moves) and feed is None:
+            feed = motion_feed(recording)
         still = (t1 - t0) if known and not moves else still_ns(feed, t0, t1)
         if still < MIN_STILL_S * 1e9:
             continue
@@ -111,11 +125,10 @@ def find_events(recording: Recording, runs: pd.DataFrame, program_line: np.ndarr
                     "wait on M codes" if codes & WAIT_CODES else "standstill")
         grid = np.arange(t0, t1, 10_000_000, dtype=np.int64)
         spindle = _held(recording.streams.get("spindle"), "spindle_rpm", grid)
-        rows.append({"kind": kind, "recorded_line": int(r.line), "program_line": int(p) if known else None,
+        rows.append({"kind": kind, "recorded_line": int(r["line"]), "program_line": int(p) if known else None,
                      "m_codes": " ".join(f"M{c}" for c in sorted(codes)), "t_start_ns": t0, "t_end_ns": t1,
                      "duration_s": still / 1e9,
                      "spindle_off": bool(np.any(spindle <= SPINDLE_OFF_RPM))})
-    cols = ["kind", "recorded_line", "program_line", "m_codes", "t_start_ns", "t_end_ns", "duration_s", "spindle_off"]
     return pd.DataFrame(rows, columns=cols)
 
 
