@@ -24,9 +24,12 @@ def box(tmp_path_factory):
     return folder, rec
 
 
-def test_align_on_the_line_stream_finds_the_numbering_the_tool_change_and_the_mismatch(box):
+def test_align_on_the_line_stream_finds_the_numbering_the_tool_change_and_the_mismatch(box, capsys):
     folder, rec = box
     assert main(["align", str(rec), "--program", str(PROGRAM), "-o", str(folder / "al")]) == 0
+    printed = capsys.readouterr().out
+    assert "block numbers read as file-lines" in printed and "the program is not what ran" in printed
+    assert "tool change 1 x 6.94 s" in printed
     report = json.loads((folder / "al" / "box" / "report.json").read_text())
     assert report["mode"] == "line stream only"
     assert report["numbering"]["numbering"] == "file-lines"      # Block_Number counts `%` as line 1
