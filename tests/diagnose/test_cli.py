@@ -106,7 +106,14 @@ def _other_machine(src: Recording) -> Recording:
 
 
 def _no_axes(src: Recording) -> Recording:
-    return Recording(streams={"line": src.streams["line"]}, metadata=dict(src.metadata),
+    """Neither positions nor a line stream (a line stream alone gets the block-level diagnosis)."""
+    return Recording(streams={k: v for k, v in src.streams.items() if k not in ("axes", "line")},
+                     metadata=dict(src.metadata), attachments=dict(src.attachments))
+
+
+def _short_line_stream(src: Recording) -> Recording:
+    """A line stream and no positions, too short to place a stretch on the program."""
+    return Recording(streams={"line": src.streams["line"].iloc[:2]}, metadata=dict(src.metadata),
                      attachments=dict(src.attachments))
 
 
@@ -116,6 +123,7 @@ BAD = [
                                                                          "--profile", "linuxcnc-xyz"], "missing.ngc"),
     ("no motion", _motionless, [], "shows no motion"),
     ("no positions", _no_axes, [], "has no 'axes' stream"),
+    ("line stream too short", _short_line_stream, [], "could be placed"),
     ("wrong kinematics", lambda r: r, ["--profile", "linuxcnc-xyzac"], "no A, C positions"),
     ("unknown profile", lambda r: r, ["--profile", "no-such-machine"], "unknown machine profile"),
 ]
@@ -188,3 +196,14 @@ def test_worker_processes_give_the_same_diagnosis(xacc_files, capsys):
         assert code == 0
         runs.append(json.loads(stdout))
     assert runs[0]["findings"] == runs[1]["findings"] and runs[0]["levels"]["cycle"] == runs[1]["levels"]["cycle"]
+
+
+def test_a_recording_with_a_line_stream_and_no_positions_gets_the_block_level(xacc_files, tmp_path, capsys):
+    src = read_recording(xacc_files[0])
+    lines_only = tmp_path / "lines.mcap"
+    write_recording(lines_only, Recording(streams={"line": src.streams["line"]}, metadata=dict(src.metadata),
+                                          attachments=dict(src.attachments)))
+    code, stdout, err = _run([lines_only, "--profile", "linuxcnc-xyz", "-o", tmp_path / "dx", "-q"], capsys)
+    assert code == 0, err
+    assert "line stream only" in stdout and "the block level cannot see" in stdout
+    assert {p.name for p in (tmp_path / "dx").iterdir()} == {"report.md", "diagnose.json", "profile.toml"}

@@ -93,6 +93,21 @@ def decisions(report: dict[str, Any]) -> list[str]:
         out.append(f"work offset estimated ({', '.join(f'{v:.3f}' for v in offset)}) mm")
     if report.get("mode") == "line stream only":
         out.append("no positions: block times from the line stream")
+        numbering = report.get("numbering") or {}
+        if numbering.get("from") == "detected from the data":
+            out.append(f"block numbers read as {numbering['numbering']}")
+        line_map = report.get("line_map") or {}
+        if line_map and not line_map.get("matches", True):
+            first = line_map.get("first_mismatch") or {}
+            offsets = ", ".join(f"{o:+d}" for o in line_map.get("offsets", []) if o)
+            said = ([f"from recorded line {first['recorded_line']}"] if first.get("found_by") == "line time" else []) \
+                + ([f"lines mapped {offsets}"] if offsets else []) + ["report.json: line_map"]
+            out.append(f"the program is not what ran ({'; '.join(said)})")
+    totals: dict[str, list[float]] = {}
+    for event in report.get("events") or []:
+        totals.setdefault(event["kind"], []).append(event["duration_s"])
+    if totals:
+        out.append("events: " + ", ".join(f"{k} {len(v)} x {sum(v):.2f} s" for k, v in totals.items()))
     rounding = report.get("unstated_tolerance")
     if rounding and rounding["dist_max_mm"] > report["config"]["tol_mm"]:
         out.append(f"the machine rounds corners the program gives no tolerance for by up to "

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from feedlog.align.line_numbering import NUMBERINGS
 from feedlog.align.batch import align_many
 from feedlog.align.feed import FeedSmoothing
 from feedlog.align.partial import parse_lines
@@ -66,6 +67,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lines", metavar="FIRST:LAST", type=parse_lines,
                         help="the recording covers only these program lines (default: found from the recorded "
                              "line or block-number stream when it leaves feed moves out)")
+    parser.add_argument("--numbering", default="auto", choices=("auto",) + NUMBERINGS,
+                        help="what the recorded block values count when there are no positions: file lines "
+                             "(with or without a leading %%), N words or a block counter (default: detected "
+                             "from the line times against the program, reported)")
     parser.add_argument("--whole-program", action="store_true",
                         help="never cut the program to the lines the line stream saw")
     parser.add_argument("--lenient", action="store_true",
@@ -84,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
                          work_offset_mm=tuple(args.work_offset), lenient=args.lenient, lines=args.lines,
                          auto_lines=not args.whole_program, estimate_offset=args.estimate_offset,
                          auto_offset=not args.no_auto_offset,
-                         dialect=args.dialect)
+                         dialect=args.dialect, numbering=args.numbering)
     single = len(args.recordings) == 1
     items = align_many(args.recordings, args.out, program=args.program, profile=args.profile, config=config,
                        jobs=args.jobs, scheduler=args.scheduler, overwrite=args.overwrite, progress=not args.quiet,

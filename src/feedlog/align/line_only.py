@@ -19,6 +19,7 @@ import pandas as pd
 
 from feedlog.align.blocks import NO_TIME, MotionSpan, blocks_from_lines
 from feedlog.align.pipeline import Alignment, AlignConfig, _points_table, join_by_block
+from feedlog.align.line_session import session_lines
 from feedlog.align.timing import stream_timing
 from feedlog.errors import AlignmentError
 from feedlog.recording import Recording
@@ -35,7 +36,10 @@ def align_on_lines(recording: Recording, prog: Program, prof: MachineProfile | N
                              f"no {cfg.line_stream!r} stream with program lines or block numbers: nothing to align on")
     t = stream["t_ns"].to_numpy(dtype=np.int64)
     motion = prog.motion.reset_index(drop=True)
-    lb = blocks_from_lines(t, stream["line"].to_numpy(), motion)
+    t, lines, session = session_lines(recording, prog, prof, t, stream["line"].to_numpy(), cfg.numbering)
+    report.update(session.report)
+    report["warnings"].extend(session.warnings)
+    lb = blocks_from_lines(t, lines, motion)
     seen = lb["seen"].to_numpy()
     first, last = np.flatnonzero(seen)[[0, -1]]
     span = MotionSpan(t_start_ns=int(lb["t_start_ns"].iloc[first]), t_end_ns=int(lb["t_end_ns"].iloc[last]),

@@ -37,6 +37,7 @@ from feedlog.align.feed import LINEAR, ROTARY, FeedSmoothing, feed_at_checked
 from feedlog.align.line_sequence import shares_next_run
 from feedlog.align.match import MatchConfig, match_cl_points
 from feedlog.align.partial import auto_lines, program_lines, slice_program
+from feedlog.align.session_events import events_report
 from feedlog.align.subsample import refine_span
 from feedlog.align.timing import stream_timing
 from feedlog.align.work_offset import estimate_work_offset
@@ -92,6 +93,8 @@ class AlignConfig:
     estimate_offset: bool = False    # estimate a constant work offset (added to work_offset_mm)
     auto_offset: bool = True         # ... and retry with one when the program does not lie on the measured path
                                      # (unless work_offset_mm was given)
+    numbering: str = "auto"          # what recorded block values count, line stream alone (align.line_numbering):
+                                     # auto (detected), file-lines, file-lines-no-percent, n-words, counter
 
     def __post_init__(self) -> None:
         if not self.tol_mm > 0:
@@ -106,6 +109,9 @@ class AlignConfig:
             raise AlignmentError(f"work_offset_mm needs three finite values, got {self.work_offset_mm!r}")
         if self.lines is not None and not (len(self.lines) == 2 and 1 <= self.lines[0] <= self.lines[1]):
             raise AlignmentError(f"lines must be (first, last) program lines, 1 <= first <= last; got {self.lines!r}")
+        if self.numbering not in ("auto", "file-lines", "file-lines-no-percent", "n-words", "counter"):
+            raise AlignmentError(f"numbering must be auto, file-lines, file-lines-no-percent, n-words or counter, "
+                                 f"got {self.numbering!r}")
         if not (self.on_path_mm > 0 and (self.still_mm is None or self.still_mm >= 0) and self.chord_tol_mm > 0):
             raise AlignmentError(f"need on_path_mm > 0, still_mm >= 0, chord_tol_mm > 0; got {self.on_path_mm}, "
                                  f"{self.still_mm}, {self.chord_tol_mm}")
@@ -355,6 +361,8 @@ def _align(recording: Recording, prog: Program, prof: MachineProfile | None, cfg
     lap("geometry_blocks")
     line_blocks = _line_blocks(recording, cfg, motion, span, geo, report)
     lap("line_blocks")
+    report["events"] = events_report(recording, cfg.line_stream, prog, (span.t_start_ns, span.t_end_ns))
+    lap("events")
     primary = line_blocks if line_blocks is not None else geo
 
     feats = block_features(prog, prof)

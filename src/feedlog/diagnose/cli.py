@@ -38,9 +38,29 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-learned", action="store_true", help="do not fit a learned correction")
     parser.add_argument("--no-rrd", action="store_true", help="do not write diagnose.rrd")
     parser.add_argument("--lenient", action="store_true", help="skip unsupported program codes")
+    parser.add_argument("--numbering", default="auto",
+                        choices=("auto", "file-lines", "file-lines-no-percent", "n-words", "counter"),
+                        help="recordings without positions: what the recorded block values count (default: "
+                             "detected from the line times against the program)")
     add_execution_arguments(parser, jobs_help="worker processes for the recordings and the hypothesis fits "
                                               "(default: 1, here; FEEDLOG_SCHEDULER or --scheduler: a Dask cluster)")
     add_quiet(parser, help="no progress messages")
+
+
+def _run_lines(args: argparse.Namespace) -> int:
+    """One recording with a line stream and no positions: diagnose.line_level; errors go to run's handler."""
+    from feedlog.diagnose.line_level import diagnose_lines
+    from feedlog.diagnose.line_report import summary_lines, to_json, write_line_outputs
+    from feedlog.ingest import read_recording
+
+    if len(args.recordings) != 1:
+        raise FeedlogError("recordings without positions are diagnosed one at a time (line stream only); give one")
+    ld = diagnose_lines(read_recording(args.recordings[0]), args.profile, args.program, lenient=args.lenient,
+                        numbering=args.numbering)
+    if args.out is not None:
+        write_line_outputs(ld, args.out)
+    wrote = [] if args.out is None else [f"wrote {args.out}/: report.md, diagnose.json, profile.toml"]
+    return answer(args, to_json(ld), summary_lines(ld) + wrote)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -49,6 +69,7 @@ def run(args: argparse.Namespace) -> int:
     if no_program_report.applies(args):   # no program anywhere: what the data alone says
         return no_program_report.run(args)
     from feedlog.diagnose.engine import DiagnoseConfig, diagnose
+    from feedlog.diagnose.line_level import line_stream_only
     from feedlog.diagnose.summary import summary_lines, to_json
     from feedlog.diagnose.write import write_outputs
 
@@ -61,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
                                 learned=not args.no_learned, jobs=jobs,
                                 scheduler=None if scheduler in (None, "", "none") else scheduler)
         say = None if args.quiet or args.json else (lambda msg: print(f"  {msg}", file=sys.stderr, flush=True))
+        if line_stream_only(args.recordings):   # no positions: the block level (diagnose.line_level)
+            return _run_lines(args)
         dx = diagnose(args.recordings, args.profile, program=args.program, config=config, lenient=args.lenient,
                       progress=say)
         if args.out is not None:

@@ -57,6 +57,7 @@ REGISTRY: dict[str, str] = {
     "rapid_override": "feedlog.sim.rapid_override:RapidOverride",
     "block_time": "feedlog.sim.block_time:BlockTimeFloor",
     "reversal_dwell": "feedlog.sim.reversal_dwell:ReversalDwell",
+    "tool_change": "feedlog.sim.tool_change:ToolChangeTime",
     "following_lag": "feedlog.sim.following_lag:FollowingLag",
     "feedback_delay": "feedlog.sim.feedback_delay:FeedbackDelay",
     "logger_latency": "feedlog.sim.logger_latency:LoggerLatency",

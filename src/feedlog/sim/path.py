@@ -17,6 +17,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.compute as pc
 
 from feedlog.errors import SimulationError
 from feedlog.profile import LINEAR_AXES, MachineProfile
@@ -228,6 +230,7 @@ class ProgramArrays:
         self.mode = _codes(table["path_mode"], {schema.CONTINUOUS: 1, schema.EXACT_PATH: 2})[self.sel]
         self.block = table["block"].to_numpy(np.int64)[self.sel]
         self.line = table["line"].to_numpy(np.int64)[self.sel]
+        self.tool_changes = _tool_changes_after(table, self.sel)
         self._cols: dict[str, np.ndarray | None] = {}
         self._checked: set[tuple[str, ...]] = set()
 
@@ -250,6 +253,22 @@ class ProgramArrays:
 
     def where(self, i: int) -> str:
         return _where(self.table, int(self.sel[i]))
+
+
+def _tool_changes_after(table: pd.DataFrame, sel: np.ndarray) -> np.ndarray:
+    """Per motion/dwell row: the M6 blocks between it and the next such row (a tool change before the
+    first motion is not counted: the machine starts with the tool in the spindle)."""
+    out = np.zeros(len(sel))
+    if "mcodes" not in table.columns or not len(sel):
+        return out
+    codes = table["mcodes"]
+    # most rows carry no M code: look at the others only (a regex over a million empty strings costs 25 ms)
+    some = np.flatnonzero(np.asarray(pc.greater(pc.binary_length(pa.array(codes, type=pa.string(), from_pandas=True)), 0)
+                                     .fill_null(False), dtype=bool))
+    m6 = some[codes.iloc[some].astype(str).str.contains(r"(?i)\bM0*6\b").to_numpy(bool)] if len(some) else some
+    row = np.searchsorted(sel, m6, side="right") - 1   # the motion row each M6 follows
+    np.add.at(out, row[row >= 0], 1.0)
+    return out
 
 
 def prepare_blocks(program, profile: MachineProfile, *, last: bool = True) -> Blocks:
@@ -341,6 +360,7 @@ def prepare_blocks(program, profile: MachineProfile, *, last: bool = True) -> Bl
     stop_after = (mode != 1) | (code == KIND_DWELL)
     exact_path = (mode == 2) & (code != KIND_DWELL)
     extra["continuous"] = mode == 1
+    extra["tool_changes"] = arrays.tool_changes.copy()
     if n and last:
         stop_after[-1] = True
         exact_path[-1] = False
