@@ -211,7 +211,7 @@ def spline_problems(program, ref: Reference, text: str, *, tol: float = 1e-6) ->
         length = float(np.linalg.norm(np.diff(ends, axis=0), axis=1).sum())
         gap = float(_distance_to_path(ends[1:], start, rows).max())
         worst = max(worst, gap)
-        worst_share = max(worst_share, gap / length if length > 0 else 0.0)
+        worst_share = max(worst_share, gap / max(length, 1e-6))   # a spline of no length: gap in mm
         before = ours["z_mm"].iloc[i - 1] + ours["wz_mm"].iloc[i - 1] + ours["tool_z_mm"].iloc[i - 1] if i else 0.0
         machine_z = rows["z_mm"] + rows["wz_mm"] + rows["tool_z_mm"]
         if i and not np.allclose(machine_z, before, atol=tol):

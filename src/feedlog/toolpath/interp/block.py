@@ -56,9 +56,15 @@ def build(words, C, unknown_u: bool = True) -> Block:
             code = as_int(value, "M code")
             if code < 0:
                 raise InterpError("negative M code used")
-            if code in (98, 99):
-                raise InterpError(f"M{code} (Fanuc-style subprograms in an RS274/NGC file) is not read yet; "
-                                  "use o<name> call / endsub")
+            if code == 98:
+                raise InterpError("M98 must begin its line (after an optional N number), as LinuxCNC reads "
+                                  "Fanuc-style subprogram calls")
+            if code == 99:    # not at the start of a line: an M code of the stop group (the main program's end)
+                if "stop" in m:
+                    raise InterpError(f"two M codes used from the same modal group (M{m['stop']} M99)")
+                m["stop"] = 99
+                b.m_list.append(99)
+                continue
             if code > 199:
                 raise InterpError(f"M code greater than 199 (M{code})")
             group = M_GROUP.get(code)

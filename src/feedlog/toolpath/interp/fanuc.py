@@ -1046,21 +1046,28 @@ _MACRO_ONLY = re.compile(r"\bIF\s*\[.*\]\s*(?:GOTO|THEN)|\bGOTO\s*[\d#\[]|\bWHIL
                          re.IGNORECASE | re.MULTILINE)
 
 
-def looks_macro_b(text: str) -> bool:
+_M98 = re.compile(r"M\s*0*9[78]\s*P", re.IGNORECASE)
+
+
+def looks_macro_b(text: str, *, ngc: bool = False) -> bool:
     """Whether an undeclared program is Fanuc-style: macro B statements (`IF [..] GOTO`, `WHILE [..] DO 1`,
     `END 1`), `M98 P` / `G65 P` / `G66 P` calls, `G54.1`, `G68`. RS274/NGC has none of these (its O-words take a
-    keyword: `o100 while`, `o<x> call`; feedlog's RS274/NGC interpreter does not read M98)."""
-    return _MACRO_ONLY.search(_STRIP.sub(" ", text)) is not None
+    keyword: `o100 while`, `o<x> call`) but `M98 P`, which LinuxCNC reads in RS274/NGC too: in an `.ngc`
+    file (`ngc`) an `M98 P` alone does not make a program Fanuc-style."""
+    code = _STRIP.sub(" ", text)
+    if not ngc:
+        return _MACRO_ONLY.search(code) is not None
+    return any(_M98.fullmatch(m.group(0)) is None for m in _MACRO_ONLY.finditer(code))
 
 
-def use_front_end(text: str, dialect: str, detected: str) -> bool:
+def use_front_end(text: str, dialect: str, detected: str, *, ngc: bool = False) -> bool:
     """Whether load_program reads `text` with the macro B front-end: a Fanuc / Hurco program (declared or
     detected) that uses what the line translation cannot read (`needs_macro`), or an undeclared program
-    that is plainly macro B (`looks_macro_b`)."""
+    that is plainly macro B (`looks_macro_b`; `ngc`: the file is an `.ngc`)."""
     if dialect in ("fanuc", "hurco"):
         return needs_macro(text)
     if dialect != "auto":
         return False
     if detected == "fanuc":
         return needs_macro(text)
-    return detected == "rs274ngc" and looks_macro_b(text)
+    return detected == "rs274ngc" and looks_macro_b(text, ngc=ngc)

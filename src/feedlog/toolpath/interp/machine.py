@@ -281,7 +281,7 @@ class Machine:
         stop = m.get("stop", -1)
         if stop != -1:
             self.comp.stop()
-        if stop in (2, 30):
+        if stop in (2, 30, 99):
             end = True
         if self.emitted == before:
             self.emit_none()

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from feedlog.errors import ProgramError
+from feedlog.toolpath.interp import fanuc_subs
 from feedlog.toolpath.interp.block import build, enhance, refuse
 from feedlog.toolpath.interp.canon import Source
 from feedlog.toolpath.interp.errors import InterpError
@@ -72,6 +73,8 @@ class Frame:
     ret_index: int = 0
     call_line: int = 0
     saved: list = field(default_factory=list)
+    kind: str = "call"         # "call" (o<name> call) or "m98" (Fanuc-style: M98 P.. L.., back with M99)
+    repeats: int = 0           # M98 L: calls still to make after this one
 
 
 class Interpreter:
@@ -219,7 +222,9 @@ class Interpreter:
                     raise self._error(str(exc), raw) from None
             try:
                 if line.oword is not None:
-                    self._control(line)
+                    if self._control(line):
+                        self._finish()
+                        return
                     continue
                 if self.skipping is not None or self.skipping_to_sub is not None:
                     continue
@@ -288,6 +293,8 @@ class Interpreter:
                 m.emit_none()
             return False
         enhance(b, m.motion_mode, m.plane)
+        if 99 in b.m_list:
+            fanuc_subs.check_m99_in_line(self)
         self._record(line, b.m_list)
         end = m.execute(b)
         if end:
@@ -369,9 +376,12 @@ class Interpreter:
         self.file = label.file
         self.index = label.index
 
-    def _control(self, line) -> None:
+    def _control(self, line) -> bool:
+        """Run an O-word line; True when it ends the program (M99 in the main program)."""
         ow = line.oword
         kind = ow.kind
+        if kind in ("m98", "m99"):
+            return fanuc_subs.control(self, line)
         name = self._scoped(ow)
         P = self.params
         # values are read at read time, and not at all while skipping past them
@@ -399,12 +409,14 @@ class Interpreter:
         if self.skipping_to_sub is not None and kind not in ("sub", ""):
             return
         if kind in ("sub", ""):
+            fanuc_subs.check_definition(self, kind)
             if self.skipping is not None:
                 self._save_label(name, kind)
                 self.skipping = None
             self.skipping_to_sub = None
             if kind == "":
-                self.metadata.setdefault("program_number", int(name) if name.isdigit() else name)
+                if len(self.frames) == 1:
+                    self.metadata.setdefault("program_number", int(name) if name.isdigit() else name)
                 return
             if len(self.frames) > 1:
                 return   # the sub line of a call
@@ -427,6 +439,8 @@ class Interpreter:
                 return
             if self.skipping is not None and kind == "endsub":
                 self.skipping = None
+            if self.frames[-1].kind == "m98":
+                raise InterpError("Fanuc-style 'O....' subprogram definition must end with 'M99'")
             frame = self.frames.pop()
             self._stack_key = -1
             P.pop(frame.saved)
