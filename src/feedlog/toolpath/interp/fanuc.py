@@ -551,10 +551,14 @@ class FanucInterpreter:
 
     # -- NC blocks ----------------------------------------------------------------------------------
     def _record(self, line: FLine, m_codes: list) -> int:
-        mcodes = " ".join(f"M{c:g}" for c in m_codes)
-        stop = any(c in STOP_M for c in m_codes)
-        src = self.canon.source(Source(self.file.name, self.seq, self._stack(), mcodes, line.comment,
-                                       line.n if line.n is not None else -1, stop))
+        stack = self._stack()
+        key = (self.file.name, stack, tuple(m_codes))
+        src = line.sources.get(key)
+        if src is None:
+            mcodes = " ".join(f"M{c:g}" for c in m_codes)
+            stop = any(c in STOP_M for c in m_codes)
+            src = line.sources[key] = self.canon.source(Source(self.file.name, self.seq, stack, mcodes, line.comment,
+                                                               line.n if line.n is not None else -1, stop))
         self.m.line_src = src
         return src
 
@@ -574,6 +578,8 @@ class FanucInterpreter:
         self._nc(line, words)
 
     def _nc(self, line: FLine, words: list) -> None:
+        if self._fast(line, words):
+            return
         g_codes = []
         letters: dict[str, float] = {}
         points: dict[str, bool] = {}
@@ -661,6 +667,34 @@ class FanucInterpreter:
             self._call(call[2], call[0], call[1], None)
         elif returning:
             self._return(ret_label)
+
+    def _fast(self, line: FLine, words: list) -> bool:
+        """A block of at most one G0/G1, axis words X-C and F (what loops of moves are made of), with no
+        modal macro call in force, runs in the machine's fast lane (the same checks and rows as the
+        general path). False: the block takes the general path."""
+        if self.modal_call is not None:
+            return False
+        motion = -1
+        v = {}
+        for letter, value, _point in words:
+            if letter == "G":
+                if motion != -1 or value not in (0.0, 1.0):
+                    return False
+                motion = int(value) * 10
+            elif letter in _FAST_LETTERS and letter not in v:
+                v[letter] = value
+            else:
+                return False
+        if not self.m.fast_ok(motion) or not any(k != "F" for k in v):
+            return False
+        if motion != -1:
+            self.g01 = motion // 10
+        self._record(line, [])
+        if "Z" in v and (motion in (0, 10) or self.m.motion_mode in (0, 10)):
+            z = v["Z"] + (self.m.pos[2] if self.m.incremental else 0.0)
+            self.z_top = z if self.z_top is None else max(self.z_top, z)
+        self.m.fast_line(motion, {k.lower(): x for k, x in v.items()})
+        return True
 
     def _machine_block(self, line: FLine, g_codes: list, letters: dict, points: dict, m_codes: list) -> None:
         m = self.m
@@ -1027,6 +1061,7 @@ def interpret_fanuc(source: str | Path, *, name: str | None = None, options=None
     return program
 
 
+_FAST_LETTERS = frozenset("XYZABCF")
 _MACRO = re.compile(r"#|\bIF\s*\[|\bGOTO|\bWHILE\s*\[|\bEND\s*[123]\b|\bDO\s*[123]\b|M\s*0*9[789](?!\d)|"
                     r"G\s*0*6[56](?![\d.])|G\s*0*54\s*\.\s*1|G\s*0*68(?![\d.])|"
                     r"G\s*0*(?:7[346]|8[1-9])(?![\d.])", re.IGNORECASE)
