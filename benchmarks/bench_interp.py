@@ -39,32 +39,28 @@ def program(moves: int, per_row: int = 1000) -> str:
         "M2", ""])
 
 
-def fanuc_program(moves: int, per_row: int = 1000) -> str:
-    """The same rows in Fanuc macro B: nested WHILE loops, the end points expressions of variables."""
-    rows = max(1, moves // per_row)
-    return "\n".join([
-        "G21 G90 G17 G94 F3000.", "#1 = 0", f"WHILE [#1 LT {rows}] DO 1", "#2 = 0", f"WHILE [#2 LT {per_row}] DO 2",
-        "G1 X[#2 * 0.05] Y[#1 * 0.5 + [#2 MOD 2] * 0.1]", "#2 = #2 + 1", "END 2", "#1 = #1 + 1", "END 1",
-        "M30", ""])
+# the same rows in Fanuc macro B and in Sinumerik: nested WHILE loops, end points expressions of variables
+_DIALECT_LINES = {
+    "fanuc": ["G21 G90 G17 G94 F3000.", "#1 = 0", "WHILE [#1 LT {rows}] DO 1", "#2 = 0", "WHILE [#2 LT {per_row}] DO 2",
+              "G1 X[#2 * 0.05] Y[#1 * 0.5 + [#2 MOD 2] * 0.1]", "#2 = #2 + 1", "END 2", "#1 = #1 + 1", "END 1"],
+    "sinumerik": ["G71 G90 G17 G94 F3000", "R1 = 0", "WHILE R1 < {rows}", "R2 = 0", "WHILE R2 < {per_row}",
+                  "G1 X=R2*0.05 Y=R1*0.5+(R2 MOD 2)*0.1", "R2 = R2 + 1", "ENDWHILE", "R1 = R1 + 1", "ENDWHILE"],
+}
 
 
-def sinumerik_program(moves: int, per_row: int = 1000) -> str:
-    """The same rows in Sinumerik: nested WHILE loops over R parameters."""
+def dialect_program(dialect: str, moves: int, per_row: int = 1000) -> str:
     rows = max(1, moves // per_row)
-    return "\n".join([
-        "G71 G90 G17 G94 F3000", "R1 = 0", f"WHILE R1 < {rows}", "R2 = 0", f"WHILE R2 < {per_row}",
-        "G1 X=R2*0.05 Y=R1*0.5+(R2 MOD 2)*0.1", "R2 = R2 + 1", "ENDWHILE", "R1 = R1 + 1", "ENDWHILE",
-        "M30", ""])
+    return "\n".join([line.format(rows=rows, per_row=per_row) for line in _DIALECT_LINES[dialect]] + ["M30", ""])
 
 
 def run_dialect(dialect: str, moves: int, repeat: int) -> None:
     """Fanuc or Sinumerik front-end throughput on the same motion."""
     if dialect == "fanuc":
         from feedlog.toolpath.interp.fanuc import interpret_fanuc as run
-        text, name = fanuc_program(moves), "bench.nc"
+        text, name = dialect_program("fanuc", moves), "bench.nc"
     else:
         from feedlog.toolpath.interp.sinumerik import interpret_sinumerik as run
-        text, name = sinumerik_program(moves), "bench.mpf"
+        text, name = dialect_program("sinumerik", moves), "bench.mpf"
     for _ in range(repeat):
         t0, c0 = time.perf_counter(), time.process_time()
         prog = run(text, name=name)

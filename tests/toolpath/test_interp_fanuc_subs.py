@@ -17,7 +17,7 @@ from feedlog.errors import ProgramError
 from feedlog.toolpath import load_program
 from feedlog.toolpath.interp import interpret
 
-from .reference import available, compare, reference
+from .reference import check_refused_alike, compare, needs_linuxcnc, run_both
 
 MOVES = ["rapid", "linear", "arc_cw", "arc_ccw"]
 
@@ -100,23 +100,10 @@ def test_an_ngc_file_with_m98_goes_to_the_rs274ngc_interpreter(tmp_path):
 
 # -- against LinuxCNC ---------------------------------------------------------------------------------
 
-MISSING = available()
-needs_linuxcnc = pytest.mark.skipif(MISSING is not None and os.environ.get("FEEDLOG_REQUIRE_LINUXCNC") != "1",
-                                    reason=MISSING or "")
-
-
 def _same_as_linuxcnc(path, text):
-    ref = reference(path)
-    try:
-        program, error = interpret(path), None
-    except ProgramError as exc:
-        program, error = None, exc
+    ref, program, error = run_both(path)
     if ref.error:
-        assert error is not None, f"LinuxCNC: line {ref.line}: {ref.message}\n{text}"
-        # LinuxCNC names the line, or inside a subprogram of the same file the call's line: feedlog
-        # names the line and the call stack
-        assert error.line in (ref.line, ref.line - 1) or f":{ref.line}" in str(error), \
-            (error.line, ref.line, ref.message, str(error), text)
+        check_refused_alike(ref, error, text)
         return None
     assert error is None, f"{error}\n{text}"
     problems = compare(program.blocks, ref)

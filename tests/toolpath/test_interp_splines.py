@@ -22,7 +22,7 @@ from feedlog.errors import ProgramError
 from feedlog.toolpath import load_program
 from feedlog.toolpath.interp import interpret
 
-from .reference import NCFILES, Reference, available, compare, reference
+from .reference import NCFILES, Reference, check_refused_alike, compare, needs_linuxcnc, reference, run_both
 
 # LinuxCNC's chord ends (points of the curve) to feedlog's biarcs: systems.ngc (gentle curves) within
 # SPLINE_PATH_TOL_MM; tight random loops within SPLINE_PATH_SHARE of the spline's length (measured: see
@@ -46,23 +46,13 @@ def _moves(program, line=None):
     return m if line is None else m[m["line"] == line]
 
 
-def _start_tangent(row, start):
-    """Unit tangent of a move at its start point."""
+def _tangent(row, start, *, at_end=False):
+    """Unit tangent of a move at its start point (or its end)."""
     end = np.array([row.x_mm, row.y_mm])
     if row.kind == "linear":
         d = end - start
         return d / np.linalg.norm(d)
-    r = start - np.array([row.cx_mm, row.cy_mm])
-    t = np.array([-r[1], r[0]]) if row.kind == "arc_ccw" else np.array([r[1], -r[0]])
-    return t / np.linalg.norm(t)
-
-
-def _end_tangent(row, start):
-    end = np.array([row.x_mm, row.y_mm])
-    if row.kind == "linear":
-        d = end - start
-        return d / np.linalg.norm(d)
-    r = end - np.array([row.cx_mm, row.cy_mm])
+    r = (end if at_end else start) - np.array([row.cx_mm, row.cy_mm])
     t = np.array([-r[1], r[0]]) if row.kind == "arc_ccw" else np.array([r[1], -r[0]])
     return t / np.linalg.norm(t)
 
@@ -82,13 +72,13 @@ def test_a_cubic_spline_is_16_biarcs_through_the_bezier_curve_with_one_tangent()
             assert abs(np.linalg.norm(start - c) - np.linalg.norm(end - c)) < 1e-9
         if k % 2 == 1:                # every biarc ends on the curve at u = (k + 1) / 32
             assert np.allclose(end, _bezier(ctrl, (k + 1) / 32), atol=1e-9)
-        t0 = _start_tangent(row, start)
+        t0 = _tangent(row, start)
         if prev_tangent is not None:  # tangent-continuous (the curve's tangent is a 1e-5 chord: ~1e-6 rad)
             assert np.dot(t0, prev_tangent) > 1 - 1e-9
-        prev_tangent = _end_tangent(row, start)
+        prev_tangent = _tangent(row, start, at_end=True)
         start = end
     assert np.allclose(start, (11, 2)) and rows["z_mm"].eq(0).all() and rows["feed_mm_min"].eq(600).all()
-    first = _start_tangent(next(rows.itertuples()), np.array([1.0, 2.0]))
+    first = _tangent(next(rows.itertuples()), np.array([1.0, 2.0]))
     # the start tangent is the I J direction (to the one-sided 1e-5 chord LinuxCNC takes there)
     assert np.allclose(first, np.array([2, 5]) / math.hypot(2, 5), atol=1e-4)
 
@@ -149,9 +139,6 @@ def test_an_ngc_file_with_g5_1_goes_to_the_interpreter_not_the_fanuc_translation
 
 # -- against LinuxCNC -------------------------------------------------------------------------------
 
-MISSING = available()
-needs_linuxcnc = pytest.mark.skipif(MISSING is not None and os.environ.get("FEEDLOG_REQUIRE_LINUXCNC") != "1",
-                                    reason=MISSING or "")
 _G5 = re.compile(r"G\s*0*5(\.1)?(?![.\d])", re.IGNORECASE)
 
 
@@ -296,14 +283,9 @@ def spline_programs(draw):
 def test_random_spline_programs_match_linuxcnc(tmp_path_factory, text):
     path = tmp_path_factory.mktemp("spline") / "spline.ngc"
     path.write_text(text)
-    ref = reference(path)
-    try:
-        program, error = interpret(path), None
-    except ProgramError as exc:
-        program, error = None, exc
+    ref, program, error = run_both(path)
     if ref.error:
-        assert error is not None, f"LinuxCNC: line {ref.line}: {ref.message}\n{text}"
-        assert error.line in (ref.line, ref.line - 1), (error.line, ref.line, ref.message, str(error), text)
+        check_refused_alike(ref, error, text)
         return
     if error is not None and "straight" in str(error):
         return   # a span LinuxCNC's motion controller cannot fit (documented refusal); its preview draws it
