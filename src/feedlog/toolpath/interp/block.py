@@ -135,7 +135,7 @@ def enhance(b: Block, motion_mode: int, plane: int) -> None:
         else:
             if covets:
                 raise InterpError("cannot use two G codes that both use axis values")
-            if not axis and not polar and mode1 not in (0, 10, 20, 30):
+            if not axis and not polar and mode1 not in (0, 10, 20, 30, 52):
                 raise InterpError(f"all axes missing with motion code {g_name(mode1)}")
         b.motion = mode1
     elif covets:
@@ -196,15 +196,15 @@ def _check(b: Block) -> None:
         raise InterpError("J word with no G2, G3, G5, G5.1, G10 or G87 to use it")
     if "k" in v and motion not in (20, 30, 870):
         raise InterpError("K word with no G2, G3 or G87 to use it")
-    if "l" in v and not (810 <= motion <= 890 or motion == 730) and mode0 != 100 \
+    if "l" in v and not (810 <= motion <= 890 or motion in (730, 52)) and mode0 != 100 \
             and g.get("comp", -1) not in (410, 411, 420, 421) and m.get("io") != 66:
-        raise InterpError("L word with no G10, cutter compensation, canned cycle or M66 to use it")
+        raise InterpError("L word with no G10, cutter compensation, canned cycle, G5.2 or M66 to use it")
     if "p" in v:
         user_m = any(c >= 100 for c in b.m_list)
-        if (mode0 not in (100, 40) and g.get("control") != 640 and motion not in (820, 860, 880, 890, 20, 30, 50, 740, 840)
+        if (mode0 not in (100, 40) and g.get("control") != 640 and motion not in (820, 860, 880, 890, 20, 30, 50, 52, 740, 840)
                 and m.get("override") not in (50, 51, 52, 53) and m.get("io") not in (62, 63, 64, 65, 66)
                 and m.get("spindle") != 19 and not user_m):
-            raise InterpError("P word with no G2 G3 G4 G5 G10 G64 G82 G86 G88 G89 or M50-M53 M62-M66 to use it")
+            raise InterpError("P word with no G2 G3 G4 G5 G5.2 G10 G64 G82 G86 G88 G89 or M50-M53 M62-M66 to use it")
         if motion in (20, 30):
             p = v["p"]
             if abs(round(p) - p) > 0.001:

@@ -85,6 +85,8 @@ class Machine:
         self.cycle = {"r": 0.0, "cc": 0.0, "p": 0.0, "q": 0.0}   # a canned cycle's modal R, depth, P, Q
         self.cycle_il: float | None = None
         self.spline_ij = (0.0, 0.0)            # a G5 without I J starts with the last G5's -P, -Q
+        self.nurbs_points: list = []           # G5.2 control points (x, y, weight), program units
+        self.nurbs_order = 3
         self.line_src = 0
         self.unknown_systems: set[int] = set()   # selected systems whose offsets no parameter file gave
         self.comp = Compensation(self)
@@ -273,6 +275,8 @@ class Machine:
             self._axis_offsets(mode0, v)
         elif mode0 in (921, 922, 923):
             self._axis_offsets(mode0, v)
+        elif mode0 == 53:
+            spline.nurbs_end(self)
         if b.motion != -1:
             self._motion(b)
         if m.get("toolchange") == 6:
@@ -613,6 +617,8 @@ class Machine:
             cycles.convert_cycle(self, motion, b)
         elif motion in (50, 51):
             spline.convert_spline(self, motion, b)
+        elif motion == 52:
+            spline.nurbs_point_line(self, b)
         else:
             raise InterpError(f"motion {g_name(motion)} is not supported")
 

@@ -1,4 +1,5 @@
-"""G5 (cubic) and G5.1 (quadratic) splines in the XY plane as LinuxCNC 2.9's motion controller runs them.
+"""G5 (cubic), G5.1 (quadratic) splines and G5.2/G5.3 NURBS in the XY plane as LinuxCNC 2.9's motion
+controller runs them.
 
 LinuxCNC's interpreter hands a spline to its canon as a NURBS of 4 (G5) or 3 (G5.1) control points with
 unit weights and a clamped knot vector: with that few points the curve is the Bezier curve of its
@@ -141,3 +142,82 @@ def _arc(start, end, t):
     r = -(x * x + y * y) / den
     centre = (start[0] + t[1] * r, start[1] - t[0] * r)
     return (K_ARC_CCW if r < 0 else K_ARC_CW), end, centre
+
+
+# -- G5.2 / G5.3 NURBS --------------------------------------------------------------------------------
+
+def nurbs_point_line(m, b) -> None:
+    """A G5.2 line (`motion` 52): LinuxCNC's checks, then the line's control point (X Y, weight P) joins the
+    list that G5.3 runs; order L (above 3; 3 unless given)."""
+    v = b.v
+    if ("x" in v) != ("y" in v):
+        raise InterpError("you must specify both X and Y coordinates for control points")
+    p = v.get("p", -1.0)
+    if "x" not in v and p > 0 and m.nurbs_points:
+        raise InterpError("can specify P without X and Y only for the first control point")
+    if p <= 0 and m.nurbs_points:
+        raise InterpError("must specify positive weight P for every control point")
+    if m.feed_mode == 940 and m.feed == 0.0:
+        raise InterpError("cannot make a NURBS with 0 feedrate")
+    if m.comp.side:
+        raise InterpError("NURBS (G5.2) with cutter radius compensation on are not simulated")
+    if m.plane != 170:
+        raise InterpError("NURBS (G5.2) outside the XY plane are not simulated (LinuxCNC runs them in X and Y)")
+    if m.feed_mode == 930:
+        raise InterpError("NURBS (G5.2) in inverse time (G93) are not simulated")
+    if m.motion_mode != 52:
+        m.nurbs_points = []
+    if not m.nurbs_points:
+        m.nurbs_order = 3
+        m.nurbs_points.append((m.pos[0], m.pos[1], p if ("x" not in v and p > 0) else 1.0))
+    if "l" in v and v["l"] > 3:
+        m.nurbs_order = int(v["l"])
+    if "x" in v:
+        end = m._ends(b)
+        m.nurbs_points.append((end[0], end[1], p))
+    m.motion_mode = 52
+
+
+def nurbs_end(m) -> None:
+    """G5.3: the NURBS of the control points so far runs (the motion controller's biarcs)."""
+    if m.motion_mode != 52:
+        raise InterpError("cannot use G5.3 without G5.2 first")
+    points, order = m.nurbs_points, m.nurbs_order
+    if len(points) < order:
+        raise InterpError(f"you must specify a number of control points at least equal to the order L = {order}")
+    z = m.pos[2]
+    for kind, (ex, ey), centre in nurbs_biarcs(points, order):
+        target = [ex, ey, z, m.pos[3], m.pos[4], m.pos[5]]
+        if kind == K_LINEAR:
+            m.emit(K_LINEAR, target)
+        else:
+            m.emit(kind, target, (centre[0], centre[1], z), turns=1)
+        m.pos = target
+    m.pos[0], m.pos[1] = points[-1][0], points[-1][1]
+    m.nurbs_points = []
+    m.motion_mode = -1
+
+
+def nurbs_biarcs(points, order: int):
+    """The motion controller's moves for a NURBS of `points` (x, y, weight) and `order`: 4 biarcs per
+    control point, u in 0..(n - order + 2) over LinuxCNC's clamped integer knots."""
+    import numpy as np
+    from scipy.interpolate import BSpline
+
+    n = len(points) - 1
+    umax = n - order + 2
+    knots = [0.0] * order + [float(i - order + 1) for i in range(order, n + 1)] + [float(umax)] * order
+    c = np.array([(x * w, y * w, w) for x, y, w in points], float)
+    curve = BSpline(np.array(knots), c, order - 1)
+    spans = SPANS_PER_POINT * len(points)
+    u = umax * np.arange(spans + 1) / spans
+    lo, hi = np.maximum(0.0, u - TANGENT_DU), np.minimum(float(umax), u + TANGENT_DU)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        at, a, b = (h[:, :2] / h[:, 2:] for h in (curve(u), curve(lo), curve(hi)))
+        d = (b - a) / (hi - lo)[:, None]
+    if not (np.isfinite(at).all() and np.isfinite(d).all()):
+        raise InterpError("NURBS weights make the curve undefined (a weight sum of 0): not simulated")
+    out = []
+    for k in range(spans):
+        out += _biarc(tuple(at[k]), _unit(*d[k]), tuple(at[k + 1]), _unit(*d[k + 1]))
+    return out
