@@ -67,15 +67,20 @@ def convert_spline(m, motion: int, b) -> None:
         m.spline_ij = (-v["p"], -v["q"])
     m.motion_mode = motion
     m.cycle_il = None
+    _run(m, biarcs(control), control[-1])
+
+
+def _run(m, moves, end) -> None:
+    """Emit the moves in the XY plane at the tool's Z; the interpreter's point ends at `end` (x, y)."""
     z = m.pos[2]
-    for kind, (ex, ey), centre in biarcs(control):
+    for kind, (ex, ey), centre in moves:
         target = [ex, ey, z, m.pos[3], m.pos[4], m.pos[5]]
         if kind == K_LINEAR:
             m.emit(K_LINEAR, target)
         else:
             m.emit(kind, target, (centre[0], centre[1], z), turns=1)
         m.pos = target
-    m.pos[0], m.pos[1] = control[-1]
+    m.pos[0], m.pos[1] = end[0], end[1]
 
 
 def point(control, u: float) -> tuple[float, float]:
@@ -185,15 +190,7 @@ def nurbs_end(m) -> None:
     points, order = m.nurbs_points, m.nurbs_order
     if len(points) < order:
         raise InterpError(f"you must specify a number of control points at least equal to the order L = {order}")
-    z = m.pos[2]
-    for kind, (ex, ey), centre in nurbs_biarcs(points, order):
-        target = [ex, ey, z, m.pos[3], m.pos[4], m.pos[5]]
-        if kind == K_LINEAR:
-            m.emit(K_LINEAR, target)
-        else:
-            m.emit(kind, target, (centre[0], centre[1], z), turns=1)
-        m.pos = target
-    m.pos[0], m.pos[1] = points[-1][0], points[-1][1]
+    _run(m, nurbs_biarcs(points, order), points[-1])
     m.nurbs_points = []
     m.motion_mode = -1
 
