@@ -140,3 +140,17 @@ def test_a_units_change_under_a_tool_offset_moves_the_machine_where_feedlog_says
         last = reference(program).moves[-1]
         module_z = last["end"][2] + last["g5x"][2] + last["g92"][2] + last["tool"][2]
         assert abs(module_z - xyz[-1][2]) > 40, module_z
+
+
+def test_fanuc_style_m98_subprograms_run_on_the_kernel_as_feedlog_reads_them(tmp_path):
+    """LinuxCNC's task reads M98 P100 L2 / O100 ... M99 in an .ngc file: the machine passes through each of
+    feedlog's move ends, and its line stream shows the subprogram's lines (7, 8) and the return (4)."""
+    program, xyz, lines = _record(tmp_path, "m98.ngc", "G21 G90 G61.1 F1200\nG0 X0 Y0 Z0\nM98 P100 L2\n"
+                                  "G0 X0 Y0\nM2\nO100\nG91 G1 X10\nG1 Y5\nG90\nM99\n")
+    motion = interpret(program).motion
+    ends = motion[["x_mm", "y_mm", "z_mm"]].to_numpy()
+    assert motion["line"].tolist() == [2, 7, 8, 7, 8, 4]
+    assert ends[1:].tolist() == [[10, 0, 0], [10, 5, 0], [20, 5, 0], [20, 10, 0], [0, 0, 0]]
+    gap = np.linalg.norm(xyz[:, None, :] - ends[None], axis=2).min(axis=0)
+    assert gap.max() < 1e-3, gap
+    assert {4, 7, 8} <= set(np.unique(lines)) and not {3, 6} & set(np.unique(lines))
