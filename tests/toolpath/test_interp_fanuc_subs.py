@@ -59,6 +59,14 @@ def test_parameters_1_to_30_are_the_callers_and_named_locals_are_the_subprograms
     assert err.value.line == 6 and "m.ngc:3" in str(err.value)
 
 
+def test_an_o_call_finds_its_sub_further_down_the_file_as_linuxcnc_does():
+    p = interpret("G21 F100\no<x> call [3]\nG0 X5\nM2\no<x> sub\nG1 X#1\no<x> endsub\n", name="m.ngc")
+    assert _xy(p)[0] == [[3, 0], [5, 0]]
+    with pytest.raises(ProgramError, match="found in illegal location") as err:   # the main flow runs into it
+        interpret("G21 F100\no<x> call [3]\nG0 X5\no<x> sub\nG1 X#1\no<x> endsub\nM2\n", name="m.ngc")
+    assert err.value.line == 4
+
+
 def test_a_subprogram_file_along_the_search_path(tmp_path):
     lib = tmp_path / "lib"
     lib.mkdir()
@@ -79,7 +87,7 @@ def test_a_subprogram_file_along_the_search_path(tmp_path):
     ("F100\nM98\nM2\n", 2, "no P word"),
     ("F100\nM98 P1.5\nM2\n", 2, "non-integer"),
     ("F100\nG0 X1 M98 P1\nM2\n", 2, "must begin its line"),
-    ("F100\nM98 P300\nM2\n", 3, "seeking o-word o<300>"),
+    ("F100\nM98 P300\nM2\n", 2, "subroutine o<300> not found"),
     ("F100\nM98 P1\nM2\nO1\nG91 G1 X1\nM98 P1\nM99\n", 6, "too many nested"),
 ])
 def test_fanuc_style_errors_name_the_line(text, line, message):
@@ -124,6 +132,10 @@ HAND_WRITTEN = [
     "G21 F100\nG0 X0\nM98 P100\nM2\nO100\nG1 X2\no100 endsub\n",
     "G21 F100\nG0 X0\nM98 P300\nM2\n",
     "G21 F100\n#<a>=2\nG0 X0 Y0\nM98 P100 L2\nM2\nO100\nG91 G1 X#<a>\nG90\nM99\n",
+    # LinuxCNC's search for an o<name> call's definition further down the file, too
+    "G21 F100\nG0 X0 Y0\no<x> call [3]\nG0 X5\nM2\no<x> sub\nG1 X#1\no<x> endsub\n",
+    "G21 F100\nG0 X0 Y0\no<x> call [3]\nG0 X5\no<x> sub\nG1 X#1\no<x> endsub\nM2\n",
+    "G21 F100\nG0 X0 Y0\no<y> call [3]\nG0 X5\nM2\n",
 ]
 
 

@@ -332,8 +332,14 @@ class Interpreter:
                                  "(G43 offsets 0); pass the machine's tool table to use theirs")
 
     def _end_of_file(self) -> None:
-        if self.skipping_to_sub is not None:
-            raise self._error(f"end of file seeking o-word o<{self.skipping_to_sub}> sub")
+        if self.skipping_to_sub is not None:     # named at the call (LinuxCNC names the file's end)
+            name = self.skipping_to_sub
+            where = (f"no {name}.ngc in " + ", ".join(str(s) for s in self.search) + ", and ") if self.search else ""
+            frame = self.frames.pop()
+            self._stack_key = -1
+            self.file, self.seq = frame.ret_file, frame.call_line
+            raise self._error(f"subroutine o<{name}> not found: {where}no definition further down "
+                              f"{Path(self.file.name).name} (end of file seeking o-word o<{name}> sub)")
         if self.skipping is not None and self.defining_sub:
             raise self._error(f"end of file inside the definition of o<{self.sub_name}>: no endsub")
         if len(self.frames) > 1:
@@ -422,6 +428,11 @@ class Interpreter:
                 return   # the sub line of a call
             if self.defining_sub:
                 raise InterpError("nested subroutine definition")
+            old = self._label(name)
+            if old is not None and (old.file, old.index) == (self.file, self.index - 1):
+                # the main program runs into a definition it has already met (one found by a call above)
+                raise InterpError(f"sub o<{ow.name}> found in illegal location (already defined here; put "
+                                  "subroutines before their calls or after the program's end)")
             self._save_label(name, kind)
             self.skipping = name
             self.defining_sub = True
@@ -461,15 +472,10 @@ class Interpreter:
                 self._back_to(label)
                 return
             sub = self._find_sub_file(name)
-            if sub is None:
-                self.frames.pop()
-                self._stack_key = -1
-                P.pop(frame.saved)
-                raise InterpError(f"unable to open file for subroutine o<{name}> (looked for {name}.ngc in "
-                                  + ", ".join(str(s) for s in self.search) + ")" if self.search else
-                                  f"subroutine o<{name}> is not defined and there is no search path")
-            self.file = sub
-            self.index = 0
+            if sub is not None:
+                self.file = sub
+                self.index = 0
+            # else, as LinuxCNC: look for its definition further down the file being read (after M2)
             self.skipping = name
             self.skipping_to_sub = name
         elif kind == "do":
