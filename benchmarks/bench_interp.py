@@ -39,6 +39,38 @@ def program(moves: int, per_row: int = 1000) -> str:
         "M2", ""])
 
 
+# the same rows in Fanuc macro B and in Sinumerik: nested WHILE loops, end points expressions of variables
+_DIALECT_LINES = {
+    "fanuc": ["G21 G90 G17 G94 F3000.", "#1 = 0", "WHILE [#1 LT {rows}] DO 1", "#2 = 0", "WHILE [#2 LT {per_row}] DO 2",
+              "G1 X[#2 * 0.05] Y[#1 * 0.5 + [#2 MOD 2] * 0.1]", "#2 = #2 + 1", "END 2", "#1 = #1 + 1", "END 1"],
+    "sinumerik": ["G71 G90 G17 G94 F3000", "R1 = 0", "WHILE R1 < {rows}", "R2 = 0", "WHILE R2 < {per_row}",
+                  "G1 X=R2*0.05 Y=R1*0.5+(R2 MOD 2)*0.1", "R2 = R2 + 1", "ENDWHILE", "R1 = R1 + 1", "ENDWHILE"],
+}
+
+
+def dialect_program(dialect: str, moves: int, per_row: int = 1000) -> str:
+    rows = max(1, moves // per_row)
+    return "\n".join([line.format(rows=rows, per_row=per_row) for line in _DIALECT_LINES[dialect]] + ["M30", ""])
+
+
+def run_dialect(dialect: str, moves: int, repeat: int) -> None:
+    """Fanuc or Sinumerik front-end throughput on the same motion."""
+    if dialect == "fanuc":
+        from feedlog.toolpath.interp.fanuc import interpret_fanuc as run
+        text, name = dialect_program("fanuc", moves), "bench.nc"
+    else:
+        from feedlog.toolpath.interp.sinumerik import interpret_sinumerik as run
+        text, name = dialect_program("sinumerik", moves), "bench.mpf"
+    for _ in range(repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        prog = run(text, name=name)
+        dt, cpu = time.perf_counter() - t0, time.process_time() - c0
+        blocks = prog.metadata.get("blocks_executed", 0)
+        n = len(prog.motion)
+        print(f"{dialect}: {blocks} blocks ({n} moves) in {dt:.2f} s wall, {cpu:.2f} s CPU: {blocks / cpu:,.0f} "
+              f"blocks/s and {n / cpu:,.0f} moves/s of CPU time")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--moves", type=int, default=1_000_000)
@@ -46,7 +78,12 @@ def main() -> None:
     ap.add_argument("--stream", action="store_true",
                     help="read the program batch by batch (InterpretedReader, as `feedlog program --stream` and "
                          "window-by-window simulation do) and keep only counts: the memory bound of streaming")
+    ap.add_argument("--dialect", choices=("rs274ngc", "fanuc", "sinumerik"), default="rs274ngc",
+                    help="the front-end to measure (fanuc, sinumerik: the same rows in their languages)")
     args = ap.parse_args()
+    if args.dialect != "rs274ngc":
+        run_dialect(args.dialect, args.moves, args.repeat)
+        return
     text = program(args.moves)
     if args.stream:
         from feedlog.toolpath.interp.reader import InterpretedReader

@@ -1,5 +1,7 @@
 """On the real kernel, for programs that need the interpreter: the recorder sees the end of programs that
-end in canned cycles, and finds subroutine files along the subroutine path it gives LinuxCNC."""
+end in canned cycles, and finds subroutine files along the subroutine path it gives LinuxCNC; a spline
+runs as the biarcs feedlog makes of it, and a units change under a tool offset moves the machine where
+feedlog says (the kernel's canon, not the `gcode` module feedlog's reference harness runs)."""
 
 from __future__ import annotations
 
@@ -16,6 +18,10 @@ from feedlog.ingest.linuxcnc import record_linuxcnc
 from feedlog.ingest.linuxcnc_capture import load_capture, motion_span
 from feedlog.ingest.linuxcnc_session import MachineIni, cleanup, isolation_available, run_session
 from feedlog.ingest.subroutine_files import load_recorded_program
+from feedlog.toolpath.interp import interpret
+from scipy.signal import find_peaks
+
+from ..toolpath.reference import available, reference
 
 pytestmark = pytest.mark.linuxcnc
 
@@ -86,3 +92,65 @@ def test_a_subroutine_file_is_found_along_the_given_path_and_aligned(tmp_path):
         at_end = axes.index[min(axes.index.searchsorted(b["t_end_ns"]), len(axes) - 1)]
         want = motion.loc[k, ["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=float)
         assert np.linalg.norm(axes.loc[at_end, ["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=float) - want) < 0.05, k
+
+
+def _record(tmp_path, name, text):
+    program = tmp_path / name
+    program.write_text(text)
+    out = tmp_path / (name + ".mcap")
+    summary = record_linuxcnc(CONFIGS / "xyz.ini", program, out, isolate=ISOLATE, timeout_s=60)
+    assert summary["status"] == "complete"
+    rec = read_recording(out)
+    axes = rec.streams["axes"]
+    lines = rec.streams["line"].set_index("t_ns")["line"].reindex(axes["t_ns"], method="ffill").to_numpy()
+    return program, axes[["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=float), lines
+
+
+def test_a_spline_runs_as_the_biarcs_feedlog_makes_of_it(tmp_path):
+    """In exact stop (G61.1) the machine stops at the end of every move the canon sends it: the G5.1's
+    stops are feedlog's 24 biarc ends, not the 45 chords LinuxCNC's preview (`gcode` module) draws."""
+    program, xyz, lines = _record(tmp_path, "spline.ngc",
+                                  "G21 G90 G61.1 F1200\nG0 X0 Y0 Z0\nG5.1 X20 Y10 I20 J0\nG0 X0\nM2\n")
+    on = lines == 3
+    speed = np.r_[0.0, np.linalg.norm(np.diff(xyz[:, :2], axis=0), axis=1)][on] * 1000.0   # mm/s, 1 kHz
+    stops, _ = find_peaks(-speed, height=-2.0)          # the machine slows below 2 mm/s (F1200: 20 mm/s)
+    at = xyz[on][stops, :2]
+    motion = interpret(program).motion
+    ends = motion.loc[motion["line"] == 3, ["x_mm", "y_mm"]].to_numpy()
+    assert len(ends) == 24 and len(stops) == 24, len(stops)
+    gap = np.linalg.norm(at[:, None, :] - ends[None], axis=2)
+    assert gap.min(axis=1).max() < 1e-3 and gap.min(axis=0).max() < 1e-3, gap.min(axis=1)
+    if available() is None:      # the preview's chords: 45, which the machine does not stop at
+        chords = [m for m in reference(program).moves if m["line"] == 3]
+        assert len(chords) == 45
+
+
+def test_a_units_change_under_a_tool_offset_moves_the_machine_where_feedlog_says(tmp_path):
+    """G43.1 Z2 in mm, then G20 and G43.1 Z0: the kernel's canon hands the interpreter the 2 mm offset in
+    inches at the units change, so removing it lifts program Z by 2 mm and the machine stays at 12 mm; the
+    `gcode` module hands it back unconverted (2 read as 2 inch) and puts the tool 48.8 mm higher."""
+    text = "G21 G90 G0 X1 Y1 Z10\nG43.1 Z2\nG0 Z10\nG20\nG43.1 Z0\nG0 X0.5 Y0\nM2\n"
+    program, xyz, lines = _record(tmp_path, "units.ngc", text)
+    motion = interpret(program).motion
+    machine_z = (motion["z_mm"] + motion["wz_mm"] + motion["tool_z_mm"]).to_numpy()
+    assert np.allclose(xyz[-1], [12.7, 0.0, 12.0], atol=1e-3), xyz[-1]
+    assert np.isclose(machine_z[-1], xyz[-1][2], atol=1e-6) and np.isclose(motion["x_mm"].iloc[-1] +
+                                                                          motion["wx_mm"].iloc[-1], xyz[-1][0])
+    if available() is None:
+        last = reference(program).moves[-1]
+        module_z = last["end"][2] + last["g5x"][2] + last["g92"][2] + last["tool"][2]
+        assert abs(module_z - xyz[-1][2]) > 40, module_z
+
+
+def test_fanuc_style_m98_subprograms_run_on_the_kernel_as_feedlog_reads_them(tmp_path):
+    """LinuxCNC's task reads M98 P100 L2 / O100 ... M99 in an .ngc file: the machine passes through each of
+    feedlog's move ends, and its line stream shows the subprogram's lines (7, 8) and the return (4)."""
+    program, xyz, lines = _record(tmp_path, "m98.ngc", "G21 G90 G61.1 F1200\nG0 X0 Y0 Z0\nM98 P100 L2\n"
+                                  "G0 X0 Y0\nM2\nO100\nG91 G1 X10\nG1 Y5\nG90\nM99\n")
+    motion = interpret(program).motion
+    ends = motion[["x_mm", "y_mm", "z_mm"]].to_numpy()
+    assert motion["line"].tolist() == [2, 7, 8, 7, 8, 4]
+    assert ends[1:].tolist() == [[10, 0, 0], [10, 5, 0], [20, 5, 0], [20, 10, 0], [0, 0, 0]]
+    gap = np.linalg.norm(xyz[:, None, :] - ends[None], axis=2).min(axis=0)
+    assert gap.max() < 1e-3, gap
+    assert {4, 7, 8} <= set(np.unique(lines)) and not {3, 6} & set(np.unique(lines))

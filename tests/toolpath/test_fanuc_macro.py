@@ -419,7 +419,9 @@ def test_routing_keeps_safety_lines_plain_and_names_extended_offsets(tmp_path, c
 def test_random_text_gives_a_table_or_one_program_error(text, raw):
     """Any characters (unicode digits, control bytes, half statements) inside and around macro calls."""
     from feedlog.toolpath.interp import InterpOptions
-    for body in (text, raw.decode("latin-1"), "#1=" + text, "G65 P1 " + text + "\nM30\nO1\n" + text + "\nM99\n"):
+    # each body ends with a line end: one short line with a program suffix ("#1=.NC") is read as a file name
+    for body in (text + "\n", raw.decode("latin-1") + "\n", "#1=" + text + "\n",
+                 "G65 P1 " + text + "\nM30\nO1\n" + text + "\nM99\n"):
         try:
             run(body, options=InterpOptions(max_blocks=2000))
         except ProgramError as exc:

@@ -165,7 +165,8 @@ def test_load_program_routes_only_programs_that_need_the_interpreter():
 
 _WORDS = ["G0", "G1", "G2", "G3", "G81", "G91", "G90", "X1", "Y-2", "Z[#1]", "#1=2", "o1 while [#1 LT 2]",
           "o1 endwhile", "#1=[#1+1]", "F100", "R1", "I1", "@1", "^45", "(c)", ";x", "[", "]", "#<", "o<s> call",
-          "M2", "%", "\x00", "\u00e9", "1e5", "X1.2.3", "NaN", "G10 L2 P1 X1"]
+          "M2", "%", "\x00", "\u00e9", "1e5", "X1.2.3", "NaN", "G10 L2 P1 X1", "G5", "G5.1", "J-3", "P2", "Q-1",
+          "G5.2", "G18", "M98 P1 L2", "M99", "O1", "M98 P1", "G5.3", "L4", "X2 Y1 P0.5"]
 
 
 @settings(max_examples=300, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])

@@ -27,7 +27,7 @@ pytestmark = pytest.mark.skipif(MISSING is not None and os.environ.get("FEEDLOG_
 # mill examples LinuxCNC runs that feedlog refuses on purpose, with the reason it names
 REFUSED_ON_PURPOSE = {
     "gridprobe.ngc": "probing", "smartprobe.ngc": "probing", "x-trim.ngc": "probing",
-    "threading.ngc": "G33", "systems.ngc": "G5.1",
+    "threading.ngc": "G33",
     "lathe_g70_71_demo.ngc": "lathe", "lathe_g7x_face_boring.ngc": "lathe", "lathe_g7x_quadrants.ngc": "lathe",
     "lathe_pawn.ngc": "lathe", "mmount.ngc": "G33.1",
 }
@@ -35,6 +35,9 @@ NOT_YET: set[str] = set()
 # rs274's stand-alone canon re-reads the position after M6 from its own program position, which drops the
 # shift of a G43 on the same line; the motion controller keeps the machine still (feedlog's choice)
 REFERENCE_QUIRK = {"skeleton.ngc"}
+# splines: the gcode module draws chords where the motion controller (and feedlog) runs biarcs; compared
+# node by node in test_interp_splines.py
+SPLINES = {"systems.ngc"}
 
 
 def _examples() -> list[str]:
@@ -68,7 +71,7 @@ def test_linuxcnc_example_programs(name):
             assert error.line in (ref.line, ref.line - 1), (error.line, ref.line, str(error))
         return
     assert error is None, str(error)
-    if name in REFERENCE_QUIRK:
+    if name in REFERENCE_QUIRK or name in SPLINES:
         return
     problems = compare(program.blocks, ref)
     assert not problems, problems
@@ -190,12 +193,13 @@ def test_random_programs_match_linuxcnc(tmp_path_factory, text):
         program, error = interpret(path), None
     except ProgramError as exc:
         program, error = None, exc
+    if error is not None and "out of range (beyond +-1e9" in str(error):
+        return   # feedlog's documented bound on numbers and positions (1e9 mm); LinuxCNC has none (and may
+        #          refuse such a program only later, for what the huge numbers lead to)
     if ref.error:
         assert error is not None, f"LinuxCNC: line {ref.line}: {ref.message}\n{text}"
         assert error.line in (ref.line, ref.line - 1), (error.line, ref.line, ref.message, str(error), text)
         return
-    if error is not None and "out of range (beyond +-1e9" in str(error):
-        return   # feedlog's documented bound on numbers and positions (1e9 mm); LinuxCNC has none
     assert error is None, f"{error}\n{text}"
     if units_change_under_a_tool_offset(text):
         return   # the gcode module's quirk, not the kernel's (units_change_under_a_tool_offset)

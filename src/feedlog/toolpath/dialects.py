@@ -27,7 +27,7 @@ Anything else (parameters, `IF`/`GOTO`, `AC()`/`IC()`) is left as it is, for the
 (or skip with --lenient).
 
 `detect(text, name)` picks the dialect: `.mpf`/`.spf` or Sinumerik-only words -> sinumerik; Fanuc-only
-constructs (`G28`, `G53`, `G0G80`, `G05.1`, `G4 X`) -> fanuc; else rs274ngc, which leaves the text alone
+constructs (`G28`, `G53`, `G0G80`, `G05.1 Q`, `G4 X`) -> fanuc; else rs274ngc, which leaves the text alone
 (a LinuxCNC program with a lone `G80` or `G4 P0.5` is RS274/NGC and read unchanged).
 """
 
@@ -45,9 +45,9 @@ _COMMENT = re.compile(r"\([^()\n]*\)|;.*$")
 _SEMICOLON = re.compile(r";.*$")
 _SINUMERIK_HINTS = re.compile(r"\bG7[01]0\b|\bMSG\s*\(|\bCYCLE\d{3}\s*\(|%_N_|;\s*\$PATH|\bTRAORI\b|\bG64[1-5]\b|"
                               r"\bCR\s*=|\bSOFT\b|\bBRISK\b|\bG500\b", re.IGNORECASE)
-# Fanuc-only constructs: G28/G53 (the parser reads neither), G05.1, G4 X, and G80 beside a motion code
+# Fanuc-only constructs: G28/G53 (the parser reads neither), G05.1 Q (without Q: LinuxCNC's G5.1 spline), G4 X, and G80 beside a motion code
 # (`G0G80`: two motion codes to RS274/NGC, a cycle cancel beside G0 to Fanuc). A lone G80 is RS274/NGC too.
-_FANUC_HINTS = re.compile(r"G\s*0*28(?![.\d])|G\s*0*53(?![.\d])|G\s*0?5\.1|G\s*0?4\s*X|"
+_FANUC_HINTS = re.compile(r"G\s*0*28(?![.\d])|G\s*0*53(?![.\d])|G\s*0?5\.1[^\n;(]*Q|G\s*0?4\s*X|"
                           r"G\s*0*[0-3](?![.\d])[^\n;(]*G\s*80(?![.\d])|G\s*80(?![.\d])[^\n;(]*G\s*0*[0-3](?![.\d])",
                           re.IGNORECASE)
 

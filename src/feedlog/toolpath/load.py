@@ -91,7 +91,8 @@ def _fanuc_front_end(source, text: str, path, label: str, dialect: str, lenient:
     translation then reads it, warned."""
     from feedlog.toolpath.interp.fanuc import interpret_fanuc, use_front_end
     detected = detect(text, path or label) if dialect == "auto" else dialect
-    if not use_front_end(text, dialect, detected):
+    ngc = Path(str(path or label or "")).suffix.lower() == ".ngc"
+    if not use_front_end(text, dialect, detected, ngc=ngc):
         return None, None
     try:
         program = interpret_fanuc(source if path is not None else text, name=label, options=interp)
@@ -121,4 +122,5 @@ def stream_dialect(path: str | Path, dialect: str = "auto") -> str:
         return "rs274ngc"     # the reader says what is wrong with the path
     detected = detect(head, path)
     from feedlog.toolpath.interp.fanuc import looks_macro_b
-    return "fanuc" if detected == "rs274ngc" and looks_macro_b(head) else detected
+    ngc = Path(str(path)).suffix.lower() == ".ngc"
+    return "fanuc" if detected == "rs274ngc" and looks_macro_b(head, ngc=ngc) else detected

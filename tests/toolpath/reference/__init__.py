@@ -29,6 +29,35 @@ def available() -> str | None:
     return None
 
 
+def _needs_linuxcnc():
+    import os
+
+    import pytest
+    missing = available()
+    return pytest.mark.skipif(missing is not None and os.environ.get("FEEDLOG_REQUIRE_LINUXCNC") != "1",
+                              reason=missing or "")
+
+
+def run_both(program: Path, **kw):
+    """(LinuxCNC's Reference, feedlog's Program or None, feedlog's ProgramError or None) for one file."""
+    from feedlog.errors import ProgramError
+    from feedlog.toolpath.interp import interpret
+
+    ref = reference(program)
+    try:
+        return ref, interpret(program, **kw), None
+    except ProgramError as exc:
+        return ref, None, exc
+
+
+def check_refused_alike(ref: Reference, error, text: str) -> None:
+    """Where LinuxCNC refuses a program feedlog refuses it, on LinuxCNC's line (or the one before: read
+    errors) or, inside a subprogram of the same file, naming LinuxCNC's line (the call) in its stack."""
+    assert error is not None, f"LinuxCNC: line {ref.line}: {ref.message}\n{text}"
+    assert error.line in (ref.line, ref.line - 1) or f":{ref.line}" in str(error), \
+        (error.line, ref.line, ref.message, str(error), text)
+
+
 def subroutine_path() -> list[Path]:
     return [NCFILES, NCFILES / "ngcgui_lib", NCFILES / "ngcgui_lib" / "utilitysubs",
             NCFILES / "remap_lib" / "common_nc_subs", NCFILES / "gladevcp_lib"]
@@ -216,3 +245,6 @@ def compare(blocks, ref: Reference, *, tol: float = 1e-6) -> list[str]:
             problems.append("...")
             break
     return problems
+
+
+needs_linuxcnc = _needs_linuxcnc()   # skip a test without LinuxCNC's gcode module (FEEDLOG_REQUIRE_LINUXCNC=1: fail)

@@ -56,9 +56,15 @@ def build(words, C, unknown_u: bool = True) -> Block:
             code = as_int(value, "M code")
             if code < 0:
                 raise InterpError("negative M code used")
-            if code in (98, 99):
-                raise InterpError(f"M{code} (Fanuc-style subprograms in an RS274/NGC file) is not read yet; "
-                                  "use o<name> call / endsub")
+            if code == 98:
+                raise InterpError("M98 must begin its line (after an optional N number), as LinuxCNC reads "
+                                  "Fanuc-style subprogram calls")
+            if code == 99:    # not at the start of a line: an M code of the stop group (the main program's end)
+                if "stop" in m:
+                    raise InterpError(f"two M codes used from the same modal group (M{m['stop']} M99)")
+                m["stop"] = 99
+                b.m_list.append(99)
+                continue
             if code > 199:
                 raise InterpError(f"M code greater than 199 (M{code})")
             group = M_GROUP.get(code)
@@ -129,7 +135,7 @@ def enhance(b: Block, motion_mode: int, plane: int) -> None:
         else:
             if covets:
                 raise InterpError("cannot use two G codes that both use axis values")
-            if not axis and not polar and mode1 not in (0, 10, 20, 30):
+            if not axis and not polar and mode1 not in (0, 10, 20, 30, 52):
                 raise InterpError(f"all axes missing with motion code {g_name(mode1)}")
         b.motion = mode1
     elif covets:
@@ -184,30 +190,30 @@ def _check(b: Block) -> None:
         raise InterpError("D word with no G41, G41.1, G42, G42.1 or G96 to use it")
     if "h" in v and g.get("tool_length", -1) not in (430, 432):
         raise InterpError("H word with no G43 or G43.2 to use it")
-    if "i" in v and motion not in (20, 30, 870) and mode0 != 100:
-        raise InterpError("I word with no G2, G3, G10 or G87 to use it")
-    if "j" in v and motion not in (20, 30, 870) and mode0 != 100:
-        raise InterpError("J word with no G2, G3, G10 or G87 to use it")
+    if "i" in v and motion not in (20, 30, 50, 51, 870) and mode0 != 100:
+        raise InterpError("I word with no G2, G3, G5, G5.1, G10 or G87 to use it")
+    if "j" in v and motion not in (20, 30, 50, 51, 870) and mode0 != 100:
+        raise InterpError("J word with no G2, G3, G5, G5.1, G10 or G87 to use it")
     if "k" in v and motion not in (20, 30, 870):
         raise InterpError("K word with no G2, G3 or G87 to use it")
-    if "l" in v and not (810 <= motion <= 890 or motion == 730) and mode0 != 100 \
+    if "l" in v and not (810 <= motion <= 890 or motion in (730, 52)) and mode0 != 100 \
             and g.get("comp", -1) not in (410, 411, 420, 421) and m.get("io") != 66:
-        raise InterpError("L word with no G10, cutter compensation, canned cycle or M66 to use it")
+        raise InterpError("L word with no G10, cutter compensation, canned cycle, G5.2 or M66 to use it")
     if "p" in v:
         user_m = any(c >= 100 for c in b.m_list)
-        if (mode0 not in (100, 40) and g.get("control") != 640 and motion not in (820, 860, 880, 890, 20, 30, 740, 840)
+        if (mode0 not in (100, 40) and g.get("control") != 640 and motion not in (820, 860, 880, 890, 20, 30, 50, 52, 740, 840)
                 and m.get("override") not in (50, 51, 52, 53) and m.get("io") not in (62, 63, 64, 65, 66)
                 and m.get("spindle") != 19 and not user_m):
-            raise InterpError("P word with no G2 G3 G4 G10 G64 G82 G86 G88 G89 or M50-M53 M62-M66 to use it")
+            raise InterpError("P word with no G2 G3 G4 G5 G5.2 G10 G64 G82 G86 G88 G89 or M50-M53 M62-M66 to use it")
         if motion in (20, 30):
             p = v["p"]
             if abs(round(p) - p) > 0.001:
                 raise InterpError("P value not an integer with G2 or G3")
             if round(p) < 1:
                 raise InterpError("P value should be 1 or greater with G2 or G3")
-    if "q" in v and motion not in (830, 730) and m.get("io") not in (66, 67, 68) and mode0 != 100 \
+    if "q" in v and motion not in (830, 730, 50) and m.get("io") not in (66, 67, 68) and mode0 != 100 \
             and g.get("control") != 640 and m.get("toolchange") != 61 and not any(c >= 100 for c in b.m_list):
-        raise InterpError("Q word with no G10, G64, G73, G83, M66, M67, M68 or user M code that uses it")
+        raise InterpError("Q word with no G5, G10, G64, G73, G83, M66, M67, M68 or user M code that uses it")
     if "r" in v and motion not in (20, 30, 730, 740) and not 810 <= motion <= 890 and mode0 != 100 \
             and m.get("spindle") != 19:
         raise InterpError("R word with no G code that uses it")

@@ -50,8 +50,6 @@ REFUSED_G = {
     383: "probing (G38.3) ends where the probe trips: the motion is not known from the program",
     384: "probing (G38.4) ends where the probe trips: the motion is not known from the program",
     385: "probing (G38.5) ends where the probe trips: the motion is not known from the program",
-    50: "G5 cubic splines are not simulated", 51: "G5.1 quadratic splines are not simulated",
-    52: "G5.2 NURBS are not simulated", 53: "G5.3 NURBS are not simulated",
     700: "G70 is a lathe cycle (feedlog reads mill programs)", 710: "G71 is a lathe cycle",
     711: "G71.1 is a lathe cycle", 712: "G71.2 is a lathe cycle", 720: "G72 is a lathe cycle",
     721: "G72.1 is a lathe cycle", 722: "G72.2 is a lathe cycle",

@@ -551,10 +551,14 @@ class FanucInterpreter:
 
     # -- NC blocks ----------------------------------------------------------------------------------
     def _record(self, line: FLine, m_codes: list) -> int:
-        mcodes = " ".join(f"M{c:g}" for c in m_codes)
-        stop = any(c in STOP_M for c in m_codes)
-        src = self.canon.source(Source(self.file.name, self.seq, self._stack(), mcodes, line.comment,
-                                       line.n if line.n is not None else -1, stop))
+        stack = self._stack()
+        key = (self.file.name, stack, tuple(m_codes))
+        src = line.sources.get(key)
+        if src is None:
+            mcodes = " ".join(f"M{c:g}" for c in m_codes)
+            stop = any(c in STOP_M for c in m_codes)
+            src = line.sources[key] = self.canon.source(Source(self.file.name, self.seq, stack, mcodes, line.comment,
+                                                               line.n if line.n is not None else -1, stop))
         self.m.line_src = src
         return src
 
@@ -574,6 +578,8 @@ class FanucInterpreter:
         self._nc(line, words)
 
     def _nc(self, line: FLine, words: list) -> None:
+        if self._fast(line, words):
+            return
         g_codes = []
         letters: dict[str, float] = {}
         points: dict[str, bool] = {}
@@ -661,6 +667,34 @@ class FanucInterpreter:
             self._call(call[2], call[0], call[1], None)
         elif returning:
             self._return(ret_label)
+
+    def _fast(self, line: FLine, words: list) -> bool:
+        """A block of at most one G0/G1, axis words X-C and F (what loops of moves are made of), with no
+        modal macro call in force, runs in the machine's fast lane (the same checks and rows as the
+        general path). False: the block takes the general path."""
+        if self.modal_call is not None:
+            return False
+        motion = -1
+        v = {}
+        for letter, value, _point in words:
+            if letter == "G":
+                if motion != -1 or value not in (0.0, 1.0):
+                    return False
+                motion = int(value) * 10
+            elif letter in _FAST_LETTERS and letter not in v:
+                v[letter] = value
+            else:
+                return False
+        if not self.m.fast_ok(motion) or not any(k != "F" for k in v):
+            return False
+        if motion != -1:
+            self.g01 = motion // 10
+        self._record(line, [])
+        if "Z" in v and (motion in (0, 10) or self.m.motion_mode in (0, 10)):
+            z = v["Z"] + (self.m.pos[2] if self.m.incremental else 0.0)
+            self.z_top = z if self.z_top is None else max(self.z_top, z)
+        self.m.fast_line(motion, {k.lower(): x for k, x in v.items()})
+        return True
 
     def _machine_block(self, line: FLine, g_codes: list, letters: dict, points: dict, m_codes: list) -> None:
         m = self.m
@@ -1027,6 +1061,7 @@ def interpret_fanuc(source: str | Path, *, name: str | None = None, options=None
     return program
 
 
+_FAST_LETTERS = frozenset("XYZABCF")
 _MACRO = re.compile(r"#|\bIF\s*\[|\bGOTO|\bWHILE\s*\[|\bEND\s*[123]\b|\bDO\s*[123]\b|M\s*0*9[789](?!\d)|"
                     r"G\s*0*6[56](?![\d.])|G\s*0*54\s*\.\s*1|G\s*0*68(?![\d.])|"
                     r"G\s*0*(?:7[346]|8[1-9])(?![\d.])", re.IGNORECASE)
@@ -1046,21 +1081,28 @@ _MACRO_ONLY = re.compile(r"\bIF\s*\[.*\]\s*(?:GOTO|THEN)|\bGOTO\s*[\d#\[]|\bWHIL
                          re.IGNORECASE | re.MULTILINE)
 
 
-def looks_macro_b(text: str) -> bool:
+_M98 = re.compile(r"M\s*0*9[78]\s*P", re.IGNORECASE)
+
+
+def looks_macro_b(text: str, *, ngc: bool = False) -> bool:
     """Whether an undeclared program is Fanuc-style: macro B statements (`IF [..] GOTO`, `WHILE [..] DO 1`,
     `END 1`), `M98 P` / `G65 P` / `G66 P` calls, `G54.1`, `G68`. RS274/NGC has none of these (its O-words take a
-    keyword: `o100 while`, `o<x> call`; feedlog's RS274/NGC interpreter does not read M98)."""
-    return _MACRO_ONLY.search(_STRIP.sub(" ", text)) is not None
+    keyword: `o100 while`, `o<x> call`) but `M98 P`, which LinuxCNC reads in RS274/NGC too: in an `.ngc`
+    file (`ngc`) an `M98 P` alone does not make a program Fanuc-style."""
+    code = _STRIP.sub(" ", text)
+    if not ngc:
+        return _MACRO_ONLY.search(code) is not None
+    return any(_M98.fullmatch(m.group(0)) is None for m in _MACRO_ONLY.finditer(code))
 
 
-def use_front_end(text: str, dialect: str, detected: str) -> bool:
+def use_front_end(text: str, dialect: str, detected: str, *, ngc: bool = False) -> bool:
     """Whether load_program reads `text` with the macro B front-end: a Fanuc / Hurco program (declared or
     detected) that uses what the line translation cannot read (`needs_macro`), or an undeclared program
-    that is plainly macro B (`looks_macro_b`)."""
+    that is plainly macro B (`looks_macro_b`; `ngc`: the file is an `.ngc`)."""
     if dialect in ("fanuc", "hurco"):
         return needs_macro(text)
     if dialect != "auto":
         return False
     if detected == "fanuc":
         return needs_macro(text)
-    return detected == "rs274ngc" and looks_macro_b(text)
+    return detected == "rs274ngc" and looks_macro_b(text, ngc=ngc)

@@ -370,6 +370,7 @@ class FLine:
     test: object = None                           # condition of IF / WHILE
     target: object = None                         # GOTO label (value), DO/END id
     comment: str = ""
+    sources: dict = field(default_factory=dict)   # (file, call stack, M codes) -> canon source index
 
 
 def prepare(raw: str) -> tuple[str, str]:

@@ -14,7 +14,7 @@ import math
 
 from feedlog.toolpath.arcwords import (CENTER_ARC_RADIUS_TOLERANCE_INCH, CENTER_ARC_RADIUS_TOLERANCE_MM,
                                        spiral_too_large)
-from feedlog.toolpath.interp import cycles
+from feedlog.toolpath.interp import cycles, spline
 from feedlog.toolpath.limits import MAX_ARC_TURNS, MAX_WORD, sci
 from feedlog.toolpath.interp.block import Block
 from feedlog.toolpath.interp.canon import (K_ARC_CCW, K_ARC_CW, K_DWELL, K_LINEAR, K_NONE, K_RAPID, Canon,
@@ -84,6 +84,9 @@ class Machine:
         self.tlo_on = False
         self.cycle = {"r": 0.0, "cc": 0.0, "p": 0.0, "q": 0.0}   # a canned cycle's modal R, depth, P, Q
         self.cycle_il: float | None = None
+        self.spline_ij = (0.0, 0.0)            # a G5 without I J starts with the last G5's -P, -Q
+        self.nurbs_points: list = []           # G5.2 control points (x, y, weight), program units
+        self.nurbs_order = 3
         self.line_src = 0
         self.unknown_systems: set[int] = set()   # selected systems whose offsets no parameter file gave
         self.comp = Compensation(self)
@@ -272,6 +275,8 @@ class Machine:
             self._axis_offsets(mode0, v)
         elif mode0 in (921, 922, 923):
             self._axis_offsets(mode0, v)
+        elif mode0 == 53:
+            spline.nurbs_end(self)
         if b.motion != -1:
             self._motion(b)
         if m.get("toolchange") == 6:
@@ -280,7 +285,7 @@ class Machine:
         stop = m.get("stop", -1)
         if stop != -1:
             self.comp.stop()
-        if stop in (2, 30):
+        if stop in (2, 30, 99):
             end = True
         if self.emitted == before:
             self.emit_none()
@@ -610,6 +615,10 @@ class Machine:
             self.motion_mode = 800
         elif motion in CYCLES:
             cycles.convert_cycle(self, motion, b)
+        elif motion in (50, 51):
+            spline.convert_spline(self, motion, b)
+        elif motion == 52:
+            spline.nurbs_point_line(self, b)
         else:
             raise InterpError(f"motion {g_name(motion)} is not supported")
 

@@ -22,7 +22,7 @@ from feedlog.toolpath.program import Program
 _NEEDS = re.compile(rb"[#\[\]<>@^=]|"
                     rb"o\s*[0-9]+\s*(?:sub|endsub|call|do|while|repeat|if|elseif|else|endif|break|continue|"
                     rb"endwhile|endrepeat|return)|"
-                    rb"g\s*0*(?:28|30|33|38|4[1-3]|5[23]|5[5-9]|7[36]|8[1-9]|92\s*\.\s*[23])(?![0-9])|"
+                    rb"g\s*0*(?:28|30|33|38|4[1-3]|5[23]|5[5-9]|7[36]|8[1-9]|92\s*\.\s*[23]|5(?:\s*\.\s*[0-3])?)(?![0-9])|"
                     rb"g\s*0*10(?![0-9.])[^\n]*r|m\s*0*(?:61|98|99)(?![0-9])",
                     re.IGNORECASE)
 _COMMENT = re.compile(rb"\([^)\n]*\)|;[^\n]*")

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from feedlog.errors import ProgramError
+from feedlog.toolpath.interp import fanuc_subs
 from feedlog.toolpath.interp.block import build, enhance, refuse
 from feedlog.toolpath.interp.canon import Source
 from feedlog.toolpath.interp.errors import InterpError
@@ -72,6 +73,8 @@ class Frame:
     ret_index: int = 0
     call_line: int = 0
     saved: list = field(default_factory=list)
+    kind: str = "call"         # "call" (o<name> call) or "m98" (Fanuc-style: M98 P.. L.., back with M99)
+    repeats: int = 0           # M98 L: calls still to make after this one
 
 
 class Interpreter:
@@ -219,7 +222,9 @@ class Interpreter:
                     raise self._error(str(exc), raw) from None
             try:
                 if line.oword is not None:
-                    self._control(line)
+                    if self._control(line):
+                        self._finish()
+                        return
                     continue
                 if self.skipping is not None or self.skipping_to_sub is not None:
                     continue
@@ -288,6 +293,8 @@ class Interpreter:
                 m.emit_none()
             return False
         enhance(b, m.motion_mode, m.plane)
+        if 99 in b.m_list:
+            fanuc_subs.check_m99_in_line(self)
         self._record(line, b.m_list)
         end = m.execute(b)
         if end:
@@ -325,8 +332,14 @@ class Interpreter:
                                  "(G43 offsets 0); pass the machine's tool table to use theirs")
 
     def _end_of_file(self) -> None:
-        if self.skipping_to_sub is not None:
-            raise self._error(f"end of file seeking o-word o<{self.skipping_to_sub}> sub")
+        if self.skipping_to_sub is not None:     # named at the call (LinuxCNC names the file's end)
+            name = self.skipping_to_sub
+            where = (f"no {name}.ngc in " + ", ".join(str(s) for s in self.search) + ", and ") if self.search else ""
+            frame = self.frames.pop()
+            self._stack_key = -1
+            self.file, self.seq = frame.ret_file, frame.call_line
+            raise self._error(f"subroutine o<{name}> not found: {where}no definition further down "
+                              f"{Path(self.file.name).name} (end of file seeking o-word o<{name}> sub)")
         if self.skipping is not None and self.defining_sub:
             raise self._error(f"end of file inside the definition of o<{self.sub_name}>: no endsub")
         if len(self.frames) > 1:
@@ -369,9 +382,12 @@ class Interpreter:
         self.file = label.file
         self.index = label.index
 
-    def _control(self, line) -> None:
+    def _control(self, line) -> bool:
+        """Run an O-word line; True when it ends the program (M99 in the main program)."""
         ow = line.oword
         kind = ow.kind
+        if kind in ("m98", "m99"):
+            return fanuc_subs.control(self, line)
         name = self._scoped(ow)
         P = self.params
         # values are read at read time, and not at all while skipping past them
@@ -399,17 +415,24 @@ class Interpreter:
         if self.skipping_to_sub is not None and kind not in ("sub", ""):
             return
         if kind in ("sub", ""):
+            fanuc_subs.check_definition(self, kind)
             if self.skipping is not None:
                 self._save_label(name, kind)
                 self.skipping = None
             self.skipping_to_sub = None
             if kind == "":
-                self.metadata.setdefault("program_number", int(name) if name.isdigit() else name)
+                if len(self.frames) == 1:
+                    self.metadata.setdefault("program_number", int(name) if name.isdigit() else name)
                 return
             if len(self.frames) > 1:
                 return   # the sub line of a call
             if self.defining_sub:
                 raise InterpError("nested subroutine definition")
+            old = self._label(name)
+            if old is not None and (old.file, old.index) == (self.file, self.index - 1):
+                # the main program runs into a definition it has already met (one found by a call above)
+                raise InterpError(f"sub o<{ow.name}> found in illegal location (already defined here; put "
+                                  "subroutines before their calls or after the program's end)")
             self._save_label(name, kind)
             self.skipping = name
             self.defining_sub = True
@@ -427,6 +450,8 @@ class Interpreter:
                 return
             if self.skipping is not None and kind == "endsub":
                 self.skipping = None
+            if self.frames[-1].kind == "m98":
+                raise InterpError("Fanuc-style 'O....' subprogram definition must end with 'M99'")
             frame = self.frames.pop()
             self._stack_key = -1
             P.pop(frame.saved)
@@ -447,15 +472,10 @@ class Interpreter:
                 self._back_to(label)
                 return
             sub = self._find_sub_file(name)
-            if sub is None:
-                self.frames.pop()
-                self._stack_key = -1
-                P.pop(frame.saved)
-                raise InterpError(f"unable to open file for subroutine o<{name}> (looked for {name}.ngc in "
-                                  + ", ".join(str(s) for s in self.search) + ")" if self.search else
-                                  f"subroutine o<{name}> is not defined and there is no search path")
-            self.file = sub
-            self.index = 0
+            if sub is not None:
+                self.file = sub
+                self.index = 0
+            # else, as LinuxCNC: look for its definition further down the file being read (after M2)
             self.skipping = name
             self.skipping_to_sub = name
         elif kind == "do":

@@ -36,6 +36,7 @@ SUFFIXES = (".SPF", ".MPF")
 _OPEN = {"IF": "ENDIF", "WHILE": "ENDWHILE", "LOOP": "ENDLOOP", "FOR": "ENDFOR", "REPEAT": "UNTIL"}
 _CLOSE = {v: k for k, v in _OPEN.items()}
 _AXES = "XYZABC"
+_FAST_ADDRESSES = frozenset("XYZABCF")
 _PLANE_AXIS = {170: 2, 180: 1, 190: 0}   # the tool (drilling) axis of each plane
 _MODAL_M = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "spindle", 4: "spindle", 5: "spindle",
             6: "toolchange"}
@@ -444,10 +445,15 @@ class SinumerikInterpreter:
 
     # -- blocks ---------------------------------------------------------------------------------------
     def _record(self, line: SLine, m_list: list, comment: str) -> None:
-        mcodes = " ".join(f"M{c}" for c in m_list)
-        stop = any(c in STOP_M for c in m_list)
-        self.m.line_src = self.canon.source(Source(self.file.name, self.seq, self._stack(), mcodes, comment,
-                                                   -1 if line.n is None else line.n, stop))
+        stack = self._stack()
+        key = (self.file.name, stack, tuple(m_list), comment)
+        src = line.sources.get(key)
+        if src is None:
+            mcodes = " ".join(f"M{c}" for c in m_list)
+            stop = any(c in STOP_M for c in m_list)
+            src = line.sources[key] = self.canon.source(Source(self.file.name, self.seq, stack, mcodes, comment,
+                                                               -1 if line.n is None else line.n, stop))
+        self.m.line_src = src
 
     def _block(self, line: SLine) -> None:
         m = self.m
@@ -473,6 +479,9 @@ class SinumerikInterpreter:
                     if w.address in words:
                         raise InterpError(f"address {w.address} programmed twice in one block")
                     words[w.address] = (v, w.mode)
+        if (not ms and not msgs and line.call is None and self.mcall is None and len(gs) <= 1
+                and self._fast(line, gs, words)):
+            return
         comment = " ".join([line.comment] * bool(line.comment) + [f"MSG {t}" for t in msgs])
         if not gs and not ms and not words:
             if line.call is not None:
@@ -503,6 +512,32 @@ class SinumerikInterpreter:
             return
         if line.call is not None:
             self._call_from(line)
+
+    def _fast(self, line: SLine, gs: list, words: dict) -> bool:
+        """A block of at most one G0/G1 and axis words X-C (absolute, AC or IC) with or without F runs in the
+        machine's fast lane (the general path's checks and rows). False: the general path takes it."""
+        m = self.m
+        if gs and gs[0] not in (0, 1):
+            return False
+        motion = gs[0] if gs else self.motion
+        if motion is None or not words or not words.keys() <= _FAST_ADDRESSES or words.keys() == {"F"} \
+                or not m.fast_ok(motion * 10):
+            return False
+        v = {}
+        for a, (val, mode) in words.items():
+            if isinstance(val, str):
+                return False            # the general path names the error
+            if a == "F":
+                f = float(num(val))
+                if f < 0:
+                    raise InterpError("negative F value")
+                v["f"] = f * INCH_PER_MM if m.inch and self.metric_feed_only else f
+            else:
+                v[a.lower()] = self._axis_value(_AXES.index(a), float(num(val)), mode)
+        self.motion = motion
+        self._record(line, [], line.comment)
+        m.fast_line(motion * 10, v)
+        return True
 
     def _call_from(self, line: SLine) -> None:
         name, args, repeat = line.call

@@ -81,6 +81,7 @@ class SLine:
     comment: str = ""
     ignored: list = field(default_factory=list)
     error: str | None = None
+    sources: dict = field(default_factory=dict)   # (file, call stack, M codes, comment) -> canon source index
 
     @property
     def empty(self) -> bool:

@@ -10,6 +10,7 @@ time it runs (loops, subroutines).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 from feedlog.toolpath.interp.errors import InterpError
@@ -24,8 +25,8 @@ MAX_LINE = 256 * 64  # characters on one line (LinuxCNC: 256; CAM comments run l
 @dataclass(slots=True)
 class OWord:
     """An O-word statement: `name` (label, lower case; digits for numbered ones), `kind` (sub, call,
-    while, ..., or "" for a bare Fanuc-style `O1234`), `args` (call arguments), `test` (if/elseif/while/
-    repeat condition, return value)."""
+    while, ..., "" for a bare Fanuc-style `O1234`, m98 / m99 for Fanuc-style calls and returns), `args`
+    (call arguments; for m98 its P and L), `test` (if/elseif/while/repeat condition, return value)."""
 
     name: str
     kind: str
@@ -125,6 +126,16 @@ def parse_line(raw: str, number: int) -> Line:
         _only_comments(r)
         line.static = False
         return line
+    fanuc = _FANUC_SUB.match(code, r.pos)
+    if fanuc is not None:     # LinuxCNC reads M98 / M99 at the start of a line as O-words (Fanuc-style subs)
+        if fanuc.group(1) == "98":
+            line.oword = _read_m98(r, code, fanuc.end())
+            line.static = False
+            return line
+        if _COMMENTS_ONLY.fullmatch(code, fanuc.end()):
+            line.oword = OWord(name="", kind="m99")
+            line.static = False
+            return line
     _read_items(r, code, line)
     line.simple = _simple(line)
     return line
@@ -178,6 +189,22 @@ def _read_items(r: Reader, code: str, line: Line) -> None:
         if callable(value):
             line.static = False
         line.words.append((c, value))
+
+
+_FANUC_SUB = re.compile(r"m0*(98|99)(?![0-9.])")
+_COMMENTS_ONLY = re.compile("(?:\x00[0-9]+\x00)*")
+
+
+def _read_m98(r: Reader, code: str, start: int) -> OWord:
+    """`M98 P<program> [L<repeats>]`: the call's P and L (compiled); other words on the line are read
+    and, as in LinuxCNC, not used."""
+    r.pos = start
+    words = Line(number=0, raw="")
+    _read_items(r, code, words)
+    given = dict(words.words)
+    if "p" not in given:
+        raise InterpError("found 'M98' code with no P word")
+    return OWord(name="", kind="m98", args=[given["p"], given.get("l")])
 
 
 def _only_comments(r: Reader) -> None:
