@@ -11,10 +11,12 @@ acceleration cap for an X and a Z acceleration limit). Here:
   each parameter on its own search scale (log for log-scaled ones), with a finite-difference Jacobian
   whose step (`STEP` of the scale) is wide enough for a simulation that moves in whole servo cycles.
   Integer and choice parameters stay where they are (coordinate descent in `select` moves them).
-- `split` tries, for each chosen cause, the pairs of other candidates that could stand in for it: each
-  pair is fitted jointly with every other cause, and replaces the cause only when it lowers the
-  in-sample loss by `SPLIT_GAIN` of what is left above the noise floor and each of the two then passes
-  every held-out rule given the rest (`select.judge`).
+- `split` tries, for each chosen cause, the pairs of candidates (the cause itself among them) that
+  could stand in for it: each pair is fitted jointly with every other cause, and replaces the cause only
+  when it lowers the in-sample loss by `SPLIT_GAIN` of what is left above the noise floor and each of
+  the two then passes every held-out rule given the rest (`select.judge`). A pair that keeps the cause
+  is a forward step with the cause refitted: its value fitted while the other was missing (an X
+  velocity limit of 27.5 standing in for 31 next to a feed override of 0.89) no longer blocks it.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from feedlog.diagnose.hypothesis import Hypothesis
 STEP = 0.01          # finite-difference step, as a share of the parameter's scale (log: 1 %)
 MAX_NFEV = 40        # least-squares iterations at most
 QUICK_NFEV = 6       # ... when a pair is only being compared with the others
-SPLIT_KEEP = 3       # candidates (least loss given the other causes first) whose pairs may replace one cause
+SPLIT_KEEP = 5       # candidates (least loss given the other causes first) whose pairs may replace one cause
 SCREEN_POINTS = 9    # coarse grid points per candidate
 SPLIT_GAIN = 0.3     # a pair must remove this share of the in-sample loss left above the floor
 
@@ -177,10 +179,12 @@ def split(scorer: Scorer, chosen: Sequence[Hypothesis], model: dict[str, Any],
     now = loss(scorer, model)
     if now - floor <= 0:
         return
-    taken = {k for h in chosen for k in h.keys}
     for cause in reversed(list(chosen)):
         others = {k: v for k, v in model.items() if k not in cause.keys}
         rest = [h for h in chosen if h is not cause]
+        taken = {k for h in rest for k in h.keys}
+        # the cause itself stays a candidate: (cause, another) fitted jointly is a forward step whose
+        # first value is no longer the one fitted while the other was missing
         free = [h for h in pool if not (h.keys & taken)]
         tops = _coarse(scorer, others, free)[:SPLIT_KEEP]
         trials = []
