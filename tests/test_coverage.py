@@ -17,7 +17,7 @@ from feedlog.errors import ProfileError
 from feedlog.profile import MachineProfile, load_profile
 
 ROOT = Path(__file__).resolve().parents[1]
-COVERAGE = {"format_version": 1, "recordings": ["a.mcap"],
+COVERAGE = {"format_version": 1, "recordings": ["a.mcap"], "blocks": {"median_move_min": 2.0},
             "axes": {"z": {"vel_observed": 25.0, "acc_observed": 250.0, "move_max": 5.0}},
             "parameters": {"axes.z.vel_max": {"constrained": False, "interval": [25.0, 750.0]},
                            "axes.z.acc_max": {"constrained": True, "interval": [245.0, 255.0]}}}
@@ -43,7 +43,7 @@ def test_a_newer_or_malformed_coverage_is_refused_naming_the_file():
 
 @seed(31)
 @settings(max_examples=150, deadline=None)
-@given(st.dictionaries(st.sampled_from(["format_version", "axes", "parameters", "recordings", "x"]),
+@given(st.dictionaries(st.sampled_from(["format_version", "axes", "parameters", "blocks", "recordings", "x"]),
                        st.recursive(st.none() | st.integers(-3, 3) | st.floats(allow_nan=True) | st.text(max_size=3),
                                     lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=3), inner,
                                                                                                 max_size=3),
@@ -57,6 +57,15 @@ def test_any_coverage_table_loads_or_is_refused_with_a_profile_error(table):
     peaks = {a: (1e9, 1e9) for a in "xyz"}
     for line in beyond(profile.coverage, peaks, {a: 1e9 for a in "xyz"}):
         assert line.startswith("axes.")
+
+
+def test_a_program_of_much_shorter_moves_than_the_recordings_is_named_with_the_planner():
+    from feedlog.coverage import shorter
+
+    assert shorter(COVERAGE, 1.5) == []
+    assert shorter(COVERAGE, 0.5)[0].startswith("interpolator.lookahead_blocks: the program's median move is 0.5 mm")
+    with pytest.raises(ProfileError, match=r"\[coverage.blocks\] must hold numbers"):
+        _fitted({**COVERAGE, "blocks": {"median_move_min": "x"}})
 
 
 def test_only_what_goes_beyond_an_unconstrained_parameter_is_named():

@@ -6,7 +6,9 @@ and per fitted parameter whether the recordings constrain it (an interval closed
 only bound it from one side (a limit that never bound: the data says it is at least so much). A
 program simulated on such a profile is checked against it (`beyond`): an axis moved faster, accelerated
 harder or further in one move than the recordings ever did is named with the parameter that decides
-it there, because the profile's value for it is a guess on that ground.
+it there, because the profile's value for it is a guess on that ground; and a program of much shorter
+moves than any recording's (`shorter`) is named with the planner's look-ahead: runs of short blocks
+are the planner's, which no axis limit covers.
 
     [coverage]
     format_version = 1
@@ -15,6 +17,8 @@ it there, because the profile's value for it is a guess on that ground.
     vel_observed = 40.1      # unit/s, sustained peak in the recordings
     acc_observed = 296.0     # unit/s^2 (absent when the sampling cannot show accelerations)
     move_max = 25.0          # unit, longest single programmed move along the axis
+    [coverage.blocks]
+    median_move_min = 2.4    # mm, the shortest median move length of the recordings' programs
     [coverage.parameters."axes.z.vel_max"]
     constrained = false
     interval = [40.1, 750.0] # the values the recordings allow (profile likelihood, 95 %)
@@ -31,6 +35,7 @@ from feedlog.errors import ProfileError
 
 FORMAT_VERSION = 1
 MARGIN = 0.05          # a demand this much above what was observed is beyond it
+SHORTER = 0.5          # a program whose median move is below this share of the recordings' shortest median
 WINDOW_S = 0.01        # speeds and accelerations of a position series from differences over this time
 KINDS = ("rapid", "linear")
 
@@ -43,6 +48,9 @@ def check(coverage: Mapping[str, Any], where: str) -> None:
     if not isinstance(version, int) or version > FORMAT_VERSION or version < 1:
         raise ProfileError(f"{where}: [coverage] format_version {version!r} not supported (this feedlog reads "
                            f"up to {FORMAT_VERSION})")
+    blocks = coverage.get("blocks", {})
+    if not isinstance(blocks, dict) or not all(isinstance(v, (int, float)) for v in blocks.values()):
+        raise ProfileError(f"{where}: [coverage.blocks] must hold numbers")
     for key in ("axes", "parameters"):
         table = coverage.get(key, {})
         if not isinstance(table, dict) or not all(isinstance(v, dict) for v in table.values()):
@@ -63,6 +71,16 @@ def move_lengths(blocks: Any, axes: tuple[str, ...]) -> dict[str, float]:
         d = d[np.isfinite(d)]
         out[a] = float(d.max()) if len(d) else 0.0
     return out
+
+
+def median_move(blocks: Any) -> float:
+    """The median path length of a program's motion blocks (0 when it has none)."""
+    if "length_mm" not in blocks.columns:
+        return 0.0
+    kind = blocks["kind"].astype(str).to_numpy() if "kind" in blocks.columns else np.full(len(blocks), "linear")
+    length = blocks["length_mm"].to_numpy(np.float64)
+    keep = (kind != "start") & np.isfinite(length) & (length > 0)
+    return float(np.median(length[keep])) if keep.any() else 0.0
 
 
 def series_peaks(t_ns: np.ndarray, positions: Mapping[str, np.ndarray]) -> dict[str, tuple[float, float]]:
@@ -114,13 +132,25 @@ def beyond(coverage: Mapping[str, Any], peaks: Mapping[str, tuple[float, float]]
     return out
 
 
+def shorter(coverage: Mapping[str, Any], median: float) -> list[str]:
+    """A program of much shorter moves than every recording's: the planner's handling of runs of short
+    blocks (look-ahead, segments, blends), which axis limits do not cover, is not backed by data."""
+    seen = (coverage.get("blocks", {}) if coverage else {}).get("median_move_min")
+    if seen is None or not median > 0 or median >= SHORTER * seen:
+        return []
+    return [f"interpolator.lookahead_blocks: the program's median move is {median:.4g} mm; the recordings this "
+            f"profile was fitted on had a median move of {seen:.4g} mm at the shortest, so its runs of short "
+            "blocks (look-ahead, segments, blends) are not backed by data"]
+
+
 def program_warnings(profile: Any, series: Any, blocks: Any) -> list[str]:
-    """`beyond` for a program simulated on `profile` (its series: t_ns and axis position columns; its
-    parsed block table): [] when the profile carries no coverage."""
+    """`beyond` and `shorter` for a program simulated on `profile` (its series: t_ns and axis position
+    columns; its parsed block table): [] when the profile carries no coverage."""
     if not getattr(profile, "coverage", None):
         return []
     axes = [a for a in profile.coverage.get("axes", {})]
     cols = {a: f"{a}_{'deg' if a in 'abc' else 'mm'}" for a in axes}
     positions = {a: series[c].to_numpy(np.float64) for a, c in cols.items() if c in series.columns}
     peaks = series_peaks(series["t_ns"].to_numpy(np.int64), positions) if positions else {}
-    return beyond(profile.coverage, peaks, move_lengths(blocks, tuple(axes)))
+    return (beyond(profile.coverage, peaks, move_lengths(blocks, tuple(axes)))
+            + shorter(profile.coverage, median_move(blocks)))

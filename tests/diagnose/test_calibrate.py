@@ -54,10 +54,14 @@ def test_every_covered_axis_limit_is_fitted_and_the_uncovered_ones_are_said(cali
 def test_unseen_programs_are_predicted_within_1_percent_where_covered_and_warned_where_not(calibrated):
     profile = MachineProfile.from_toml(calibrated.extended.to_toml())  # as written and read back
     assert profile.coverage["parameters"]["axes.z.vel_max"]["constrained"] is False
-    for name in ("pocket_f2000_p01", "longdense_003", "mixdense_003", "freeform_f2000_p005"):
+    for name in ("pocket_f2000_p01", "freeform_f2000_p005"):
         error, warnings = _judge(profile, name)
         assert warnings == [], (name, warnings)
         assert abs(error) < 1.0, (name, error)
+    # moves of 0.045 mm (median) against 0.157 mm at the shortest in the recordings: the planner's runs of
+    # short blocks are not backed (on LinuxCNC such a program was 9.3 % off), and the warning says so
+    error, warnings = _judge(profile, "longdense_003")
+    assert [w.split(":")[0] for w in warnings] == ["interpolator.lookahead_blocks"] and abs(error) < 1.0
     # a program with long X and Z rapids goes where the recordings never went: the warning names both
     _, warnings = _judge(profile, "test_p001")
     assert {w.split(":")[0] for w in warnings} >= {"axes.x.vel_max", "axes.z.vel_max"}

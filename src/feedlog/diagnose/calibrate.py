@@ -153,13 +153,16 @@ def calibrate(profile: MachineProfile, cases: Sequence[Case], ev: Evidence, *, m
         lo, hi = _widen(h, float(model[h.key]), _interval(scorer, model, h, n), sigma.get(h.key, float("inf")))
         value = float(model[h.key])
         constrained = lo is not None and hi is not None
-        if hi is None:  # bounded from below only: the limit never bound; keep the profile's if it is higher
-            value = max(value, float(h.baseline))
+        if hi is None:  # bounded from below only: the limit never bound and the fit's value is arbitrary
+            # (on LinuxCNC recordings an X limit drifted to the search bound): the profile's, or the bound
+            value = max(float(h.baseline), lo) if lo is not None else float(h.baseline)
         params.append(Parameter(key=h.key, profile_value=float(h.baseline), fitted_value=value,
                                 constrained=constrained, interval=(lo, hi)))
     final = {p.key: p.fitted_value for p in params}
     axes = observed(cases, ev, profile)
+    medians = [cov.median_move(c.program.blocks) for c in cases]
     coverage = {"format_version": cov.FORMAT_VERSION, "recordings": [c.source for c in cases], "axes": axes,
+                "blocks": {"median_move_min": round(min(medians), 4)},
                 "parameters": {p.key: {"constrained": p.constrained,
                                        "interval": [x for x in p.interval if x is not None] if p.constrained else
                                        [p.interval[0] if p.interval[0] is not None else h.lower,
