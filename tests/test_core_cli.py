@@ -17,7 +17,7 @@ def test_every_registered_command_names_a_feedlog_module():
 
 def test_profile_command_lists_shipped_profiles(capsys):
     assert cli.main(["profile"]) == 0
-    assert capsys.readouterr().out.split() == ["chien-ac", "generic-xyz", "linuxcnc-xyz", "linuxcnc-xyzac"]
+    assert capsys.readouterr().out.split() == ["chien-ac", "generic-xyz", "generic-xyzac", "linuxcnc-xyz", "linuxcnc-xyzac"]
 
 
 def test_our_error_is_one_line_and_exit_code_2(capsys):

@@ -10,8 +10,8 @@ from feedlog.errors import ProfileError
 from feedlog.profile import AxisLimits, MachineProfile, load_profile, shipped_profiles
 
 
-def test_shipped_profiles_are_the_three_reference_machines_and_a_generic_start():
-    assert shipped_profiles() == ["chien-ac", "generic-xyz", "linuxcnc-xyz", "linuxcnc-xyzac"]
+def test_shipped_profiles_are_the_three_reference_machines_and_two_generic_starts():
+    assert shipped_profiles() == ["chien-ac", "generic-xyz", "generic-xyzac", "linuxcnc-xyz", "linuxcnc-xyzac"]
 
 
 def test_generic_xyz_is_a_3_axis_starting_guess_that_says_so():
@@ -112,3 +112,10 @@ def test_unbounded_limits_are_left_out_of_toml():
     p = load_profile("chien-ac")
     assert math.isinf(p.interpolator.path_vel_max_mm_s)
     assert "path_vel_max_mm_s" not in p.to_toml()
+
+
+def test_generic_xyzac_is_a_five_axis_starting_guess_that_says_so():
+    p = load_profile("generic-xyzac")
+    assert p.axis_names == ("x", "y", "z", "a", "c") and p.kinematics.type == "xyzac-trt"
+    assert all(p.axes[a].vel_max == 250.0 for a in "xyz") and p.axes["a"].vel_max == 90.0
+    assert "guess" in p.description and "diagnose" in p.description and not p.coverage

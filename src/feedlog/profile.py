@@ -139,6 +139,7 @@ class MachineProfile:
     controller: str = ""
     description: str = ""
     sim: dict[str, dict[str, Any]] = field(default_factory=dict)
+    coverage: dict[str, Any] = field(default_factory=dict)  # what a fitted profile's recordings covered (feedlog.coverage)
     source: str = field(default="", compare=False, repr=False)  # the file it was read from (for messages)
 
     def __post_init__(self) -> None:
@@ -153,6 +154,11 @@ class MachineProfile:
         check_number(f"profile {self.name!r}: rapid_mm_min", self.rapid_mm_min, 1e-3, 1e9)
         if not isinstance(self.sim, dict) or not all(isinstance(t, dict) for t in self.sim.values()):
             raise ProfileError(f"profile {self.name!r}: [sim] must hold one table per mechanism")
+        if not isinstance(self.coverage, dict):
+            raise ProfileError(f"profile {self.name!r}: [coverage] must be a table")
+        from feedlog.coverage import check as check_coverage
+
+        check_coverage(self.coverage, f"profile {self.name!r}")
         self.kinematics.check()
         self.interpolator.check()
         missing = [a for a in LINEAR_AXES + self.kinematics.rotary_axes if a not in self.axes]
@@ -179,7 +185,7 @@ class MachineProfile:
             return {k: (list(v) if isinstance(v, tuple) else v) for k, v in d.items()
                     if not (isinstance(v, float) and math.isinf(v))}
 
-        return {
+        out = {
             "name": self.name,
             "controller": self.controller,
             "description": self.description,
@@ -189,6 +195,9 @@ class MachineProfile:
             "axes": {k: clean(dataclasses.asdict(v)) for k, v in self.axes.items()},
             "sim": self.sim,
         }
+        if self.coverage:  # only fitted profiles carry one
+            out["coverage"] = self.coverage
+        return out
 
     def to_toml(self) -> str:
         return tomli_w.dumps(self.to_dict())

@@ -170,3 +170,20 @@ def test_a_faithful_five_axis_recording_with_a_work_offset_gives_no_finding():
     rec = Path(__file__).resolve().parents[2] / "recordings" / "mix5ax_004.mcap"
     dx = diagnose([rec], "linuxcnc-xyzac", config=FAST)
     assert dx.findings == [] and dx.unexplained == []
+
+
+FOUR = {"axes.x.acc_max": 400.0, "axes.y.vel_max": 30.0, "axes.z.acc_max": 300.0, "sim.feed_override.override": 0.85}
+
+
+@pytest.mark.slow
+def test_three_changed_limits_and_an_override_are_all_named_within_5_percent(hidden):
+    """Four simultaneous changes: greedy steps take the feed override too low (0.80) and a rapid override
+    of 0.15 for the two acceleration limits; the joint refit and one cause split into two (fitted with
+    all the others, each of the two then held out given the rest) name all four."""
+    recs = hidden("four", values=FOUR, programs=("corners_f3000_p001", "pocket_f3000_p001", "mix_010"))
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    found = {f.parameter: f.fitted_value for f in dx.findings}
+    assert set(found) == set(FOUR)
+    for key, true in FOUR.items():
+        assert found[key] == pytest.approx(true, rel=0.05), key
+    assert abs(dx.levels["cycle"]["error_after_pct"]) < 0.5

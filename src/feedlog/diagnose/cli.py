@@ -35,6 +35,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--min-gain", type=float, default=0.2, metavar="SHARE",
                         help="share of the remaining held-out residual a cause must remove (default %(default)s)")
     parser.add_argument("--families", help="comma-separated hypothesis families (default: all)")
+    parser.add_argument("--calibrate", action="store_true",
+                        help="fit every axis limit the recordings constrain (a machine with no profile of its "
+                             "own: --profile generic-xyz or generic-xyzac); the written profile says which the "
+                             "recordings covered")
     parser.add_argument("--no-learned", action="store_true", help="do not fit a learned correction")
     parser.add_argument("--no-rrd", action="store_true", help="do not write diagnose.rrd")
     parser.add_argument("--lenient", action="store_true", help="skip unsupported program codes")
@@ -79,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
         scheduler = args.scheduler or (os.environ.get("FEEDLOG_SCHEDULER") if args.jobs is None else None)
         jobs = args.jobs if args.jobs is not None else (None if scheduler else 1)
         config = DiagnoseConfig(min_effect_pct=args.min_effect, min_gain=args.min_gain, families=families,
-                                learned=not args.no_learned, jobs=jobs,
+                                learned=not args.no_learned, jobs=jobs, calibrate=args.calibrate,
                                 scheduler=None if scheduler in (None, "", "none") else scheduler)
         say = None if args.quiet or args.json else (lambda msg: print(f"  {msg}", file=sys.stderr, flush=True))
         if line_stream_only(args.recordings):   # no positions: the block level (diagnose.line_level)

@@ -23,9 +23,9 @@ import numpy as np
 
 from feedlog.diagnose import keys
 from feedlog.diagnose.cases import Case, DiagnoseError, attached_profile, check_same_machine, prepare_case
-from feedlog.diagnose.evidence import Evidence, describe, gather, suggest
+from feedlog.diagnose.evidence import Evidence, gather
 from feedlog.diagnose.fit import Scorer
-from feedlog.diagnose.hypothesis import candidates
+from feedlog.diagnose.hypothesis import candidates, family
 from feedlog.diagnose.select import Judged, SelectConfig, Selection, select, too_little_data
 from feedlog.errors import FeedlogError
 from feedlog.recording import Recording
@@ -40,12 +40,13 @@ class DiagnoseConfig:
     min_effect_pct: float = 1.0        # timing: held-out error must drop by this many percentage points
     min_effect_feedback_mm: float = 0.001
     min_effect_line_s: float = 0.002
-    max_causes: int = 3
+    max_causes: int = 6
     families: tuple[str, ...] | None = None
     min_segment_s: float | None = None
     learned: bool = True               # fit a learned correction where a systematic residual is unexplained
     jobs: int | None = 1               # worker processes for recordings and hypothesis fits (1: here, serially)
     scheduler: str | None = None       # a Dask scheduler for them instead (feedlog.execution)
+    calibrate: bool = False            # fit every axis limit the recordings constrain first (`calibrate`)
 
     @property
     def parallel(self) -> bool:
@@ -77,6 +78,7 @@ class Finding:
     fold_values: list[Any] = field(default_factory=list)
     where: str = ""                 # the block classes its change of the residual sits in
     scheme: str = ""                # how it was held out
+    separated_by: dict[str, Any] | None = None  # with alternatives: the recording that would tell them apart
 
     def as_dict(self) -> dict[str, Any]:
         """The finding as the `--json` object has it (`summary.clean` makes it JSON-ready)."""
@@ -85,7 +87,8 @@ class Finding:
                 "gain_pct": self.gain_pct, "error_before": self.error_before, "error_after": self.error_after,
                 "kind": self.kind, "level": self.level, "family": self.family, "evidence": self.evidence,
                 "predicts": self.predicts, "alternatives": self.alternatives, "fold_values": list(self.fold_values),
-                "where": self.where, "held_out": self.scheme}
+                "where": self.where, "held_out": self.scheme,
+                **({"separated_by": self.separated_by} if self.alternatives else {})}
 
 
 @dataclass
@@ -106,6 +109,7 @@ class Diagnosis:
     profile_out: str | None = None
     sims: dict[str, list[Any]] = field(default_factory=dict)
     learned_model: Any = None
+    calibration: Any = None            # `calibrate.Calibration` with --calibrate
 
     @property
     def diff(self) -> list[tuple[str, Any, Any]]:
@@ -232,7 +236,16 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
     laps["prepare"] = time.perf_counter() - t0
     say(f"{len(cases)} recording(s) aligned")
     ev = gather(cases, prof)
-    hyps = [replace(h, seeds=suggest(ev, h.key, h.baseline)) for h in candidates(prof, cases, families=cfg.families)]
+    given, cal = prof, None
+    if cfg.calibrate:  # every axis limit first, all together; the causes are then looked for on top of it
+        from feedlog.diagnose.calibrate import calibrate
+
+        t1 = time.perf_counter()
+        cal = calibrate(prof, cases, ev, min_segment_s=cfg.min_segment_s, progress=say)
+        prof = cal.profile
+        laps["calibrate"] = time.perf_counter() - t1
+    hyps = [replace(h, seeds=family(h.family).suggest(ev, h.key, h.baseline))
+            for h in candidates(prof, cases, families=cfg.families)]
     selections: dict[str, Selection] = {}
     scorers: dict[str, Scorer] = {}
     built: dict[str, Scorer] = {}
@@ -265,12 +278,12 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
     model: dict[str, Any] = {}
     for sel in selections.values():
         model.update(sel.model)
-    extended = keys.with_values(prof, model, name=f"{prof.name}-diagnosed") if model else prof.replace(
-        name=f"{prof.name}-diagnosed")
+    extended = keys.with_values(prof, model, name=f"{given.name}-diagnosed") if model else prof.replace(
+        name=f"{given.name}-diagnosed")
     findings = [_finding(step.chosen, sel, scorers[level], ev, level_error(scorers[level]))
                 for level, sel in selections.items() for step in sel.steps]
-    dx = Diagnosis(profile=prof, extended=extended, cases=cases, evidence=ev, selections=selections,
-                   scorers=scorers, findings=findings, noise_floor=_noise_floor(scorers, cfg, cases))
+    dx = Diagnosis(profile=given, extended=extended, cases=cases, evidence=ev, selections=selections,
+                   scorers=scorers, findings=findings, noise_floor=_noise_floor(scorers, cfg, cases), calibration=cal)
     t2 = time.perf_counter()
     from feedlog.diagnose.levels import measure_levels
     from feedlog.diagnose.unexplained import find_unexplained
@@ -328,12 +341,20 @@ def _finding(j: Judged, sel: Selection, scorer: Scorer, ev: Evidence, error) -> 
     value = sel.model.get(hyp.key, j.held.value)
     alts = [{"parameter": a.key, "fitted_value": a.held.value, "unit": a.held.hyp.unit,
              "gain_pct": 100 * a.held.gain} for a in _alternatives(sel, hyp.key)]
+    separated = None
+    if alts and hyp.level == "timing":  # which recording would tell the equally good ones apart
+        from feedlog.diagnose.separate import separating_program
+
+        rest = {k: v for k, v in sel.model.items() if k not in hyp.keys}
+        alt = next(a for a in _alternatives(sel, hyp.key))
+        base = keys.with_values(scorer.profile, rest) if rest else scorer.profile
+        separated = separating_program(base, hyp.values(value), alt.held.hyp.values(alt.held.value))
     return Finding(parameter=hyp.key, profile_value=hyp.baseline, fitted_value=_round_value(hyp, value),
                    unit=hyp.unit, interval=j.held.interval, gain_pct=100 * j.held.gain,
                    error_before=j.error_before, error_after=j.error_after, kind=hyp.kind, level=hyp.level,
-                   family=hyp.family, evidence=describe(ev, hyp.key, value), predicts=hyp.predicts,
+                   family=hyp.family, evidence=family(hyp.family).describe(ev, hyp.key, value), predicts=hyp.predicts,
                    alternatives=alts, fold_values=list(j.held.extra.get("fold_fits", [])),
-                   scheme=j.held.extra.get("scheme", ""))
+                   scheme=j.held.extra.get("scheme", ""), separated_by=separated)
 
 
 def _alternatives(sel: Selection, key: str) -> list[Judged]:

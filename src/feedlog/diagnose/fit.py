@@ -34,6 +34,7 @@ INT_GRID = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 400)
 CHUNKS = 5               # held-out chunks of a single recording
 CHUNKS_EACH = 3          # ... of each recording when there are several
 INFORMATIVE = 0.2        # a recording constrains a parameter when the best grid value removes this share of its residual
+MATERIAL = 0.05          # ... and what it removes there is at least this share of the excess loss of all recordings
 FEEDBACK_CHUNK_MIN = 200  # samples per feedback chunk at least
 BRENT_ITER = 20
 XATOL = 2e-3             # Brent's tolerance as a share of the bracket (two grid steps)
@@ -317,17 +318,21 @@ def _refine_int(loss, grid: list[Any], best: int, losses: np.ndarray) -> tuple[i
 def folds_for(scorer: Scorer, model: Mapping[str, Any], hyp: Hypothesis) -> tuple[list[list[int]], str]:
     """How to hold data out for `hyp`: whole recordings when at least two recordings each constrain it
     (the best value on the grid removes at least `INFORMATIVE` of that recording's own residual above
-    its noise floor), else single stretches: a recording that barely depends on the parameter cannot
+    its noise floor, and that is a material share, `MATERIAL`, of the excess loss of all recordings:
+    a recording with almost nothing left to explain does not constrain anything, however much of its
+    little it removes), else single stretches: a recording that barely depends on the parameter cannot
     fit it for the others."""
     grid = _grid(hyp)
     losses = np.array([scorer.unit_losses({**model, **hyp.values(v)}) for v in grid])  # (grid, units)
     base = scorer.unit_losses(model)
+    total = float(base.sum() - scorer.floor.sum())
     informative = []
     for group in scorer.groups:
         per = losses[:, group].sum(axis=1)
         excess = float(base[group].sum() - scorer.floor[group].sum())
         best = float(np.min(per[np.isfinite(per)])) if np.isfinite(per).any() else np.inf
-        if excess > 0 and float(base[group].sum()) - best >= INFORMATIVE * excess:
+        removed = float(base[group].sum()) - best
+        if excess > 0 and removed >= INFORMATIVE * excess and removed >= MATERIAL * total:
             informative.append(group)
     if len(informative) >= 2:
         return scorer.groups, "leave one recording out"

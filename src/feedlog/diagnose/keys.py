@@ -146,7 +146,7 @@ def diff(before: MachineProfile, after: MachineProfile) -> list[tuple[str, Any, 
     a, b = _leaves(before.to_dict()), _leaves(after.to_dict())
     out = []
     for key in sorted(set(a) | set(b)):
-        if key in ("name", "description"):
+        if key in ("name", "description") or key.startswith("coverage."):
             continue
         if a.get(key) != b.get(key):
             out.append((key, a.get(key), b.get(key)))

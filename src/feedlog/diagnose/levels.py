@@ -169,7 +169,9 @@ def _along(t, pos, lin, speed, t_anchor, s_anchor, grid) -> tuple[np.ndarray, np
 
 def measure_levels(dx) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
     cases, prof, ext = dx.cases, dx.profile, dx.extended
-    before = dx.scorers["timing"].baseline_sims if "timing" in dx.scorers else simulate_all(cases, prof)
+    timing = dx.scorers.get("timing")
+    # the scorer's baseline is the given profile's, unless a calibration came first (then its own is generic)
+    before = timing.baseline_sims if timing is not None and timing.profile is prof else simulate_all(cases, prof)
     after = simulate_all(cases, ext)
     cyc = []
     for c, b, a in zip(cases, before, after):

@@ -19,7 +19,7 @@ is accepted only if all of these hold:
 - **harmless**: no recording's held-out error grows by `min_effect` (a global parameter fitted to what
   one recording does differently must not be "found" at the others' expense);
 - **not contradicted** by the evidence the data gives without any simulation
-  (`evidence.contradicts`);
+  (its family's `contradicts`, beside the family in its `hyp_*.py`);
 - **enough data**: the level holds at least the hypothesis' minimum (`Hypothesis.needs`: 8 segments or
   blocks, 1000 feedback samples) over `MIN_SECONDS` (5 s) of motion; `engine` refuses the whole
   diagnosis when no level has that much.
@@ -29,8 +29,8 @@ held-out losses lie closer than noise alone moves them (`noise_spread`), the one
 best (`rank`).
 Hypotheses whose held-out loss is within `tie` of the best are reported as equally good
 alternatives (a program that moves Z only in rapids cannot tell a Z velocity limit from a rapid
-override); the primary is the one of the family listed first in `PRIORITY` (the machine's own limits
-before planner settings, dwells and operator dials). Accepted values are then refitted in turn
+override); the primary is the one of the family of the lowest `Family.rank` (the operator's dials,
+then the machine's own limits, then planner settings, dwells, feedback and the logger). Accepted values are then refitted in turn
 given each other (coordinate descent), so two simultaneous causes do not bias one another.
 """
 
@@ -42,11 +42,10 @@ from typing import Any
 
 import numpy as np
 
-from feedlog.diagnose.evidence import Evidence, contradicts
+from feedlog.diagnose.evidence import Evidence
 from feedlog.diagnose.fit import HeldOut, Scorer, _grid, fit, held_out, refine
-from feedlog.diagnose.hypothesis import MIN_SECONDS, Hypothesis
+from feedlog.diagnose.hypothesis import MIN_SECONDS, Hypothesis, family
 
-PRIORITY = ("overrides", "axis_limits", "path_limits", "planner", "dwell", "feedback", "logger")
 SCREEN_KEEP = 5        # hypotheses fully cross-validated per step
 SCREEN_SHARE = 0.5     # ... among those within this share of the best screening gain
 SCREEN_POINTS = 9      # grid points per hypothesis when screening
@@ -62,8 +61,9 @@ class SelectConfig:
     min_effect: float = 1.0        # level error units (timing: percentage points; feedback: mm)
     z: float = 2.0                 # standard errors for repeatability with four or more units
     tie: float = 0.05              # held-out losses within this share of the best are ties
-    max_causes: int = 3
+    max_causes: int = 6
     refit_rounds: int = 2
+    splits: int = 2                # rounds of one cause split into two (`joint.split`), each followed by more steps
 
 
 @dataclass
@@ -103,7 +103,7 @@ class Selection:
 
 
 def _priority(hyp: Hypothesis) -> int:
-    return PRIORITY.index(hyp.family) if hyp.family in PRIORITY else len(PRIORITY)
+    return family(hyp.family).rank
 
 
 def noise_spread(scorer: Scorer) -> float:
@@ -132,9 +132,10 @@ def rank(judged: list[Judged], spread: float) -> list[Judged]:
     return [lead, *(j for j in out if j is not lead)]
 
 
-def screen(scorer: Scorer, model: dict[str, Any], hyps: Sequence[Hypothesis]) -> list[tuple[Hypothesis, float]]:
+def screen(scorer: Scorer, model: dict[str, Any], hyps: Sequence[Hypothesis], *, keep: int = SCREEN_KEEP,
+           share: float = SCREEN_SHARE) -> list[tuple[Hypothesis, float]]:
     """The hypotheses worth a full held-out fit, with their best in-sample loss (all units): a clear
-    gain over `model`, within `SCREEN_SHARE` of the best gain, the most promising first."""
+    gain over `model`, within `share` of the best gain, the most promising first, `keep` at most."""
     floor = float(scorer.floor.sum())
     base = float(scorer.unit_losses(model).sum()) - floor
     scored = []
@@ -153,7 +154,7 @@ def screen(scorer: Scorer, model: dict[str, Any], hyps: Sequence[Hypothesis]) ->
     if not scored or scored[0][0] <= 0:
         return []
     top = scored[0][0]
-    return [(h, best) for g, best, h in scored if g > 0 and g >= SCREEN_SHARE * top][:SCREEN_KEEP]
+    return [(h, best) for g, best, h in scored if g > 0 and g >= share * top][:keep]
 
 
 def judge(held: HeldOut, scorer: Scorer, cfg: SelectConfig, error: Callable[[np.ndarray, list[int]], float],
@@ -164,7 +165,7 @@ def judge(held: HeldOut, scorer: Scorer, cfg: SelectConfig, error: Callable[[np.
     if short:
         j.reasons.append(short)
     if evidence is not None and held.hyp.baseline is not None:
-        j.veto = contradicts(evidence, held.hyp.key, held.hyp.baseline, held.value)
+        j.veto = family(held.hyp.family).contradicts(evidence, held.hyp.key, held.hyp.baseline, held.value)
         if j.veto:
             j.reasons.append(f"contradicted by the data: {j.veto}")
     if held.gain < cfg.min_gain:
@@ -245,6 +246,37 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
     current = base
     remaining = list(hyps)
     units = list(range(len(scorer.units)))
+    for split_round in range(cfg.splits + 1):
+        model, steps, rejected, current, remaining = _forward(
+            scorer, model, steps, rejected, current, remaining, cfg, error, evidence, many, progress)
+        refit = _refit(scorer, [s.chosen.held.hyp for s in steps], model, cfg.refit_rounds)
+        if len(steps) > 1:  # each cause judged again with the others at their refitted values
+            refit = _rejudged(scorer, steps, refit, cfg, error, evidence)
+            refit = _rechoose(scorer, steps, refit, cfg, error, evidence, many, progress)
+            if error(scorer.unit_losses(refit), units) >= cfg.min_effect:  # something material left: try swaps
+                refit = _swap(scorer, steps, refit, hyps, cfg, error, evidence, progress)
+            current = scorer.unit_losses(refit)
+        model = refit
+        if (split_round == cfg.splits or not steps or len(steps) >= cfg.max_causes
+                or error(scorer.unit_losses(model), units) < cfg.min_effect):
+            break
+        done = _split(scorer, steps, model, hyps, cfg, error, evidence, progress)
+        if done is None:
+            break
+        model = done
+        current = scorer.unit_losses(model)
+        taken = {k for st in steps for k in st.chosen.held.hyp.keys}
+        remaining = [h for h in hyps if not (h.keys & taken)]
+    return Selection(level=scorer.level, model=model, steps=steps, rejected=rejected, base_losses=base,
+                     final_losses=current)
+
+
+def _forward(scorer: Scorer, model: dict[str, Any], steps: list[Step], rejected: list[Judged], current: np.ndarray,
+             remaining: list[Hypothesis], cfg: SelectConfig, error: Callable[[np.ndarray, list[int]], float],
+             evidence: Evidence | None, many: Callable[[dict[str, Any], Sequence[Hypothesis]], list[HeldOut]],
+             progress: Callable[[str], None] | None):
+    """Greedy forward steps from `model` until no candidate passes (or `max_causes`)."""
+    units = list(range(len(scorer.units)))
     while len(steps) < cfg.max_causes and remaining and scorer.units:
         if error(current, units) < cfg.min_effect:
             break  # what remains is below what a cause must remove
@@ -281,15 +313,38 @@ def select(scorer: Scorer, hyps: Sequence[Hypothesis], *, error: Callable[[np.nd
             model = _refit(scorer, [s.chosen.held.hyp for s in steps], model, 1)
             current = np.minimum(current, scorer.unit_losses(model))
         remaining = [h for h in remaining if h.key != chosen.key]
-    refit = _refit(scorer, [s.chosen.held.hyp for s in steps], model, cfg.refit_rounds)
-    if len(steps) > 1:  # each cause judged again with the others at their refitted values
-        refit = _rejudged(scorer, steps, refit, cfg, error, evidence)
-        refit = _rechoose(scorer, steps, refit, cfg, error, evidence, many, progress)
-        if error(scorer.unit_losses(refit), units) >= cfg.min_effect:  # something material left: try swaps
-            refit = _swap(scorer, steps, refit, hyps, cfg, error, evidence, progress)
-        current = scorer.unit_losses(refit)
-    return Selection(level=scorer.level, model=refit, steps=steps, rejected=rejected, base_losses=base,
-                     final_losses=current)
+    return model, steps, rejected, current, remaining
+
+
+def _split(scorer: Scorer, steps: list[Step], model: dict[str, Any], hyps: Sequence[Hypothesis], cfg: SelectConfig,
+           error: Callable[[np.ndarray, list[int]], float], evidence: Evidence | None,
+           progress: Callable[[str], None] | None) -> dict[str, Any] | None:
+    """One chosen cause replaced by two (`joint.split`) when the pair, fitted jointly with the other
+    causes, does materially better in sample and each of the two passes every held-out rule given the
+    rest; None when no pair does. The steps are changed in place."""
+    from feedlog.diagnose.joint import split
+
+    chosen = [s.chosen.held.hyp for s in steps]
+    if progress:
+        progress(f"{scorer.level}: trying to split each of {len(chosen)} cause(s) into two")
+    for cause, pair, trial in split(scorer, chosen, model, hyps):
+        new = []
+        for hyp in pair:
+            others = {k: v for k, v in trial.items() if k not in hyp.keys}
+            j = judge(held_out(scorer, others, hyp), scorer, cfg, error, evidence)
+            if not j.accepted:
+                break
+            new.append(j)
+        if len(new) < 2:
+            continue
+        i = chosen.index(cause)
+        old = steps[i]
+        steps[i] = Step(chosen=new[0], alternatives=[], considered=[old.chosen, *old.considered])
+        steps.insert(i + 1, Step(chosen=new[1], alternatives=[], considered=[old.chosen, *old.considered]))
+        if progress:
+            progress(f"{scorer.level}: {cause.key} split into {pair[0].key} and {pair[1].key}")
+        return _rejudged(scorer, steps, trial, cfg, error, evidence)
+    return None
 
 
 def _pair(scorer: Scorer, model: dict[str, Any], judged: list[Judged], remaining: Sequence[Hypothesis],
@@ -334,7 +389,7 @@ def _rechoose(scorer: Scorer, steps: list[Step], model: dict[str, Any], cfg: Sel
               progress: Callable[[str], None] | None) -> dict[str, Any]:
     """Each step's choice made again given the other causes: the candidates its step cross-validated
     are judged with the others in the model, and the same rule picks (the least held-out loss; ties to
-    the family listed first in `PRIORITY`). A cause chosen before a second one was in the model can
+    family of the lowest rank). A cause chosen before a second one was in the model can
     have stood in for part of it (a path speed cap taking an acceleration limit's time on rapids next
     to a feed override's on feed moves); with the second in place the first choice is no longer best."""
     changed = False
@@ -407,7 +462,8 @@ def _rejudged(scorer: Scorer, steps: list[Step], model: dict[str, Any], cfg: Sel
 
 
 def _refit(scorer: Scorer, hyps: list[Hypothesis], model: dict[str, Any], rounds: int) -> dict[str, Any]:
-    """Each accepted value refitted on all units given the others (coordinate descent)."""
+    """Each accepted value refitted on all units given the others (coordinate descent), then all of them
+    at once (`joint.joint_fit`: kept only where it lowers the loss)."""
     if len(hyps) < 2:
         return dict(model)
     model = dict(model)
@@ -416,4 +472,6 @@ def _refit(scorer: Scorer, hyps: list[Hypothesis], model: dict[str, Any], rounds
         for hyp in hyps:
             others = {k: v for k, v in model.items() if k not in hyp.keys}
             model.update(hyp.values(fit(scorer, others, hyp, units).value))
-    return model
+    from feedlog.diagnose.joint import joint_fit
+
+    return joint_fit(scorer, model, hyps)

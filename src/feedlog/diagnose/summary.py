@@ -47,6 +47,13 @@ def summary_lines(dx) -> list[str]:
         alts = "; or equally " + ", ".join(f"{a['parameter']} = {_fmt(a['fitted_value'], a['unit'])}"
                                           for a in f.alternatives) if f.alternatives else ""
         lines.append(f"cause {i}: {what}{': ' if extra else ''}{'; '.join(extra)}{alts}")
+        if f.alternatives:
+            sep = f.separated_by
+            lines.append(f"  to tell them apart record: {sep['program']} (predicted {sep['cycle_s'][0]:.3f} s "
+                         f"against {sep['cycle_s'][1]:.3f} s)" if sep else
+                         "  no calibration air-cut tells them apart: record other kinds of programs")
+    if dx.calibration is not None:
+        lines += calibration_lines(dx.calibration)
     held = dx.held_out or {}
     held_text = ""
     if held.get("recordings"):
@@ -56,7 +63,7 @@ def summary_lines(dx) -> list[str]:
     fb_text = ""
     if fb and fb.get("rms_before_mm") is not None:
         fb_text = f"; feedback RMS {fb['rms_before_mm'] * 1e3:.2f} -> {fb['rms_after_mm'] * 1e3:.2f} um"
-    if dx.findings:
+    if dx.findings or dx.calibration is not None:
         target = dx.profile_out or "(not written; pass -o DIR)"
         lines.append(f"extended profile {target}: error {_signed(cyc['error_before_pct'])} -> "
                      f"{_signed(cyc['error_after_pct'])}{held_text}{fb_text}")
@@ -73,6 +80,26 @@ def summary_lines(dx) -> list[str]:
                      f"{lc['mean_abs_error_after_pct']:.2f} %" + ("" if lc["gain_pct"] > 0 else " (does not generalise)"))
         lines.append(text)
     return lines
+
+
+def calibration_lines(cal) -> list[str]:
+    """Per calibrated parameter: its value and whether the recordings constrain it."""
+    out = []
+    for p in cal.parameters:
+        axis, limit = p.key.split(".")[1:]
+        seen = cal.axes.get(axis, {})
+        obs = seen.get("vel_observed" if limit == "vel_max" else "acc_observed")
+        obs_text = "" if obs is None else f"; seen up to {obs:.4g}"
+        if p.constrained:
+            out.append(f"calibrated {p.key} = {p.fitted_value:.4g} (profile {p.profile_value:.4g}), constrained: "
+                       f"{p.interval[0]:.4g} .. {p.interval[1]:.4g}{obs_text}")
+        else:
+            low = "" if p.interval[0] is None else f" at least {p.interval[0]:.4g}"
+            out.append(f"calibrated {p.key} = {p.fitted_value:.4g}: NOT constrained by these recordings{low}"
+                       f"{obs_text}; record a program that drives it (feedlog program --calibration)")
+    for h in cal.held_out:
+        out.append(f"  held out {h['recording']}: {_signed(h['error_before_pct'])} -> {_signed(h['error_after_pct'])}")
+    return out
 
 
 def clean(obj: Any) -> Any:
@@ -112,4 +139,5 @@ def to_json(dx) -> dict[str, Any]:
         "evidence": dx.evidence.as_dict(), "noise_floor": dx.noise_floor, "rejected": rejected,
         "where": {k: v for k, v in dx.where.items() if k in ("before", "after", "classes_before", "top_segments")},
         "notes": {c.name: c.notes for c in dx.cases if c.notes},
-        "summary": summary_lines(dx), "timings_s": dx.timings_s})
+        "summary": summary_lines(dx), "timings_s": dx.timings_s,
+        **({"calibration": dx.calibration.as_dict()} if dx.calibration is not None else {})})

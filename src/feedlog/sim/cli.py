@@ -19,6 +19,7 @@ import numpy as np
 
 from feedlog.atomic import atomic_outputs
 from feedlog.cli_options import add_output, add_overwrite, add_quiet
+from feedlog.coverage import program_warnings
 from feedlog.errors import FeedlogError, SimulationError
 from feedlog.execution import add_arguments as add_execution_arguments
 from feedlog.toolpath.cli import add_interpreter_arguments, interp_options
@@ -135,6 +136,9 @@ def _run_one(args: argparse.Namespace, source: str, *, series: Path | None) -> i
                 for temporary, table in zip(temporaries, outputs.values()):
                     table().to_parquet(temporary, index=False)
         notes = program_notes(program)
+        beyond = program_warnings(result.profile, result.series, program.blocks)
+        if beyond:  # a fitted profile used where its recordings never went
+            notes = {**notes, "coverage_warnings": beyond}
     summary = {"program": str(source), **result.summary(), **notes}
     if args.json:
         json.dump(summary, sys.stdout, allow_nan=False)
@@ -150,6 +154,8 @@ def _run_one(args: argparse.Namespace, source: str, *, series: Path | None) -> i
         for warning in summary.get("warnings", []):
             if not warning.startswith("line ") or "skipped" not in warning:
                 print(f"warning: {warning}")
+    for warning in summary.get("coverage_warnings", []):
+        print(f"feedlog sim: warning: {warning}", file=sys.stderr)
     return 0
 
 

@@ -25,7 +25,8 @@ STREAM_BYTES = 16 << 20   # files this large are read and summarised chunk by ch
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("file", metavar="FILE", type=Path, help="part program (RS274/NGC G-code)")
+    parser.add_argument("file", metavar="FILE", type=Path, nargs="?",
+                        help="part program (RS274/NGC G-code); not with --calibration")
     parser.add_argument("--profile", default=None,
                         help=f"machine profile: shipped name or TOML path (default: {DEFAULT_PROFILE}, or "
                              f"{FIVE_AXIS_PROFILE} for a program that moves A or C; the summary says which)")
@@ -41,6 +42,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="write the flattened motion (loops unrolled, subroutines inlined, cycles and "
                              "compensation resolved) as RS274/NGC, one line per move tagged with file, line "
                              "and call stack")
+    parser.add_argument("--calibration", type=Path, metavar="CAL.ngc",
+                        help="write the air-cut program that would pin down the axis limits --profile's "
+                             "recordings did not constrain (its [coverage]; all of them without one)")
+    parser.add_argument("--for", dest="calibrate_for", metavar="KEY,KEY",
+                        help="with --calibration: these axis limits (e.g. axes.z.vel_max) instead of the missing ones")
+    parser.add_argument("--travel", type=float, default=100.0, metavar="MM",
+                        help="with --calibration: distance each axis may move from the start (default %(default)s)")
     add_interpreter_arguments(parser)
     parser.add_argument("--stream", action=argparse.BooleanOptionalAction, default=None,
                         help="read the program in chunks, summarise and write -o batch by batch "
@@ -93,6 +101,10 @@ def interp_options(args: argparse.Namespace) -> InterpOptions:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.calibration is not None:
+        return _write_calibration(args)
+    if args.file is None:
+        raise FeedlogError("a part program FILE is needed (or --calibration CAL.ngc to write one)")
     if args.out is not None and args.out.exists() and not args.overwrite:
         raise FeedlogError(f"{args.out} exists; pass --overwrite to replace it")
     if _streams(args):
@@ -122,6 +134,26 @@ def run(args: argparse.Namespace) -> int:
         print(format_summary(summary))
         if args.out is not None:
             print(f"  block table  {args.out}")
+    return 0
+
+
+def _write_calibration(args: argparse.Namespace) -> int:
+    """`--calibration CAL.ngc`: the air-cut for what the profile's recordings left unconstrained."""
+    from feedlog.toolpath.calibration import calibration_program, missing
+
+    if args.file is not None:
+        raise FeedlogError("--calibration writes a program; give no FILE with it")
+    if args.calibration.exists() and not args.overwrite:
+        raise FeedlogError(f"{args.calibration} exists; pass --overwrite to replace it")
+    profile = load_profile(args.profile or DEFAULT_PROFILE)
+    keys = [k.strip() for k in args.calibrate_for.split(",") if k.strip()] if args.calibrate_for else missing(profile)
+    text = calibration_program(profile, travel=args.travel, keys=keys)
+    with atomic_output(args.calibration) as temporary:
+        Path(temporary).write_text(text)
+    if args.json:
+        print(json.dumps({"calibration": str(args.calibration), "profile": profile.name, "parameters": keys}))
+    else:
+        print(f"wrote {args.calibration}: air-cut for {', '.join(keys) if keys else 'nothing (all constrained)'}")
     return 0
 
 
