@@ -62,3 +62,33 @@ def test_cycle_and_block_times_survive_measurement_errors(run, rate_hz, noise_mm
     assert cmp["duration_err_median_s"] <= block_tol_s, cmp
     if noise_mm:
         assert a.report["still_mm"] > 3 * noise_mm  # the standstill threshold followed the noise
+
+
+def test_a_long_noisy_standstill_mid_program_does_not_lose_the_tool():
+    # a 3 s hold (a tool change) at 1 kHz with 2 um noise lays ~10 mm of jitter into the measured
+    # path length; the progress window of the next points must still find the tool where it went on
+    text = PROGRAM.read_text()
+    lines = text.splitlines(keepends=True)
+    feeds = [i for i, line in enumerate(lines) if line.startswith("G1 ")]
+    lines.insert(feeds[5] + 1, "G4 P3\n")
+    held = "".join(lines)
+    prog = parse_program(held, name="held.ngc")
+    sim = simulate(prog, "linuxcnc-xyz")
+    rec = _logged(sim, held, 1000.0, 0.002, 0.001, 0.0, seed=3)
+    a = align_recording(rec, prog, profile="linuxcnc-xyz")
+    assert a.cycle_time_s == pytest.approx(sim.cycle_time_s, abs=0.01)
+    cmp = compare_blocks(sim.blocks.assign(seen=True), a.blocks)
+    assert cmp["duration_err_median_s"] <= 0.003, cmp
+
+
+def test_noise_steps_mark_only_a_noisy_standstill():
+    from feedlog.align.match import noise_steps
+
+    rng = np.random.default_rng(0)
+    still = np.zeros((2000, 3))
+    moving = np.c_[np.arange(2000) * 0.05, np.zeros(2000), np.zeros(2000)]   # 50 mm/s at 1 kHz
+    p = np.vstack([moving, moving[-1] + still, moving[-1] + moving]) + rng.normal(0, 0.002, (6000, 3))
+    mask = noise_steps(p, 1e-3)
+    assert mask[2100:3900].all() and not mask[100:1900].any() and not mask[4100:5900].any()
+    assert noise_steps(np.vstack([moving, moving[-1] + still]), 1e-3) is None   # noise-free: nothing to do
+    assert noise_steps(p[::200], 0.2) is None                                    # sparse: left alone

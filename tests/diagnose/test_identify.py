@@ -187,3 +187,25 @@ def test_three_changed_limits_and_an_override_are_all_named_within_5_percent(hid
     for key, true in FOUR.items():
         assert found[key] == pytest.approx(true, rel=0.05), key
     assert abs(dx.levels["cycle"]["error_after_pct"]) < 0.5
+
+
+def with_tool_changes(text: str) -> str:
+    """Two tool changes between moves: after the program's 4th and 10th feed moves."""
+    lines = text.splitlines(keepends=True)
+    feeds = [i for i, line in enumerate(lines) if line.startswith(("G1 ", "G2 ", "G3 "))]
+    for i, tool in ((feeds[9], 1), (feeds[3], 2)):
+        lines.insert(i + 1, f"T{tool} M6\n")
+    return "".join(lines)
+
+
+def test_a_tool_change_time_is_named_from_the_standstills_at_m6(hidden):
+    dx = diagnose(hidden("toolchange", values={"sim.tool_change.time_s": 2.5}, program_edit=with_tool_changes),
+                  "linuxcnc-xyz", config=FAST)
+    assert [f.parameter for f in dx.findings] == ["sim.tool_change.time_s"]
+    assert dx.findings[0].fitted_value == pytest.approx(2.5, rel=0.05)
+    assert _cycle_error_removed(dx) >= 0.9
+
+
+def test_tool_changes_on_an_unchanged_machine_give_no_finding(hidden):
+    dx = diagnose(hidden("toolchange_none", program_edit=with_tool_changes), "linuxcnc-xyz", config=FAST)
+    assert dx.findings == []

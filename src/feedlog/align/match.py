@@ -138,10 +138,22 @@ def path_length(positions: np.ndarray) -> np.ndarray:
     return s
 
 
-def reduce_path(positions: np.ndarray, resolution_mm: float) -> tuple[np.ndarray, np.ndarray]:
+def reduce_path(positions: np.ndarray, resolution_mm: float, period_s: float | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
     """Indices of vertices at least ~resolution_mm of path length apart (first and last sample of every
-    bin kept, so standstills keep their start and end) and the cumulative length at every sample."""
-    s = path_length(positions)
+    bin kept, so standstills keep their start and end) and the cumulative length at every sample.
+
+    With `period_s` of dense data, the steps of a standstill that are only sensor noise add no length
+    (`noise_steps`): a tool change or a feed hold of seconds at 1 kHz would otherwise lay millimetres
+    of jitter into the path length, and the progress window of the next points would miss the tool."""
+    p = np.asarray(positions, dtype=np.float64)
+    still = noise_steps(p, period_s) if period_s is not None else None
+    if still is None:
+        s = path_length(p)
+    else:
+        step = np.sqrt((np.diff(p, axis=0) ** 2).sum(axis=1))
+        step[still] = 0.0
+        s = np.concatenate([[0.0], np.cumsum(step)])
     b = np.floor(s / resolution_mm)  # whole numbers: compared as floats, no integer copy
     keep = np.zeros(len(s), dtype=bool)
     keep[0] = keep[-1] = True
@@ -149,6 +161,29 @@ def reduce_path(positions: np.ndarray, resolution_mm: float) -> tuple[np.ndarray
     keep[1:] |= change
     keep[:-1] |= change
     return np.flatnonzero(keep), s
+
+
+NOISE_WINDOW_S = 0.02   # a standstill is a window this long whose samples stay within the noise band
+NOISE_BAND = 8.0        # band: this many noise sigmas per axis (a 21-sample range of Gaussian noise is ~4)
+DENSE_S = 0.005
+
+
+def noise_steps(p: np.ndarray, period_s: float) -> np.ndarray | None:
+    """Steps (n-1,) between two samples of a standstill whose motion is only noise, or None when the
+    data are sparse, short or noise-free. The noise sigma per axis comes from the median absolute
+    second difference (at a dense rate the path's own curvature is far below it on cruise and rest)."""
+    if not period_s or period_s > DENSE_S or len(p) < 50:
+        return None
+    d2 = np.diff(p, n=2, axis=0)
+    sigma = 1.4826 * np.median(np.abs(d2 - np.median(d2, axis=0)), axis=0) / np.sqrt(6.0)
+    if not (sigma > 0).any():
+        return None
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    w = max(5, int(round(NOISE_WINDOW_S / period_s))) | 1
+    spread = maximum_filter1d(p, w, axis=0, mode="nearest") - minimum_filter1d(p, w, axis=0, mode="nearest")
+    still = (spread <= NOISE_BAND * sigma).all(axis=1)
+    return still[:-1] & still[1:]
 
 
 def _bin_edges(s: np.ndarray, step: float) -> np.ndarray:
@@ -367,17 +402,17 @@ def match_cl_points(cl_xyz: np.ndarray, t_ns: np.ndarray, positions: np.ndarray,
     if not (tol > 0).all():
         raise AlignmentError(f"tolerances must be > 0 mm, got min {np.nanmin(tol)}")
 
-    fine_keep, s_full = reduce_path(pos, cfg.resolution_mm)
-    # search on a coarse copy of the path (vertices >= coarse_mm apart), refine on the fine one
-    keep = fine_keep[_bin_edges(s_full[fine_keep], cfg.coarse_mm)]
-    coarse = _path_on(pos, t, keep, s_full)
-    sv, sv_len, nseg = coarse.sv, coarse.sv_len, coarse.nseg
-    spacing = float(np.median(sv_len)) if nseg else 0.0
     if period_ns is None:
         dt_all = np.diff(t)
         period = int(np.median(dt_all[dt_all > 0])) if (dt_all > 0).any() else 0
     else:
         period = int(period_ns)
+    fine_keep, s_full = reduce_path(pos, cfg.resolution_mm, period / 1e9)
+    # search on a coarse copy of the path (vertices >= coarse_mm apart), refine on the fine one
+    keep = fine_keep[_bin_edges(s_full[fine_keep], cfg.coarse_mm)]
+    coarse = _path_on(pos, t, keep, s_full)
+    sv, sv_len, nseg = coarse.sv, coarse.sv_len, coarse.nseg
+    spacing = float(np.median(sv_len)) if nseg else 0.0
     sparse = period > cfg.sparse_ns
     w_min = 2.0 if sparse else 0.5
     w0 = cfg.window_mm if cfg.window_mm is not None else max(w_min, 3.0 * spacing, 4.0 * float(tol.max()))

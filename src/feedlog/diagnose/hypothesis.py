@@ -49,6 +49,7 @@ FAMILIES: dict[str, str] = {
     "overrides": "feedlog.diagnose.hyp_override:FAMILY",
     "planner": "feedlog.diagnose.hyp_planner:FAMILY",
     "dwell": "feedlog.diagnose.hyp_dwell:FAMILY",
+    "tool_change": "feedlog.diagnose.hyp_tool_change:FAMILY",
     "feedback": "feedlog.diagnose.hyp_feedback:FAMILY",
     "logger": "feedlog.diagnose.hyp_logger:FAMILY",
 }

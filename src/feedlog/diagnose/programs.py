@@ -77,3 +77,19 @@ def short_block_share(cases: Sequence[Any], servo_period_s: float) -> float:
         total += int(ok.sum())
         short += int((length[ok] / feed[ok] < 20 * servo_period_s).sum())
     return short / total if total else 0.0
+
+
+def tool_changes(cases: Sequence[Any]) -> int:
+    """Tool changes (M6) between two moves in the recorded programs: the ones a cycle pays for."""
+    total = 0
+    for case in cases:
+        blocks = case.program.blocks
+        if "mcodes" not in blocks.columns:
+            continue
+        moving = blocks["kind"].astype(str).isin(("rapid", "linear", "arc_cw", "arc_ccw")).to_numpy()
+        m6 = blocks["mcodes"].fillna("").astype(str).str.contains(r"(?i)\bM0*6\b").to_numpy(bool)
+        if not moving.any():
+            continue
+        first, last = np.flatnonzero(moving)[[0, -1]]
+        total += int(m6[first + 1:last + 1].sum())
+    return total
