@@ -31,7 +31,7 @@ from feedlog.errors import FeedlogError
 from feedlog.recording import Recording
 from feedlog.profile import MachineProfile, load_profile
 
-LEVELS = ("timing", "feedback", "line")
+LEVELS = ("timing", "feedback", "line", "geometry")
 
 
 @dataclass(frozen=True)
@@ -40,6 +40,7 @@ class DiagnoseConfig:
     min_effect_pct: float = 1.0        # timing: held-out error must drop by this many percentage points
     min_effect_feedback_mm: float = 0.001
     min_effect_line_s: float = 0.002
+    min_effect_geometry_mm: float = 0.01  # geometry: the joints' held-out RMS must drop by this much (mm)
     max_causes: int = 3
     families: tuple[str, ...] | None = None
     min_segment_s: float | None = None
@@ -54,7 +55,8 @@ class DiagnoseConfig:
     def select_config(self, level: str, noise: float = 0.0) -> SelectConfig:
         """`noise`: the level's noise scale (feedback: position noise at rest; line: sampling period)."""
         effect = {"timing": self.min_effect_pct, "feedback": max(self.min_effect_feedback_mm, 2 * noise),
-                  "line": max(self.min_effect_line_s, 2 * noise)}[level]
+                  "line": max(self.min_effect_line_s, 2 * noise),
+                  "geometry": max(self.min_effect_geometry_mm, 2 * noise)}[level]
         return SelectConfig(min_gain=self.min_gain, min_effect=effect, max_causes=self.max_causes)
 
 
@@ -192,8 +194,19 @@ def line_error(scorer: Scorer, *, floor: bool = True) -> Callable[[np.ndarray, l
     return error
 
 
+def geometry_error(scorer: Scorer, *, floor: bool = True) -> Callable[[np.ndarray, list[int]], float]:
+    """RMS of the linear joints' residual (kinematics of the recorded axes minus the recorded joints)
+    above its resolution (mm)."""
+    def error(losses: np.ndarray, units: list[int]) -> float:
+        count = 3 * sum(scorer.units[u].hi - scorer.units[u].lo for u in units)
+        excess = float(np.sum(losses[units])) - (float(np.sum(scorer.floor[units])) if floor else 0.0)
+        return float(np.sqrt(max(excess, 0.0) / count)) if count else 0.0
+    return error
+
+
 def level_error(scorer: Scorer, *, floor: bool = True) -> Callable[[np.ndarray, list[int]], float]:
-    return {"timing": timing_error, "feedback": feedback_error, "line": line_error}[scorer.level](scorer, floor=floor)
+    return {"timing": timing_error, "feedback": feedback_error, "line": line_error,
+            "geometry": geometry_error}[scorer.level](scorer, floor=floor)
 
 
 def feedback_noise(cases: Sequence[Case]) -> float:
@@ -232,7 +245,8 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
     laps["prepare"] = time.perf_counter() - t0
     say(f"{len(cases)} recording(s) aligned")
     ev = gather(cases, prof)
-    hyps = [replace(h, seeds=suggest(ev, h.key, h.baseline)) for h in candidates(prof, cases, families=cfg.families)]
+    hyps = [replace(h, seeds=(*h.seeds, *suggest(ev, h.key, h.baseline)))
+            for h in candidates(prof, cases, families=cfg.families)]
     selections: dict[str, Selection] = {}
     scorers: dict[str, Scorer] = {}
     built: dict[str, Scorer] = {}
@@ -320,6 +334,10 @@ def _noise_floor(scorers: dict[str, Scorer], cfg: DiagnoseConfig, cases: Sequenc
         sc = scorers["line"]
         out["line_s"] = line_error(sc, floor=False)(sc.floor, list(range(len(sc.units))))
         out["min_effect_line_s"] = max(cfg.min_effect_line_s, 2 * max(c.period_s for c in cases))
+    if "geometry" in scorers:
+        sc = scorers["geometry"]
+        out["geometry_mm"] = geometry_error(sc, floor=False)(sc.floor, list(range(len(sc.units))))
+        out["min_effect_geometry_mm"] = cfg.min_effect_geometry_mm
     return out
 
 

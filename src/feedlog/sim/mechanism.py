@@ -59,6 +59,8 @@ REGISTRY: dict[str, str] = {
     "reversal_dwell": "feedlog.sim.reversal_dwell:ReversalDwell",
     "following_lag": "feedlog.sim.following_lag:FollowingLag",
     "feedback_delay": "feedlog.sim.feedback_delay:FeedbackDelay",
+    "axis_scale": "feedlog.sim.axis_scale:AxisScale",
+    "backlash": "feedlog.sim.backlash:Backlash",
     "logger_latency": "feedlog.sim.logger_latency:LoggerLatency",
     "jerk_filter": "feedlog.sim.jerk_filter:JerkFilter",
 }
