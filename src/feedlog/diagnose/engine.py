@@ -108,6 +108,7 @@ class Diagnosis:
     profile_out: str | None = None
     sims: dict[str, list[Any]] = field(default_factory=dict)
     learned_model: Any = None
+    changes: list[Any] = field(default_factory=list)   # `changes.Change`: a parameter that changed mid-session
 
     @property
     def diff(self) -> list[tuple[str, Any, Any]]:
@@ -276,15 +277,25 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
         selections[level] = select(scorer, level_hyps, error=error, evidence=ev,
                                    cfg=cfg.select_config(level, noise), progress=say, held_out_many=many)
         laps[level] = time.perf_counter() - t1
+    changes = []
+    if "timing" in selections:  # a dial turned mid-session: a step, not one value averaged over it
+        from feedlog.diagnose.changes import find_changes
+
+        t1 = time.perf_counter()
+        changes = find_changes(scorers["timing"], selections["timing"].model, [h for h in hyps if h.level == "timing"],
+                               min_gain=cfg.min_gain, min_effect_pct=cfg.min_effect_pct)
+        laps["changes"] = time.perf_counter() - t1
+    stepped = {c.parameter for c in changes}
     model: dict[str, Any] = {}
     for sel in selections.values():
-        model.update(sel.model)
+        model.update({k: v for k, v in sel.model.items() if k not in stepped})
     extended = keys.with_values(prof, model, name=f"{prof.name}-diagnosed") if model else prof.replace(
         name=f"{prof.name}-diagnosed")
     findings = [_finding(step.chosen, sel, scorers[level], ev, level_error(scorers[level]))
-                for level, sel in selections.items() for step in sel.steps]
+                for level, sel in selections.items() for step in sel.steps if step.chosen.key not in stepped]
     dx = Diagnosis(profile=prof, extended=extended, cases=cases, evidence=ev, selections=selections,
-                   scorers=scorers, findings=findings, noise_floor=_noise_floor(scorers, cfg, cases))
+                   scorers=scorers, findings=findings, noise_floor=_noise_floor(scorers, cfg, cases),
+                   changes=changes)
     t2 = time.perf_counter()
     from feedlog.diagnose.levels import measure_levels
     from feedlog.diagnose.unexplained import find_unexplained

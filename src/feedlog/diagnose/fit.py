@@ -155,6 +155,14 @@ class Scorer:
         self._cache[key] = out
         return out
 
+    def case_residual(self, i: int, values: Mapping[str, Any]) -> np.ndarray | None:
+        """The residual of recording `i` alone for base + `values` (not cached; None where invalid)."""
+        try:
+            profile = keys.with_values(self.profile, values) if values else self.profile
+            return self._residual(i, self.cases[i], profile, bool(values))
+        except FeedlogError:
+            return None
+
     def _residual(self, i: int, case: Case, profile: MachineProfile, changed: bool) -> np.ndarray | None:
         if self.level == "timing":
             from feedlog.sim import simulate

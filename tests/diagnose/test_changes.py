@@ -1,0 +1,56 @@
+"""Changes during a session: the feed dial turned mid-program (simulated: the corner program's feed drops
+to 70 % from one line on, as the dial would on its lines; a programmed arc's centripetal speed would not
+follow an F word, so the arcs' pocket is not the place for it) must be found as a change (when, from what, to what), not
+averaged into one override; a machine whose dial stayed put gives no change."""
+
+from __future__ import annotations
+
+import pytest
+
+from feedlog.diagnose.changes import _best_split
+from feedlog.diagnose.engine import DiagnoseConfig, diagnose
+from feedlog.diagnose.summary import summary_lines, to_json
+
+FAST = DiagnoseConfig(learned=False)
+TURN_LINE = 15   # corners_f3000_p001: the dial goes to 70 % before this line's move (the ninth)
+PROGRAMS = ("pocket_f3000_p001", "corners_f3000_p001")   # the last one is edited
+
+
+def dial_turned(text: str) -> str:
+    lines = text.splitlines()
+    lines[TURN_LINE - 1] += " F2100"
+    return "\n".join(lines) + "\n"
+
+
+def test_a_dial_turned_mid_program_is_a_change_not_one_value(hidden):
+    recs = hidden("turned", edit=dial_turned, programs=PROGRAMS)
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    (change,) = dx.changes
+    assert change.parameter == "sim.feed_override.override"
+    assert change.recording == recs[-1].source.split(".")[0]
+    assert change.before == pytest.approx(1.0, rel=0.05) and change.after == pytest.approx(0.7, rel=0.05)
+    assert abs(change.line - TURN_LINE) <= 1                 # the block where the feed changed
+    assert change.error_change_pct < 0.25 * change.error_single_pct
+    assert 0.75 < change.single_value < 0.95                 # what one value would have said
+    assert "sim.feed_override.override" not in {f.parameter for f in dx.findings}
+    assert dx.unexplained == []                              # what the change explains is not unexplained
+    assert any(line.startswith("change during") for line in summary_lines(dx))
+    assert to_json(dx)["changes"][0]["after"] == pytest.approx(0.7, rel=0.05)
+
+
+def test_an_unchanged_machine_gives_no_change(hidden):
+    assert diagnose(hidden("control"), "linuxcnc-xyz", config=FAST).changes == []
+
+
+def test_a_dial_that_stayed_put_is_one_value_not_a_change(hidden):
+    dx = diagnose(hidden("override", values={"sim.feed_override.override": 0.8}), "linuxcnc-xyz", config=FAST)
+    assert dx.changes == [] and [f.parameter for f in dx.findings] == ["sim.feed_override.override"]
+
+
+def test_the_best_boundary_is_where_the_residuals_switch():
+    import numpy as np
+
+    # two grid values; segments 0-5 fit value 0, segments 6-11 fit value 1
+    sq = np.array([[0.0] * 6 + [1.0] * 6, [1.0] * 6 + [0.0] * 6])
+    m, loss, single = _best_split(sq, np.ones(12, bool))
+    assert (m, loss, single) == (6, 0.0, 6.0)
