@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from feedlog.diagnose.evidence import AxisEvidence, Evidence, contradicts, sustained_peak
+from feedlog.diagnose.evidence import AxisEvidence, Evidence, sustained_peak
+from feedlog.diagnose.hypothesis import family
 from feedlog.diagnose.progress import block_end_progress, crossing_times, sample_progress
 
 
@@ -57,8 +58,8 @@ def test_a_sustained_peak_ignores_a_spike():
 def test_evidence_rules_out_a_limit_the_data_contradicts():
     ev = Evidence(axes={"z": AxisEvidence("z", "mm", peak_vel=20.0, peak_acc=1000.0, travel=10.0)},
                   path_speed_ceiling_mm_s=50.0)
-    assert "never seen above" in contradicts(ev, "axes.z.acc_max", 1000.0, 2000.0)
-    assert contradicts(ev, "axes.z.acc_max", 1000.0, 900.0) is None
-    assert "far above" in contradicts(ev, "axes.z.vel_max", 100.0, 5.0)
-    assert contradicts(ev, "axes.z.vel_max", 100.0, 20.5) is None
-    assert "far above" in contradicts(ev, "interpolator.path_vel_max_mm_s", 100.0, 10.0)
+    assert "never seen above" in family("axis_limits").contradicts(ev, "axes.z.acc_max", 1000.0, 2000.0)
+    assert family("axis_limits").contradicts(ev, "axes.z.acc_max", 1000.0, 900.0) is None
+    assert "far above" in family("axis_limits").contradicts(ev, "axes.z.vel_max", 100.0, 5.0)
+    assert family("axis_limits").contradicts(ev, "axes.z.vel_max", 100.0, 20.5) is None
+    assert "far above" in family("path_limits").contradicts(ev, "interpolator.path_vel_max_mm_s", 100.0, 10.0)

@@ -23,9 +23,9 @@ import numpy as np
 
 from feedlog.diagnose import keys
 from feedlog.diagnose.cases import Case, DiagnoseError, attached_profile, check_same_machine, prepare_case
-from feedlog.diagnose.evidence import Evidence, describe, gather, suggest
+from feedlog.diagnose.evidence import Evidence, gather
 from feedlog.diagnose.fit import Scorer
-from feedlog.diagnose.hypothesis import candidates
+from feedlog.diagnose.hypothesis import candidates, family
 from feedlog.diagnose.select import Judged, SelectConfig, Selection, select, too_little_data
 from feedlog.errors import FeedlogError
 from feedlog.recording import Recording
@@ -246,7 +246,7 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
     laps["prepare"] = time.perf_counter() - t0
     say(f"{len(cases)} recording(s) aligned")
     ev = gather(cases, prof)
-    hyps = [replace(h, seeds=(*h.seeds, *suggest(ev, h.key, h.baseline)))
+    hyps = [replace(h, seeds=(*h.seeds, *family(h.family).suggest(ev, h.key, h.baseline)))
             for h in candidates(prof, cases, families=cfg.families)]
     selections: dict[str, Selection] = {}
     scorers: dict[str, Scorer] = {}
@@ -360,7 +360,7 @@ def _finding(j: Judged, sel: Selection, scorer: Scorer, ev: Evidence, error) -> 
     return Finding(parameter=hyp.key, profile_value=hyp.baseline, fitted_value=_round_value(hyp, value),
                    unit=hyp.unit, interval=j.held.interval, gain_pct=100 * j.held.gain,
                    error_before=j.error_before, error_after=j.error_after, kind=hyp.kind, level=hyp.level,
-                   family=hyp.family, evidence=describe(ev, hyp.key, value), predicts=hyp.predicts,
+                   family=hyp.family, evidence=family(hyp.family).describe(ev, hyp.key, value), predicts=hyp.predicts,
                    alternatives=alts, fold_values=list(j.held.extra.get("fold_fits", [])),
                    scheme=j.held.extra.get("scheme", ""))
 

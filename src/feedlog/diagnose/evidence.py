@@ -7,9 +7,10 @@ ceiling, speed plateaus of long feed moves against their programmed F, the numbe
 feedback's delay behind the command (least squares of the following error on the speed, per joint)
 and how far the path leaves the program's corners (align's match distances against G64 P).
 
-Each hypothesis family can be checked against this: a fitted axis limit above the profile's needs
-the axis to have been seen going beyond the profile's limit; one below it must not be exceeded by
-what was seen (`contradicts`). Evidence that 5 Hz data cannot carry (accelerations) is left out.
+Each hypothesis family reads this for its own keys (`Family.describe`, `suggest`, `contradicts` in its
+`hyp_*.py`): a fitted axis limit above the profile's needs the axis to have been seen going beyond the
+profile's limit; one below it must not be exceeded by what was seen (`against_limit`). Evidence that
+5 Hz data cannot carry (accelerations) is left out.
 """
 
 from __future__ import annotations
@@ -199,78 +200,21 @@ def _blend_deviation(cases: list[Case]) -> tuple[float | None, float | None]:
     return worst, tol
 
 
-def contradicts(ev: Evidence, key: str, profile_value: Any, fitted: Any) -> str | None:
-    """Why the data itself rules out `key` = `fitted` (None when it does not)."""
-    parts = key.split(".")
-    if not (isinstance(fitted, (int, float)) and isinstance(profile_value, (int, float))):
+def against_limit(seen: float | None, profile_value: Any, fitted: Any) -> str | None:
+    """How what was seen rules out a fitted limit: 'above' (a limit above the profile's, but nothing was
+    seen beyond the profile's), 'below' (a limit below the profile's, but something was seen far beyond
+    it) or None. The families of limits word it (`hyp_axes`, `hyp_path`)."""
+    if seen is None or not (isinstance(fitted, (int, float)) and isinstance(profile_value, (int, float))):
         return None
-    if parts[0] == "axes" and len(parts) == 3 and parts[1] in ev.axes and parts[2] in ("vel_max", "acc_max"):
-        axis = ev.axes[parts[1]]
-        seen = axis.peak_vel if parts[2] == "vel_max" else axis.peak_acc
-        what = "velocity" if parts[2] == "vel_max" else "acceleration"
-        unit = f"{axis.unit}/s" if parts[2] == "vel_max" else f"{axis.unit}/s^2"
-        if seen is None or axis.travel <= 0:
-            return None
-        if fitted > profile_value * (1 + MARGIN) and seen < profile_value * (1 + MARGIN):
-            return (f"{parts[1].upper()} was never seen above the profile's {what} ({seen:.4g} {unit} at most, "
-                    f"profile {profile_value:.4g}): a higher limit cannot be what slows it")
-        if fitted < profile_value and seen > fitted * (1 + 5 * MARGIN):
-            return (f"{parts[1].upper()} was seen at {seen:.4g} {unit}, far above the fitted limit {fitted:.4g}")
-    if key == "interpolator.path_vel_max_mm_s" and ev.path_speed_ceiling_mm_s is not None:
-        seen = ev.path_speed_ceiling_mm_s
-        if fitted > profile_value * (1 + MARGIN) and seen < profile_value * (1 + MARGIN):
-            return f"the path speed never exceeded the profile's cap ({seen:.4g} mm/s at most)"
-        if fitted < profile_value and seen > fitted * (1 + 5 * MARGIN):
-            return f"the path speed reached {seen:.4g} mm/s, far above the fitted cap {fitted:.4g}"
+    if fitted > profile_value * (1 + MARGIN) and seen < profile_value * (1 + MARGIN):
+        return "above"
+    if fitted < profile_value and seen > fitted * (1 + 5 * MARGIN):
+        return "below"
     return None
 
 
-def suggest(ev: Evidence, key: str, baseline: Any) -> tuple[float, ...]:
-    """Values of `key` the data points at: an axis's or the path's speed ceiling, an axis's sustained
-    acceleration peak, the cruise ratio of long feed moves times the override in force. They join the
-    search grid of the hypothesis (a limit that binds in a narrow band between two grid points would
-    otherwise be stepped over); the loss alone still decides, the held-out judgement still applies."""
-    parts = key.split(".")
-    seen: float | None = None
-    if parts[0] == "axes" and len(parts) == 3 and parts[1] in ev.axes:
-        axis = ev.axes[parts[1]]
-        seen = {"vel_max": axis.peak_vel, "acc_max": axis.peak_acc}.get(parts[2])
-    elif key == "interpolator.path_vel_max_mm_s":
-        seen = ev.path_speed_ceiling_mm_s
-    elif key == "sim.feed_override.override" and ev.plateau_ratio is not None:
-        seen = ev.plateau_ratio * (baseline if isinstance(baseline, (int, float)) else 1.0)
-    elif parts[:2] == ["sim", "following_lag"] and len(parts) == 4:
-        seen = ev.feedback_delay_s.get(parts[3])
+def seed(seen: float | None) -> tuple[float, ...]:
+    """A value the data points at as a search seed: () when there is none (missing, not finite, not positive)."""
     if seen is None or not np.isfinite(seen) or seen <= 0:
         return ()
     return (float(seen),)
-
-
-def describe(ev: Evidence, key: str, fitted: Any = None) -> str:
-    """What the data itself says about `key`, in a sentence ('' when it says nothing)."""
-    parts = key.split(".")
-    if parts[0] == "axes" and len(parts) == 3 and parts[1] in ev.axes:
-        axis = ev.axes[parts[1]]
-        name = parts[1].upper()
-        if parts[2] == "acc_max":
-            if axis.peak_acc is None:
-                return f"{name} accelerations are not observable at this sampling rate"
-            return f"{name} acceleration peaks at {axis.peak_acc:.4g} {axis.unit}/s^2 (sustained {SUSTAIN_S * 1e3:g} ms)"
-        if parts[2] == "vel_max":
-            return f"{name} speed peaks at {axis.peak_vel:.4g} {axis.unit}/s"
-    if key == "interpolator.path_vel_max_mm_s" and ev.path_speed_ceiling_mm_s is not None:
-        return f"path speed never exceeds {ev.path_speed_ceiling_mm_s:.4g} mm/s"
-    if key in ("sim.feed_override.override", "interpolator.path_acc_max_mm_s2") and ev.plateau_ratio is not None:
-        return (f"long feed moves cruise at {ev.plateau_ratio:.3f} x their programmed F "
-                f"(median of {ev.plateau_blocks})")
-    if key == "sim.reversal_dwell.dwell_s":
-        return f"{ev.stops} stops inside the motion"
-    if key == "sim.feedback_delay.delay_s" and ev.feedback_delay_s:
-        return "feedback trails the command by " + ", ".join(
-            f"{a.upper()} {d * 1e3:.3g} ms" for a, d in ev.feedback_delay_s.items())
-    if parts[:2] == ["sim", "following_lag"] and len(parts) == 4 and parts[3] in ev.feedback_delay_s:
-        return f"{parts[3].upper()} feedback trails its command by {ev.feedback_delay_s[parts[3]] * 1e3:.3g} ms"
-    if key == "sim.blend_arc.tolerance_scale" and ev.blend_deviation_mm is not None:
-        tol = "" if ev.blend_tolerance_mm is None else f" (G64 P{ev.blend_tolerance_mm:g})"
-        return f"the path leaves the program's corners by up to {ev.blend_deviation_mm:.4g} mm{tol}"
-    return ""

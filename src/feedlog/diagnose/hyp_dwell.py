@@ -7,11 +7,11 @@ independent of the feed; none elsewhere.
 from __future__ import annotations
 
 from feedlog.diagnose import keys
-from feedlog.diagnose.hypothesis import Hypothesis
+from feedlog.diagnose.hypothesis import Family, Hypothesis
 from feedlog.diagnose.programs import has_reversal
 
 
-def candidates(profile, cases) -> list[Hypothesis]:
+def _candidates(profile, cases) -> list[Hypothesis]:
     if not has_reversal(cases, [a for a in profile.axis_names if a in ("x", "y", "z")]):
         return []
     on = keys.enabled(profile, "reversal_dwell")
@@ -19,3 +19,23 @@ def candidates(profile, cases) -> list[Hypothesis]:
                        baseline=keys.value(profile, "sim.reversal_dwell.dwell_s") if on else None,
                        switches_on=not on,
                        predicts="the same time lost at every axis reversal, whatever the feed; none elsewhere")]
+
+
+class Dwell(Family):
+    name = "dwell"
+    rank = 4
+
+    def candidates(self, profile, cases) -> list[Hypothesis]:
+        return _candidates(profile, cases)
+
+    def describe(self, ev, key, fitted=None) -> str:
+        return f"{ev.stops} stops inside the motion" if key == "sim.reversal_dwell.dwell_s" else ""
+
+    def suggest(self, ev, key, baseline) -> tuple[float, ...]:
+        return ()
+
+    def contradicts(self, ev, key, profile_value, fitted) -> str | None:
+        return None
+
+
+FAMILY = Dwell()

@@ -9,10 +9,11 @@ Neither changes the cycle time: they are judged on recordings that carry joint f
 from __future__ import annotations
 
 from feedlog.diagnose import keys
-from feedlog.diagnose.hypothesis import Hypothesis
+from feedlog.diagnose.evidence import seed
+from feedlog.diagnose.hypothesis import Family, Hypothesis
 
 
-def candidates(profile, cases) -> list[Hypothesis]:
+def _candidates(profile, cases) -> list[Hypothesis]:
     with_fb = [c for c in cases if c.feedback is not None]
     if not with_fb:
         return []
@@ -33,3 +34,32 @@ def candidates(profile, cases) -> list[Hypothesis]:
                               predicts=f"{axis.upper()} feedback lags its command like a first-order servo: error "
                                        "proportional to speed, overshoot-free settling after stops"))
     return out
+
+
+class Feedback(Family):
+    name = "feedback"
+    rank = 5
+
+    def candidates(self, profile, cases) -> list[Hypothesis]:
+        return _candidates(profile, cases)
+
+    def describe(self, ev, key, fitted=None) -> str:
+        parts = key.split(".")
+        if key == "sim.feedback_delay.delay_s" and ev.feedback_delay_s:
+            return "feedback trails the command by " + ", ".join(
+                f"{a.upper()} {d * 1e3:.3g} ms" for a, d in ev.feedback_delay_s.items())
+        if parts[:2] == ["sim", "following_lag"] and len(parts) == 4 and parts[3] in ev.feedback_delay_s:
+            return f"{parts[3].upper()} feedback trails its command by {ev.feedback_delay_s[parts[3]] * 1e3:.3g} ms"
+        return ""
+
+    def suggest(self, ev, key, baseline) -> tuple[float, ...]:
+        parts = key.split(".")
+        if parts[:2] == ["sim", "following_lag"] and len(parts) == 4:
+            return seed(ev.feedback_delay_s.get(parts[3]))
+        return ()
+
+    def contradicts(self, ev, key, profile_value, fitted) -> str | None:
+        return None
+
+
+FAMILY = Feedback()

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from feedlog.diagnose import keys
-from feedlog.diagnose.hypothesis import Hypothesis
+from feedlog.diagnose.hypothesis import Family, Hypothesis
 
 # (key, what a wrong value does)
 OFFSETS = (
@@ -37,8 +37,26 @@ SPAN_MM = 100.0       # searched within the profile's value +- this
 OBSERVED = 1e-3       # an offset moves the joints by at least this per mm over the recordings, or is not offered
 
 
-def candidates(profile, cases) -> list[Hypothesis]:
-    return offsets(profile, cases) + measuring(profile, cases)
+class Geometry(Family):
+    """Ranked after every timing family: geometry keys are judged on their own data (joints, feedback),
+    so a tie with another family's key can only arise on the feedback level, where a servo's dynamics
+    (delay, lag) are the likelier explanation. The evidence (`evidence.py`, no simulation) says nothing
+    about the geometry: the joints' own least squares solution is put on the grid by `offsets`."""
+
+    name = "geometry"
+    rank = 7
+
+    def candidates(self, profile, cases) -> list[Hypothesis]:
+        return offsets(profile, cases) + measuring(profile, cases)
+
+    def describe(self, ev, key, fitted=None) -> str:
+        return ""
+
+    def suggest(self, ev, key, baseline) -> tuple[float, ...]:
+        return ()
+
+    def contradicts(self, ev, key, profile_value, fitted) -> str | None:
+        return None
 
 
 def measuring(profile, cases) -> list[Hypothesis]:
@@ -88,3 +106,6 @@ def offsets(profile, cases) -> list[Hypothesis]:
     return [Hypothesis(key=key, family="geometry", lower=value - SPAN_MM, upper=value + SPAN_MM, scale="linear",
                        baseline=value, level="geometry", predicts=predicts, seeds=(value + float(d),))
             for (key, predicts, value), d in zip(offered, step)]
+
+
+FAMILY = Geometry()

@@ -11,11 +11,11 @@ spread every speed change over the filter's length.
 from __future__ import annotations
 
 from feedlog.diagnose import keys
-from feedlog.diagnose.hypothesis import Hypothesis
+from feedlog.diagnose.hypothesis import Family, Hypothesis
 from feedlog.diagnose.programs import has_blending
 
 
-def candidates(profile, cases) -> list[Hypothesis]:
+def _candidates(profile, cases) -> list[Hypothesis]:
     out = []
     interp = profile.interpolator
     planner = keys.enabled(profile, "lookahead")
@@ -49,3 +49,26 @@ def candidates(profile, cases) -> list[Hypothesis]:
                           predicts="every block lasts at least one processing time: short blocks capped at "
                                    "length / time, long blocks unchanged"))
     return out
+
+
+class Planner(Family):
+    name = "planner"
+    rank = 3
+
+    def candidates(self, profile, cases) -> list[Hypothesis]:
+        return _candidates(profile, cases)
+
+    def describe(self, ev, key, fitted=None) -> str:
+        if key == "sim.blend_arc.tolerance_scale" and ev.blend_deviation_mm is not None:
+            tol = "" if ev.blend_tolerance_mm is None else f" (G64 P{ev.blend_tolerance_mm:g})"
+            return f"the path leaves the program's corners by up to {ev.blend_deviation_mm:.4g} mm{tol}"
+        return ""
+
+    def suggest(self, ev, key, baseline) -> tuple[float, ...]:
+        return ()  # the data alone points at no planner setting
+
+    def contradicts(self, ev, key, profile_value, fitted) -> str | None:
+        return None
+
+
+FAMILY = Planner()

@@ -8,22 +8,31 @@ recording's own command; `line`: the line stream against the positions; `geometr
 from the recording's own axis positions through the kinematics) and the residual pattern
 it predicts (shown with a finding).
 
-Hypotheses come from *families*, one module each, registered in `FAMILIES` (name -> "module:function");
-a family function takes the profile and the prepared cases and returns the candidates the data can
-speak to (an axis that never moves offers no hypothesis about it). Adding a family is one module
-and one line here; docs/diagnose.md shows one.
+Hypotheses come from *families*, one module each, registered in `FAMILIES` (name -> "module:FAMILY").
+A family is a `Family`: its `candidates(profile, cases)` are the hypotheses the data can speak to (an
+axis that never moves offers no hypothesis about it); its `rank` breaks ties between equally good
+explanations (lower first: the operator's dials before the machine's limits before planner settings);
+and it reads the evidence the data gives without any simulation for its own keys (`describe`,
+`suggest`, `contradicts`). A family that declares no rank, or leaves out one of the three evidence
+methods, cannot be made (an error at import, caught by tests/diagnose/test_families.py), so it is
+never silently ranked last or left without evidence. Adding a family is one module and one line here;
+docs/diagnose.md shows one.
 """
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from feedlog.diagnose import keys
 from feedlog.errors import FeedlogError
 from feedlog.lazy import load_entry
 from feedlog.profile import MachineProfile
+
+if TYPE_CHECKING:
+    from feedlog.diagnose.evidence import Evidence
 
 SCALES = ("log", "linear", "int", "choice")
 LEVELS = ("timing", "feedback", "line", "geometry")
@@ -34,16 +43,16 @@ LEVELS = ("timing", "feedback", "line", "geometry")
 MIN_DATA = {"timing": 8, "line": 8, "feedback": 1000, "geometry": 1000}
 MIN_SECONDS = 5.0
 
-# family name -> "module:function(profile, cases) -> list[Hypothesis]". One line per family.
+# family name -> "module:FAMILY" (a `Family`). One line per family.
 FAMILIES: dict[str, str] = {
-    "axis_limits": "feedlog.diagnose.hyp_axes:candidates",
-    "path_limits": "feedlog.diagnose.hyp_path:candidates",
-    "overrides": "feedlog.diagnose.hyp_override:candidates",
-    "planner": "feedlog.diagnose.hyp_planner:candidates",
-    "dwell": "feedlog.diagnose.hyp_dwell:candidates",
-    "feedback": "feedlog.diagnose.hyp_feedback:candidates",
-    "logger": "feedlog.diagnose.hyp_logger:candidates",
-    "geometry": "feedlog.diagnose.hyp_geometry:candidates",
+    "axis_limits": "feedlog.diagnose.hyp_axes:FAMILY",
+    "path_limits": "feedlog.diagnose.hyp_path:FAMILY",
+    "overrides": "feedlog.diagnose.hyp_override:FAMILY",
+    "planner": "feedlog.diagnose.hyp_planner:FAMILY",
+    "dwell": "feedlog.diagnose.hyp_dwell:FAMILY",
+    "feedback": "feedlog.diagnose.hyp_feedback:FAMILY",
+    "logger": "feedlog.diagnose.hyp_logger:FAMILY",
+    "geometry": "feedlog.diagnose.hyp_geometry:FAMILY",
 }
 
 
@@ -102,8 +111,52 @@ class Hypothesis:
         return {**self.also, self.key: value}
 
 
-def family_function(name: str):
-    return load_entry(FAMILIES, name, what="hypothesis family")
+class Family(ABC):
+    """One family of candidate causes: what it offers, how it ranks, what the data alone says about it.
+
+    A subclass sets `name` (its key in `FAMILIES`) and `rank` (an integer; among equally good
+    explanations the family of the lowest rank is named first) and implements all four methods; a
+    family whose keys the evidence says nothing about says so in its methods ('' / () / None)."""
+
+    name: ClassVar[str]
+    rank: ClassVar[int]
+
+    def __init__(self) -> None:
+        cls = type(self)
+        if not isinstance(getattr(cls, "name", None), str) or not cls.name:
+            raise FeedlogError(f"hypothesis family {cls.__name__}: declares no name")
+        rank = getattr(cls, "rank", None)
+        if not isinstance(rank, int) or isinstance(rank, bool):
+            raise FeedlogError(f"hypothesis family {cls.name}: declares no integer rank (got {rank!r})")
+
+    @abstractmethod
+    def candidates(self, profile: MachineProfile, cases: Sequence[Any]) -> list[Hypothesis]:
+        """The hypotheses of this family the recordings can speak to."""
+
+    @abstractmethod
+    def describe(self, ev: Evidence, key: str, fitted: Any = None) -> str:
+        """What the data itself says about `key`, in a sentence ('' when it says nothing)."""
+
+    @abstractmethod
+    def suggest(self, ev: Evidence, key: str, baseline: Any) -> tuple[float, ...]:
+        """Values of `key` the data points at (they join the search grid; the loss alone decides)."""
+
+    @abstractmethod
+    def contradicts(self, ev: Evidence, key: str, profile_value: Any, fitted: Any) -> str | None:
+        """Why the data itself rules out `key` = `fitted` (None when it does not)."""
+
+
+def family(name: str) -> Family:
+    """The registered family `name`; an unknown name is an error listing the known ones."""
+    fam = load_entry(FAMILIES, name, what="hypothesis family")
+    if not isinstance(fam, Family) or fam.name != name:
+        raise FeedlogError(f"hypothesis family {name!r}: {FAMILIES[name]} is not a Family named {name!r}")
+    return fam
+
+
+def rank(name: str) -> int:
+    """The tie-break rank of family `name` (lower first)."""
+    return family(name).rank
 
 
 def candidates(profile: MachineProfile, cases: Sequence[Any], *, families: Sequence[str] | None = None,
@@ -112,7 +165,7 @@ def candidates(profile: MachineProfile, cases: Sequence[Any], *, families: Seque
     out: list[Hypothesis] = []
     seen: set[str] = set()
     for name in families or FAMILIES:
-        for hyp in family_function(name)(profile, cases):
+        for hyp in family(name).candidates(profile, cases):
             if hyp.key in seen or hyp.key in exclude:
                 continue
             seen.add(hyp.key)

@@ -19,7 +19,7 @@ is accepted only if all of these hold:
 - **harmless**: no recording's held-out error grows by `min_effect` (a global parameter fitted to what
   one recording does differently must not be "found" at the others' expense);
 - **not contradicted** by the evidence the data gives without any simulation
-  (`evidence.contradicts`);
+  (its family's `contradicts`, beside the family in its `hyp_*.py`);
 - **enough data**: the level holds at least the hypothesis' minimum (`Hypothesis.needs`: 8 segments or
   blocks, 1000 feedback samples) over `MIN_SECONDS` (5 s) of motion; `engine` refuses the whole
   diagnosis when no level has that much.
@@ -29,8 +29,8 @@ held-out losses lie closer than noise alone moves them (`noise_spread`), the one
 best (`rank`).
 Hypotheses whose held-out loss is within `tie` of the best are reported as equally good
 alternatives (a program that moves Z only in rapids cannot tell a Z velocity limit from a rapid
-override); the primary is the one of the family listed first in `PRIORITY` (the machine's own limits
-before planner settings, dwells and operator dials). Accepted values are then refitted in turn
+override); the primary is the one of the family of the lowest `Family.rank` (the operator's dials,
+then the machine's own limits, then planner settings, dwells, feedback and the logger). Accepted values are then refitted in turn
 given each other (coordinate descent), so two simultaneous causes do not bias one another.
 """
 
@@ -42,11 +42,10 @@ from typing import Any
 
 import numpy as np
 
-from feedlog.diagnose.evidence import Evidence, contradicts
+from feedlog.diagnose.evidence import Evidence
 from feedlog.diagnose.fit import HeldOut, Scorer, _grid, fit, held_out, refine
-from feedlog.diagnose.hypothesis import MIN_SECONDS, Hypothesis
+from feedlog.diagnose.hypothesis import MIN_SECONDS, Hypothesis, family
 
-PRIORITY = ("overrides", "axis_limits", "path_limits", "planner", "dwell", "feedback", "logger")
 SCREEN_KEEP = 5        # hypotheses fully cross-validated per step
 SCREEN_SHARE = 0.5     # ... among those within this share of the best screening gain
 SCREEN_POINTS = 9      # grid points per hypothesis when screening
@@ -103,7 +102,7 @@ class Selection:
 
 
 def _priority(hyp: Hypothesis) -> int:
-    return PRIORITY.index(hyp.family) if hyp.family in PRIORITY else len(PRIORITY)
+    return family(hyp.family).rank
 
 
 def noise_spread(scorer: Scorer) -> float:
@@ -164,7 +163,7 @@ def judge(held: HeldOut, scorer: Scorer, cfg: SelectConfig, error: Callable[[np.
     if short:
         j.reasons.append(short)
     if evidence is not None and held.hyp.baseline is not None:
-        j.veto = contradicts(evidence, held.hyp.key, held.hyp.baseline, held.value)
+        j.veto = family(held.hyp.family).contradicts(evidence, held.hyp.key, held.hyp.baseline, held.value)
         if j.veto:
             j.reasons.append(f"contradicted by the data: {j.veto}")
     if held.gain < cfg.min_gain:
@@ -334,7 +333,7 @@ def _rechoose(scorer: Scorer, steps: list[Step], model: dict[str, Any], cfg: Sel
               progress: Callable[[str], None] | None) -> dict[str, Any]:
     """Each step's choice made again given the other causes: the candidates its step cross-validated
     are judged with the others in the model, and the same rule picks (the least held-out loss; ties to
-    the family listed first in `PRIORITY`). A cause chosen before a second one was in the model can
+    family of the lowest rank). A cause chosen before a second one was in the model can
     have stood in for part of it (a path speed cap taking an acceleration limit's time on rapids next
     to a feed override's on feed moves); with the second in place the first choice is no longer best."""
     changed = False
