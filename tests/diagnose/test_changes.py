@@ -54,3 +54,14 @@ def test_the_best_boundary_is_where_the_residuals_switch():
     sq = np.array([[0.0] * 6 + [1.0] * 6, [1.0] * 6 + [0.0] * 6])
     m, loss, single = _best_split(sq, np.ones(12, bool))
     assert (m, loss, single) == (6, 0.0, 6.0)
+
+
+def test_the_dial_turn_option_says_what_it_needs():
+    import argparse
+
+    from feedlog.ingest.linuxcnc import dial_turn
+
+    assert dial_turn("3.5:0.7") == (3.5, 0.7)
+    for bad in ("3.5", "x:0.7", "3:0", "-1:0.5", "3:11"):
+        with pytest.raises(argparse.ArgumentTypeError, match="S:SCALE|SCALE <= 10"):
+            dial_turn(bad)

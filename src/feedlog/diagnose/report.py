@@ -189,6 +189,9 @@ def write_report(dx, out: Path) -> Path:
                          f"it on held-out data); {u['where']}.")
             if (u.get("signature") or {}).get("text"):
                 lines.append(f"  Signature: {u['signature']['text']}.")
+            if u.get("error_after_class_model_pct") is not None:
+                lines.append(f"  Learned correction (the block-class model, fitted without each held-out stretch): "
+                             f"held-out error {u['error_pct']:.2f} % -> {u['error_after_class_model_pct']:.2f} %.")
             lc = u.get("learned_correction") or {}
             if "held_out" in lc:
                 lines.append(f"  Learned correction (train's hybrid model on the extended profile): held-out mean "

@@ -73,6 +73,9 @@ def summary_lines(dx) -> list[str]:
                 f"{u['systematic_share_pct']:.0f} % of it systematic; {u['where']}")
         if (u.get("signature") or {}).get("text"):
             text += f"; signature: {u['signature']['text']}"
+        if u.get("error_after_class_model_pct") is not None:
+            text += (f"; learned correction (block classes): held-out error {u['error_pct']:.2f} % -> "
+                     f"{u['error_after_class_model_pct']:.2f} %")
         lc = u.get("learned_correction") or {}
         if "gain_pct" in lc:
             text += (f"; learned correction (hybrid): held-out error {lc['mean_abs_error_before_pct']:.2f} % -> "

@@ -236,6 +236,17 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
 
 # ---- source registry interface (feedlog.ingest.cli_record) ---------------------------------------
 
+def dial_turn(text: str) -> tuple[float, float]:
+    """`S:SCALE` (seconds after the start, dial) of --feed-override-at."""
+    try:
+        at, scale = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected S:SCALE (seconds:dial, e.g. 3.5:0.7), got {text!r}") from None
+    if not (at >= 0 and 0 < scale <= 10):
+        raise argparse.ArgumentTypeError(f"need S >= 0 and 0 < SCALE <= 10, got {text!r}")
+    return at, scale
+
+
 def add_arguments(group: argparse._ArgumentGroup) -> None:
     group.add_argument("--ini", type=Path, help="LinuxCNC machine INI (e.g. configs/xyz.ini)")
     group.add_argument("--isolate", action="store_true",
@@ -250,6 +261,8 @@ def add_arguments(group: argparse._ArgumentGroup) -> None:
                             "zstd level 19 (about half the size; for training sessions)")
     group.add_argument("--feed-override", type=float, metavar="SCALE",
                        help="turn the feed override dial to SCALE (1.0 = 100 %%) before the program starts")
+    group.add_argument("--feed-override-at", action="append", default=[], type=dial_turn, metavar="S:SCALE",
+                       help="turn the feed override dial to SCALE S seconds after the program starts (repeatable)")
     group.add_argument("--subroutine-path", action="append", default=[], type=Path, metavar="DIR",
                        help="folder where LinuxCNC finds o<name> call files (before the INI's SUBROUTINE_PATH; "
                             "repeatable); the files called are attached to the recording")
@@ -280,4 +293,5 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
                            streams=getattr(args, "streams", "full"), priority=getattr(args, "priority", "normal"),
                            stop_event=getattr(args, "stop_event", None),
                            feed_override=getattr(args, "feed_override", None),
-                           subroutine_path=tuple(getattr(args, "subroutine_path", None) or ()))
+                           subroutine_path=tuple(getattr(args, "subroutine_path", None) or ()),
+                           feed_override_at=tuple(sorted(getattr(args, "feed_override_at", None) or ())))
