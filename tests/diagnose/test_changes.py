@@ -5,7 +5,10 @@ averaged into one override; a machine whose dial stayed put gives no change."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 from feedlog.diagnose.changes import _best_split
 from feedlog.diagnose.engine import DiagnoseConfig, diagnose
@@ -48,8 +51,6 @@ def test_a_dial_that_stayed_put_is_one_value_not_a_change(hidden):
 
 
 def test_the_best_boundary_is_where_the_residuals_switch():
-    import numpy as np
-
     # two grid values; segments 0-5 fit value 0, segments 6-11 fit value 1
     sq = np.array([[0.0] * 6 + [1.0] * 6, [1.0] * 6 + [0.0] * 6])
     m, loss, single = _best_split(sq, np.ones(12, bool))
@@ -65,3 +66,21 @@ def test_the_dial_turn_option_says_what_it_needs():
     for bad in ("3.5", "x:0.7", "3:0", "-1:0.5", "3:11"):
         with pytest.raises(argparse.ArgumentTypeError, match="S:SCALE|SCALE <= 10"):
             dial_turn(bad)
+
+
+@settings(max_examples=200, derandomize=True, deadline=None)
+@given(st.one_of(st.text(max_size=20), st.tuples(st.floats(allow_nan=True), st.floats(allow_nan=True)).map(
+    lambda p: f"{p[0]}:{p[1]}")))
+@example("inf:0.5")
+@example("3.5:0.7")
+def test_any_dial_turn_text_parses_to_a_valid_turn_or_says_what_it_needs(text):
+    import argparse
+
+    from feedlog.ingest.linuxcnc import dial_turn
+
+    try:
+        at, scale = dial_turn(text)
+    except argparse.ArgumentTypeError as exc:
+        assert "S:SCALE" in str(exc) or "SCALE <= 10" in str(exc)
+    else:
+        assert at >= 0 and 0 < scale <= 10 and np.isfinite(at)

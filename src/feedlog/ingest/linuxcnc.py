@@ -242,7 +242,7 @@ def dial_turn(text: str) -> tuple[float, float]:
         at, scale = (float(x) for x in text.split(":"))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected S:SCALE (seconds:dial, e.g. 3.5:0.7), got {text!r}") from None
-    if not (at >= 0 and 0 < scale <= 10):
+    if not (0 <= at < float("inf") and 0 < scale <= 10):
         raise argparse.ArgumentTypeError(f"need S >= 0 and 0 < SCALE <= 10, got {text!r}")
     return at, scale
 
