@@ -10,7 +10,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from feedlog.diagnose.changes import _best_split
+from feedlog.diagnose.changes import _best_split, _turn_time
 from feedlog.diagnose.engine import DiagnoseConfig, diagnose
 from feedlog.diagnose.summary import summary_lines, to_json
 
@@ -33,6 +33,7 @@ def test_a_dial_turned_mid_program_is_a_change_not_one_value(hidden):
     assert change.recording == recs[-1].source.split(".")[0]
     assert change.before == pytest.approx(1.0, rel=0.05) and change.after == pytest.approx(0.7, rel=0.05)
     assert abs(change.line - TURN_LINE) <= 1                 # the block where the feed changed
+    assert change.between_s[0] <= change.at_s <= change.between_s[1]
     assert change.error_change_pct < 0.25 * change.error_single_pct
     assert 0.75 < change.single_value < 0.95                 # what one value would have said
     assert "sim.feed_override.override" not in {f.parameter for f in dx.findings}
@@ -51,10 +52,19 @@ def test_a_dial_that_stayed_put_is_one_value_not_a_change(hidden):
 
 
 def test_the_best_boundary_is_where_the_residuals_switch():
-    # two grid values; segments 0-5 fit value 0, segments 6-11 fit value 1
-    sq = np.array([[0.0] * 6 + [1.0] * 6, [1.0] * 6 + [0.0] * 6])
-    m, loss, single = _best_split(sq, np.ones(12, bool))
-    assert (m, loss, single) == (6, 0.0, 6.0)
+    # two grid values; segments 0-5 fit value 0, 7-12 value 1, segment 6 (the change happened in it) neither
+    sq = np.array([[0.0] * 6 + [0.25] + [1.0] * 6, [1.0] * 6 + [0.25] + [0.0] * 6])
+    k, loss, single = _best_split(sq, np.ones(13, bool), np.ones(13, bool))
+    assert (k, loss, single) == (6, 0.0, 6.25)
+
+
+def test_the_time_of_a_change_within_its_segment():
+    # a 2 s segment: 1 s at the first value's speed, then the rest at 70 % of it (a 2 s move takes
+    # 1 + 1 / 0.7 s at the second speed alone): the measured 2.4286 s puts the change at 1 s
+    d1, d2 = 2.0, 2.0 / 0.7
+    measured = 1.0 + 1.0 / 0.7
+    assert _turn_time(d1 - measured, d2 - measured, measured) == pytest.approx(1.0)
+    assert _turn_time(0.0, 0.5, 1.0) == 1.0 and _turn_time(-0.5, 0.0, 1.0) == 0.0
 
 
 def test_the_dial_turn_option_says_what_it_needs():

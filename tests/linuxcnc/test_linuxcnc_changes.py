@@ -42,8 +42,10 @@ def test_a_dial_turned_mid_program_is_found_as_a_change(recorded):
     (change,) = dx.changes
     assert change.recording == "pocket_f3000_p001" and change.parameter == "sim.feed_override.override"
     assert change.before == pytest.approx(1.0, rel=0.05) and change.after == pytest.approx(0.7, rel=0.05)
-    # motion starts a few tens of ms after the start; the change lies in the segment it names
+    # motion starts a few tens of ms after the start; the change lies in the segment it names, and its
+    # time within it (the speeds before and after) is the dial's (measured 3.52 s for 3.520)
     assert change.between_s[0] - 0.1 <= turned_s <= change.between_s[1] + 0.1, (change.between_s, turned_s)
+    assert change.at_s == pytest.approx(turned_s, abs=0.1)
     assert "sim.feed_override.override" not in {f.parameter for f in dx.findings}
     assert dx.unexplained == []
     assert change.error_change_pct < 1.0 < change.error_single_pct

@@ -28,7 +28,7 @@ from feedlog.diagnose.fit import Scorer, _grid, refine
 from feedlog.diagnose.hypothesis import Hypothesis
 
 CHANGING = ("sim.feed_override.override", "sim.rapid_override.override")
-MIN_SIDE = 4          # segments on each side of a change at least
+MIN_SIDE = 2          # segments on each side of the segment a change happened in, at least
 REFINE_ITER = 12
 
 
@@ -42,7 +42,7 @@ class Change:
     at_s: float                  # measured time of the boundary, from motion start
     between_s: tuple[float, float]  # the boundary lies within this (the segment it ends)
     line: int | None             # program line of the boundary's block
-    segment: int                 # index of the first segment after the change
+    segment: int                 # the segment the change happened in (before it: `before`; after it: `after`)
     error_single_pct: float      # the recording's timing error with one value for the whole session
     error_change_pct: float      # ... with the change
     held_out_gain: float         # share of the held-out loss (odd segments) removed against one value
@@ -62,19 +62,21 @@ class Change:
                 f"timing error {self.error_single_pct:.2f} % -> {self.error_change_pct:.2f} %").replace("  ", " ")
 
 
-def _best_split(sq: np.ndarray, use: np.ndarray) -> tuple[int, float, float]:
-    """(boundary m, loss of the best step at m, loss of the best single value) for squared residuals
-    `sq` (grid, segments) counted where `use`."""
+def _best_split(sq: np.ndarray, use: np.ndarray, at: np.ndarray) -> tuple[int, float, float]:
+    """(boundary segment k, loss of the best step at k, loss of the best single value) for squared
+    residuals `sq` (grid, segments) counted where `use`: one value before segment k, another after it;
+    segment k itself, where the change happened, is the two mixed and counts in neither (`at`: the
+    segments that may be the boundary)."""
     s = sq * use
     cum = np.cumsum(s, axis=1)
     total = cum[:, -1]
-    n = s.shape[1]
-    best_m, best = -1, np.inf
-    for m in range(MIN_SIDE, n - MIN_SIDE + 1):
-        loss = float(cum[:, m - 1].min() + (total - cum[:, m - 1]).min())
+    best_k, best = -1, np.inf
+    for k in np.flatnonzero(at):
+        left = cum[:, k - 1].min() if k else 0.0
+        loss = float(left + (total - cum[:, k]).min())
         if loss < best:
-            best_m, best = m, loss
-    return best_m, best, float(total.min())
+            best_k, best = int(k), loss
+    return best_k, best, float(total.min())
 
 
 class _OneRecording:
@@ -132,28 +134,34 @@ def find_changes(scorer: Scorer, model: Mapping[str, Any], hyps: Sequence[Hypoth
     return out
 
 
-def _split(one: _OneRecording, rows: np.ndarray, grid: list[float], sq: np.ndarray) -> tuple[int, float, float]:
-    """The boundary (an index into `rows`) and the two values fitted on the segments `rows`: the boundary
-    from the grid, the values refined on their sides, the boundary found again with them."""
-    use = np.zeros(sq.shape[1], bool)
-    use[rows] = True
-    m_all, _, _ = _best_split(np.where(np.isfinite(sq), sq, 1e30), use)
-    if m_all < 0:
-        return -1, np.nan, np.nan
-    m = int(np.searchsorted(rows, m_all))
+def _split(one: _OneRecording, use: np.ndarray, at: np.ndarray, grid: list[float],
+           sq: np.ndarray) -> tuple[int, float, float]:
+    """The boundary segment k and the values before and after it, fitted on the segments `use`: k from
+    the grid, the values refined on their sides, k found again with them."""
+    k, _, _ = _best_split(np.where(np.isfinite(sq), sq, 1e30), use, at)
     v1 = v2 = np.nan
-    for _ in range(2):
-        if not MIN_SIDE // 2 <= m <= len(rows) - MIN_SIDE // 2:
+    rows = np.arange(sq.shape[1])
+    for _ in range(3):
+        if k < 0:
             return -1, np.nan, np.nan
-        v1, _ = one.best(rows[:m], grid, sq)
-        v2, _ = one.best(rows[m:], grid, sq)
-        a, b = one.sq(v1)[rows], one.sq(v2)[rows]
-        cand = [(float(a[:k].sum() + b[k:].sum()), k) for k in range(1, len(rows))]
-        m_new = min(cand)[1]
-        if m_new == m:
+        v1, _ = one.best(rows[use & (rows < k)], grid, sq)
+        v2, _ = one.best(rows[use & (rows > k)], grid, sq)
+        a, b = one.sq(v1) * use, one.sq(v2) * use
+        cand = [(float(a[:j].sum() + b[j + 1:].sum()), int(j)) for j in np.flatnonzero(at)]
+        k_new = min(cand)[1]
+        if k_new == k:
             break
-        m = m_new
-    return m, v1, v2
+        k = k_new
+    return k, v1, v2
+
+
+def _turn_time(r1: float, r2: float, measured: float) -> float:
+    """When, within a segment of `measured` duration, a change from the value whose simulation misses
+    it by r1 to the one that misses it by r2 explains it: the segment run at the first value's speed for
+    tau, then the second's, tau = r2 (D + r1) / (r2 - r1) (constant speeds; clipped to the segment)."""
+    if not np.isfinite(r1) or not np.isfinite(r2) or r2 == r1:
+        return 0.5 * measured
+    return float(np.clip(r2 * (measured + r1) / (r2 - r1), 0.0, measured))
 
 
 def _judge(one: _OneRecording, grid: list[float], sq: np.ndarray, *, min_gain: float,
@@ -161,35 +169,43 @@ def _judge(one: _OneRecording, grid: list[float], sq: np.ndarray, *, min_gain: f
     scorer, hyp, i = one.scorer, one.hyp, one.case
     n = sq.shape[1]
     rows = np.arange(n)
-    even, odd = rows[rows % 2 == 0], rows[rows % 2 == 1]
-    # held out: boundary and values from the even segments, scored on the odd ones, against one value
-    m_e, a_e, b_e = _split(one, even, grid, sq)
-    if m_e < 0:
+    inner = (rows >= MIN_SIDE) & (rows < n - MIN_SIDE)      # a boundary leaves MIN_SIDE segments each side
+    even, odd = rows % 2 == 0, rows % 2 == 1
+    # held out: boundary (an odd segment, between two even ones) and both values from the even segments,
+    # scored on the other odd ones against one value fitted on the same even segments
+    k_e, a_e, b_e = _split(one, even, inner & odd, grid, sq)
+    if k_e < 0:
         return None
-    single_e, _ = one.best(even, grid, sq)
-    at = even[m_e]                                   # the first segment after the change
-    single_odd = float(one.sq(single_e)[odd].sum())
-    change_odd = float(one.sq(a_e)[odd[odd < at]].sum() + one.sq(b_e)[odd[odd >= at]].sum())
+    single_e, _ = one.best(rows[even], grid, sq)
+    scored = odd & (rows != k_e)
+    single_odd = float(one.sq(single_e)[scored].sum())
+    change_odd = float(one.sq(a_e)[scored & (rows < k_e)].sum() + one.sq(b_e)[scored & (rows > k_e)].sum())
     case = scorer.cases[i]
-    floor_odd = float(scorer.weights[i][odd].sum()) * 2.0 * case.segment_sigma_s ** 2
+    floor_odd = float(scorer.weights[i][scored].sum()) * 2.0 * case.segment_sigma_s ** 2
     excess = single_odd - floor_odd
     gain = (single_odd - change_odd) / excess if excess > 0 else 0.0
     if gain < min_gain:
         return None
     # all segments: where, from what, to what
-    m, v1, v2 = _split(one, rows, grid, sq)
-    if m < MIN_SIDE or n - m < MIN_SIDE:
+    k, v1, v2 = _split(one, np.ones(n, bool), inner, grid, sq)
+    if k < 0:
         return None
     v0, l0 = one.best(rows, grid, sq)
-    l12 = float(one.sq(v1)[:m].sum() + one.sq(v2)[m:].sum())
+    a, b = one.sq(v1), one.sq(v2)
+    l12 = float(a[:k].sum() + b[k + 1:].sum())     # the boundary segment: its two values mixed
     err_single, err_change = _error_pct(scorer, i, l0), _error_pct(scorer, i, l12)
     if err_single - err_change < min_effect_pct:
         return None
     seg = scorer.segments[i]
-    start = float(seg.end_s[m - 2]) if m >= 2 else 0.0
-    at_s = float(seg.end_s[m - 1])
-    return Change(recording=case.name, parameter=hyp.key, unit=hyp.unit, before=v1, after=v2, at_s=at_s,
-                  between_s=(start, at_s), line=_line_of(case, int(seg.anchors[m - 1])), segment=m,
+    start = float(seg.end_s[k - 1]) if k else 0.0
+    end = float(seg.end_s[k])
+    r1 = scorer.case_residual(i, {**one.base, **hyp.values(v1)})
+    r2 = scorer.case_residual(i, {**one.base, **hyp.values(v2)})
+    tau = _turn_time(float(r1[k]) if r1 is not None else np.nan, float(r2[k]) if r2 is not None else np.nan,
+                     float(seg.measured_s[k]))
+    return Change(recording=case.name, parameter=hyp.key, unit=hyp.unit, before=v1, after=v2,
+                  at_s=end - float(seg.measured_s[k]) + tau, between_s=(start, end),
+                  line=_line_of(case, int(seg.anchors[k])), segment=k,
                   error_single_pct=err_single, error_change_pct=err_change, held_out_gain=float(gain),
                   single_value=v0)
 

@@ -87,7 +87,8 @@ def find_unexplained(dx, *, learned: bool, min_effect_pct: float, min_gain: floa
     for c in getattr(dx, "changes", []):      # the recording's two values, each on its side of the change
         i = next(k for k, case in enumerate(scorer.cases) if case.name == c.recording)
         r1, r2 = scorer.residuals({**model, c.parameter: c.before})[i], scorer.residuals({**model, c.parameter: c.after})[i]
-        res[i] = None if r1 is None or r2 is None else np.concatenate([r1[:c.segment], r2[c.segment:]])
+        # the segment the change happened in is the two mixed, its time of change fitted to it: no residual
+        res[i] = None if r1 is None or r2 is None else np.concatenate([r1[:c.segment], [0.0], r2[c.segment + 1:]])
     if any(r is None for r in res):
         return []
     tables = [segment_table(c, s) for c, s in zip(scorer.cases, scorer.segments)]
