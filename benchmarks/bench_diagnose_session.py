@@ -70,7 +70,7 @@ def changes(machines: int, seed: int, folder: Path) -> None:
 
     rng = np.random.default_rng(seed + 100)
     ini = ROOT / "recordings" / "configs" / "xyz.ini"
-    print("| session | turned at | dial | found at (segment) | before | after | one value | timing error one value -> change | named | wall |")
+    print("| session | turned at (s after start:dial) | dial | found at, from motion start (segment) | before | after | one value | timing error one value -> change | named | wall |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     pairs = [("pocket_f3000_p001", "corners_f3000_p001"), ("freeform_f2000_p005", "corners_f2000_p005"),
              ("corners_f1000_p01", "pocket_f3000_p001"), ("circle_f3000_p001", "corners_f3000_p001")]
@@ -93,7 +93,7 @@ def changes(machines: int, seed: int, folder: Path) -> None:
                   f"{wall:.1f} s |", flush=True)
         for c in dx.changes:
             print(f"| {k} {turned} | {meta or 'no turn'} | {'-' if control else dial} | {c.recording} "
-                  f"{c.between_s[0]:.2f}-{c.between_s[1]:.2f} s | {c.before:.4f} | {c.after:.4f} | {c.single_value:.4f} | "
+                  f"{c.at_s:.3f} s ({c.between_s[0]:.2f}-{c.between_s[1]:.2f}) | {c.before:.4f} | {c.after:.4f} | {c.single_value:.4f} | "
                   f"{c.error_single_pct:.2f} % -> {c.error_change_pct:.2f} % | {named} | {wall:.1f} s |", flush=True)
 
 
