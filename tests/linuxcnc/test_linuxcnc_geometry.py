@@ -14,6 +14,7 @@ import pytest
 from feedlog.diagnose import keys
 from feedlog.diagnose.engine import DiagnoseConfig, diagnose
 from feedlog.ingest.linuxcnc import record_linuxcnc
+from feedlog.ingest.linuxcnc_session import isolation_available
 
 pytestmark = [pytest.mark.linuxcnc, pytest.mark.slow]
 
@@ -30,12 +31,13 @@ MACHINES = {"control": {}, "offsets": {"xyzac-trt-kins.y-offset": 22.5, "xyzac-t
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory) -> dict[str, list[Path]]:
     root = tmp_path_factory.mktemp("geometry")
+    isolate = isolation_available() is None   # private namespaces where allowed: other sessions may run
     out: dict[str, list[Path]] = {}
     for name, params in MACHINES.items():
         ini = derive_machine("xyzac", root / name, hal_params=params)
         for program in P5:
             path = ini.parent / f"{name}_{program}.mcap"
-            summary = record_linuxcnc(ini, PROGRAMS / f"{program}.ngc", path, timeout_s=120)
+            summary = record_linuxcnc(ini, PROGRAMS / f"{program}.ngc", path, timeout_s=120, isolate=isolate)
             assert summary["status"] == "complete", summary
             out.setdefault(name, []).append(path)
     return out
