@@ -25,7 +25,9 @@ def dial_turned(text: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def test_a_dial_turned_mid_program_is_a_change_not_one_value(hidden):
+def test_a_dial_turned_mid_program_is_a_change_not_one_value(hidden, tmp_path):
+    from feedlog.diagnose.write import write_outputs
+
     recs = hidden("turned", edit=dial_turned, programs=PROGRAMS)
     dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
     (change,) = dx.changes
@@ -40,6 +42,8 @@ def test_a_dial_turned_mid_program_is_a_change_not_one_value(hidden):
     assert dx.unexplained == []                              # what the change explains is not unexplained
     assert any(line.startswith("change during") for line in summary_lines(dx))
     assert to_json(dx)["changes"][0]["after"] == pytest.approx(0.7, rel=0.05)
+    write_outputs(dx, tmp_path / "dx")
+    assert "## Changes during a session" in (tmp_path / "dx" / "report.md").read_text()
 
 
 def test_an_unchanged_machine_gives_no_change(hidden):
