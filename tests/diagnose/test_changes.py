@@ -98,3 +98,17 @@ def test_any_dial_turn_text_parses_to_a_valid_turn_or_says_what_it_needs(text):
         assert "S:SCALE" in str(exc) or "SCALE <= 10" in str(exc)
     else:
         assert at >= 0 and 0 < scale <= 10 and np.isfinite(at)
+
+
+def test_a_dial_that_moves_one_segment_either_side_is_not_a_change():
+    """The bundled long_dense family (six LinuxCNC recordings, nothing changed): a rapid dial of 0.36
+    'before' once fitted longdense_000's one approach rapid, 1.0 after, and halved its timing error."""
+    import tomllib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2] / "recordings"
+    entries = tomllib.loads((root / "manifest.toml").read_text())["recording"]
+    files = [root / e["file"] for e in entries if e["family"] == "long_dense"]
+    assert len(files) == 6
+    dx = diagnose(files, "linuxcnc-xyz", config=DiagnoseConfig(learned=False, families=("overrides",)))
+    assert dx.changes == [] and dx.findings == []
