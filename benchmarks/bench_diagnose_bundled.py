@@ -3,8 +3,8 @@
 Every recording of recordings/manifest.toml is diagnosed on its own (held-out stretches of it) with
 the profile it was recorded on; with `--families` the recordings of one program family and machine
 are also diagnosed together (leave one recording out). A faithful recording should give no finding:
-the script prints, per run, the timing error before, what was found, what stays unexplained and the
-wall time, then the counts.
+the script prints, per run, the timing error before, what was found, what stays unexplained, a change
+during the session and the wall time, then the counts.
 
     .venv/bin/python benchmarks/bench_diagnose_bundled.py [-j 2] [--families] [--only NAME,...] [--json]
 """
@@ -39,6 +39,7 @@ def run_one(item: tuple[str, list[str], str]) -> dict:
             "error_after_pct": cyc["error_after_pct"],
             "findings": [f"{f.parameter}={f.fitted_value:.4g}" for f in dx.findings],
             "unexplained": [f"{u['level']} {u['error_pct']:.2f} %: {u['where']}" for u in dx.unexplained],
+            "changes": [c.text() for c in dx.changes],
             "wall_s": time.perf_counter() - t0}
 
 
@@ -72,10 +73,12 @@ def main() -> None:
             continue
         print(f"{r['run']:40s} {r['error_before_pct']:+7.3f} % -> {r['error_after_pct']:+7.3f} %  "
               f"{r['wall_s']:5.1f} s  findings: {', '.join(r['findings']) or '-'}"
-              + (f"  unexplained: {'; '.join(r['unexplained'])}" if r["unexplained"] else ""))
+              + (f"  unexplained: {'; '.join(r['unexplained'])}" if r["unexplained"] else "")
+              + (f"  {'; '.join(r['changes'])}" if r["changes"] else ""))
     done = [r for r in rows if "error" not in r]
     print(f"\n{len(rows)} runs, {wall:.0f} s wall ({args.jobs} workers): {sum(bool(r['findings']) for r in done)} with "
           f"a finding, {sum(bool(r['unexplained']) for r in done)} with an unexplained residual, "
+          f"{sum(bool(r['changes']) for r in done)} with a change during the session, "
           f"{len(rows) - len(done)} refused")
 
 

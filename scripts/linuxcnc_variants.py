@@ -3,7 +3,9 @@
 `derive_machine(base, folder, changes=..., feedback_lag=...)` writes a copy of recordings/configs/<base>.ini
 into `folder` with INI keys changed (`("AXIS_X", "MAX_ACCELERATION", 300)`; a joint's limits should
 change with its axis) and, optionally, a HAL file that puts a first-order lag (LinuxCNC's `lowpass`
-component, gain 1 - exp(-T / tau)) between a joint's simulated drive and its position feedback.
+component, gain 1 - exp(-T / tau)) between a joint's simulated drive and its position feedback, and with
+HAL parameters of the copied HAL files changed (`hal_params={"xyzac-trt-kins.y-offset": 22.5}`: the
+trunnion's geometry).
 `feedlog diagnose`'s integration tests and the bundled mystery machine (scripts/make_recordings.py)
 are made this way: record on the variant, diagnose with the shipped profile, expect the change back.
 """
@@ -41,8 +43,17 @@ def set_ini_key(text: str, section: str, key: str, value: object) -> str:
     return head.sub(f"[{section}]\n{key} = {value}\n", text, count=1)
 
 
+def set_hal_param(text: str, param: str, value: object) -> str:
+    """`text` (a HAL file) with `setp param value` replacing the file's own setp of `param`."""
+    pattern = re.compile(rf"^setp\s+{re.escape(param)}\s+\S+\s*$", re.M)
+    if not pattern.search(text):
+        raise ValueError(f"the HAL file sets no {param}")
+    return pattern.sub(f"setp {param} {value}", text, count=1)
+
+
 def derive_machine(base: str, folder: str | Path, *, changes: Iterable[tuple[str, str, object]] = (),
-                   feedback_lag: Mapping[int, float] | None = None, name: str | None = None) -> Path:
+                   feedback_lag: Mapping[int, float] | None = None, name: str | None = None,
+                   hal_params: Mapping[str, object] | None = None) -> Path:
     """Write the variant's INI (and its HAL files) into `folder`; return the INI's path."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -52,6 +63,14 @@ def derive_machine(base: str, folder: str | Path, *, changes: Iterable[tuple[str
     for hal in CONFIGS.glob("*.hal"):  # relative HALFILEs (trt.hal) stay next to the INI
         if f"HALFILE = {hal.name}" in text:
             shutil.copyfile(hal, folder / hal.name)
+    left = dict(hal_params or {})
+    for hal in sorted(folder.glob("*.hal")):
+        hal_text = hal.read_text()
+        for param in [p for p in left if re.search(rf"^setp\s+{re.escape(p)}\s", hal_text, re.M)]:
+            hal_text = set_hal_param(hal_text, param, left.pop(param))
+        hal.write_text(hal_text)
+    if left:
+        raise ValueError(f"no HAL file of {base} sets {', '.join(left)}")
     period_s = float(re.search(r"^SERVO_PERIOD\s*=\s*(\d+)", text, re.M).group(1)) / 1e9
     extra = []
     for joint, tau in sorted((feedback_lag or {}).items()):

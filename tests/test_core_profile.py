@@ -34,7 +34,7 @@ def test_linuxcnc_xyzac_has_trunnion_kinematics_and_rotary_limits():
     p = load_profile("linuxcnc-xyzac")
     assert p.kinematics.type == "xyzac-trt"
     assert p.kinematics.rotary_axes == ("a", "c")
-    assert p.kinematics.rotary_offset_mm == (0.0, 20.0, 10.0)
+    assert p.kinematics.rotary_offset_mm == (0.0, -20.0, -10.0)
     assert p.axes["a"].vel_max == 60.0 and p.axes["c"].acc_max == 600.0
 
 

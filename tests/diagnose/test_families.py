@@ -19,7 +19,8 @@ def test_every_registered_family_has_a_distinct_rank_and_its_registered_name():
     assert len(set(ranks)) == len(ranks), f"two families share a rank: {ranks}"
     # the order of the tie-break (the operator's dials, the machine's limits, planner, ...) as before the move
     order = sorted(fams, key=lambda n: fams[n].rank)
-    assert order == ["overrides", "axis_limits", "path_limits", "planner", "dwell", "feedback", "logger", "tool_change"]
+    assert order == ["overrides", "axis_limits", "path_limits", "planner", "dwell", "feedback", "logger", "geometry",
+                     "tool_change"]
 
 
 def test_a_family_without_a_rank_or_without_evidence_cannot_be_made():

@@ -76,6 +76,9 @@ def block_classes(case: Case) -> pd.DataFrame:
     })
     for j, i in enumerate(lin):
         table[f"share_{axes[i]}"] = share[:, j]
+    for a in ("x", "y", "z"):   # where on the part the block ends (program frame)
+        if f"{a}_mm" in rows.columns:
+            table[f"{a}_end_mm"] = rows[f"{a}_mm"].to_numpy(np.float64)
     return table
 
 

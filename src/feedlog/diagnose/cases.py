@@ -55,6 +55,16 @@ class FeedbackData:
 
 
 @dataclass
+class GeometryData:
+    """Axis (program frame) positions and the commanded joint positions they became, sample by sample."""
+
+    t_ns: np.ndarray
+    pos: np.ndarray        # (n, k) axis positions, columns in the profile's axis order
+    joints: np.ndarray     # (n, k) commanded joint positions of the same instants
+    lag: int               # samples the joints were recorded behind the axes (found from the rotary joints)
+
+
+@dataclass
 class CLPolyline:
     """The program's cutter-location points: program and machine frame, arc length, block, measured time."""
 
@@ -94,6 +104,7 @@ class Case:
     block_end_s: pd.Series           # block -> measured end time relative to motion start
     block_source: str                # 'line', 'geometry', ... (where the block times came from)
     feedback: FeedbackData | None = None
+    geometry: GeometryData | None = None
     line_offset_s: float | None = None   # line stream minus geometry, from align (None: no line stream)
     line_offsets: pd.Series | None = None  # per block: line stream's block end minus the geometry's (s)
     machine: dict[str, str] = field(default_factory=dict)
@@ -197,6 +208,40 @@ def feedback_data(rec: Recording, profile: MachineProfile) -> FeedbackData | Non
     return FeedbackData(t_ns=t, cmd=cmd, fb=fb, axes=tuple(axes[i] for i in pairs), dt_s=dt / 1e9)
 
 
+GEOMETRY_LAGS = 5  # the joints may be sampled up to this many samples behind (or ahead of) the axes
+
+
+def geometry_data(rec: Recording, profile: MachineProfile) -> GeometryData | None:
+    """Axis positions and commanded joints (`jN_pos`) sampled together, for a machine whose kinematics
+    are not the identity. Where the joints were recorded some samples behind the axes (LinuxCNC's
+    `joint.N.pos-cmd` two servo cycles after `axis.L.pos-cmd`), the lag is taken from the rotary
+    joints, which equal their axes whatever the offsets."""
+    joints, axes = rec.streams.get("joints"), rec.streams.get("axes")
+    rotary = [profile.axis_names.index(a) for a in profile.kinematics.rotary_axes]
+    if joints is None or axes is None or not rotary:
+        return None
+    names = profile.axis_names
+    cols = [f"j{i}_pos" for i in range(len(names))]
+    if not set(cols) <= set(joints.columns):
+        return None
+    both = axes[["t_ns", *position_columns(profile)]].merge(joints[["t_ns", *cols]], on="t_ns")
+    if len(both) < 10 * GEOMETRY_LAGS:
+        return None
+    pos = both[position_columns(profile)].to_numpy(np.float64)
+    q = both[cols].to_numpy(np.float64)
+    if not (np.isfinite(pos).all() and np.isfinite(q).all()):
+        return None
+    n, k = len(both), GEOMETRY_LAGS
+
+    def mismatch(lag: int) -> float:
+        a, b = pos[k:n - k, rotary], q[k + lag:n - k + lag, rotary]
+        return float(np.abs(a - b).sum())
+
+    lag = min(range(-k, k + 1), key=lambda j: (mismatch(j), abs(j)))
+    t = both["t_ns"].to_numpy(np.int64)
+    return GeometryData(t_ns=t[k:n - k], pos=pos[k:n - k], joints=q[k + lag:n - k + lag], lag=lag)
+
+
 def line_offsets(alignment: Any) -> pd.Series | None:
     """Per block seen in the line stream (not the first or last): when the line stream says it ended minus
     when the positions say so (align's line and geometry block tables)."""
@@ -282,7 +327,7 @@ def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, pro
     offset = (line_info.get("offset_vs_geometry") or {}).get("offset_ns")
     return Case(name=name, source=src, recording=rec, program=prog, alignment=alignment, period_s=period, t0_ns=t0,
                 cycle_s=float(alignment.cycle_time_s), block_end_s=ends, block_source=source_kind,
-                feedback=feedback_data(rec, profile), line_offset_s=None if offset is None else offset / 1e9,
+                feedback=feedback_data(rec, profile), geometry=geometry_data(rec, profile), line_offset_s=None if offset is None else offset / 1e9,
                 line_offsets=line_offsets(alignment),
                 machine=machine_identity(rec), still_mm=float(alignment.report.get("still_mm", 1e-6)),
                 on_path_mm=_on_path(alignment, axes),

@@ -31,7 +31,7 @@ from feedlog.errors import FeedlogError
 from feedlog.recording import Recording
 from feedlog.profile import MachineProfile, load_profile
 
-LEVELS = ("timing", "feedback", "line")
+LEVELS = ("timing", "feedback", "line", "geometry")
 
 
 @dataclass(frozen=True)
@@ -40,6 +40,7 @@ class DiagnoseConfig:
     min_effect_pct: float = 1.0        # timing: held-out error must drop by this many percentage points
     min_effect_feedback_mm: float = 0.001
     min_effect_line_s: float = 0.002
+    min_effect_geometry_mm: float = 0.01  # geometry: the joints' held-out RMS must drop by this much (mm)
     max_causes: int = 6
     families: tuple[str, ...] | None = None
     min_segment_s: float | None = None
@@ -55,7 +56,8 @@ class DiagnoseConfig:
     def select_config(self, level: str, noise: float = 0.0) -> SelectConfig:
         """`noise`: the level's noise scale (feedback: position noise at rest; line: sampling period)."""
         effect = {"timing": self.min_effect_pct, "feedback": max(self.min_effect_feedback_mm, 2 * noise),
-                  "line": max(self.min_effect_line_s, 2 * noise)}[level]
+                  "line": max(self.min_effect_line_s, 2 * noise),
+                  "geometry": max(self.min_effect_geometry_mm, 2 * noise)}[level]
         return SelectConfig(min_gain=self.min_gain, min_effect=effect, max_causes=self.max_causes)
 
 
@@ -110,6 +112,7 @@ class Diagnosis:
     sims: dict[str, list[Any]] = field(default_factory=dict)
     learned_model: Any = None
     calibration: Any = None            # `calibrate.Calibration` with --calibrate
+    changes: list[Any] = field(default_factory=list)   # `changes.Change`: a parameter that changed mid-session
 
     @property
     def diff(self) -> list[tuple[str, Any, Any]]:
@@ -196,8 +199,19 @@ def line_error(scorer: Scorer, *, floor: bool = True) -> Callable[[np.ndarray, l
     return error
 
 
+def geometry_error(scorer: Scorer, *, floor: bool = True) -> Callable[[np.ndarray, list[int]], float]:
+    """RMS of the linear joints' residual (kinematics of the recorded axes minus the recorded joints)
+    above its resolution (mm)."""
+    def error(losses: np.ndarray, units: list[int]) -> float:
+        count = 3 * sum(scorer.units[u].hi - scorer.units[u].lo for u in units)
+        excess = float(np.sum(losses[units])) - (float(np.sum(scorer.floor[units])) if floor else 0.0)
+        return float(np.sqrt(max(excess, 0.0) / count)) if count else 0.0
+    return error
+
+
 def level_error(scorer: Scorer, *, floor: bool = True) -> Callable[[np.ndarray, list[int]], float]:
-    return {"timing": timing_error, "feedback": feedback_error, "line": line_error}[scorer.level](scorer, floor=floor)
+    return {"timing": timing_error, "feedback": feedback_error, "line": line_error,
+            "geometry": geometry_error}[scorer.level](scorer, floor=floor)
 
 
 def feedback_noise(cases: Sequence[Case]) -> float:
@@ -244,7 +258,7 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
         cal = calibrate(prof, cases, ev, min_segment_s=cfg.min_segment_s, progress=say)
         prof = cal.profile
         laps["calibrate"] = time.perf_counter() - t1
-    hyps = [replace(h, seeds=family(h.family).suggest(ev, h.key, h.baseline))
+    hyps = [replace(h, seeds=(*h.seeds, *family(h.family).suggest(ev, h.key, h.baseline)))
             for h in candidates(prof, cases, families=cfg.families)]
     selections: dict[str, Selection] = {}
     scorers: dict[str, Scorer] = {}
@@ -275,15 +289,25 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
         selections[level] = select(scorer, level_hyps, error=error, evidence=ev,
                                    cfg=cfg.select_config(level, noise), progress=say, held_out_many=many)
         laps[level] = time.perf_counter() - t1
+    changes = []
+    if "timing" in selections:  # a dial turned mid-session: a step, not one value averaged over it
+        from feedlog.diagnose.changes import find_changes
+
+        t1 = time.perf_counter()
+        changes = find_changes(scorers["timing"], selections["timing"].model, [h for h in hyps if h.level == "timing"],
+                               min_gain=cfg.min_gain, min_effect_pct=cfg.min_effect_pct)
+        laps["changes"] = time.perf_counter() - t1
+    stepped = {c.parameter for c in changes}
     model: dict[str, Any] = {}
     for sel in selections.values():
-        model.update(sel.model)
+        model.update({k: v for k, v in sel.model.items() if k not in stepped})
     extended = keys.with_values(prof, model, name=f"{given.name}-diagnosed") if model else prof.replace(
         name=f"{given.name}-diagnosed")
     findings = [_finding(step.chosen, sel, scorers[level], ev, level_error(scorers[level]))
-                for level, sel in selections.items() for step in sel.steps]
+                for level, sel in selections.items() for step in sel.steps if step.chosen.key not in stepped]
     dx = Diagnosis(profile=given, extended=extended, cases=cases, evidence=ev, selections=selections,
-                   scorers=scorers, findings=findings, noise_floor=_noise_floor(scorers, cfg, cases), calibration=cal)
+                   scorers=scorers, findings=findings, noise_floor=_noise_floor(scorers, cfg, cases), calibration=cal,
+                   changes=changes)
     t2 = time.perf_counter()
     from feedlog.diagnose.levels import measure_levels
     from feedlog.diagnose.unexplained import find_unexplained
@@ -333,6 +357,10 @@ def _noise_floor(scorers: dict[str, Scorer], cfg: DiagnoseConfig, cases: Sequenc
         sc = scorers["line"]
         out["line_s"] = line_error(sc, floor=False)(sc.floor, list(range(len(sc.units))))
         out["min_effect_line_s"] = max(cfg.min_effect_line_s, 2 * max(c.period_s for c in cases))
+    if "geometry" in scorers:
+        sc = scorers["geometry"]
+        out["geometry_mm"] = geometry_error(sc, floor=False)(sc.floor, list(range(len(sc.units))))
+        out["min_effect_geometry_mm"] = cfg.min_effect_geometry_mm
     return out
 
 

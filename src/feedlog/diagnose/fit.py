@@ -24,7 +24,7 @@ from scipy.optimize import minimize_scalar
 from feedlog.diagnose import keys
 from feedlog.diagnose.cases import Case
 from feedlog.diagnose.hypothesis import Hypothesis
-from feedlog.diagnose.residuals import (Segments, feedback_residual, line_latency, make_segments,
+from feedlog.diagnose.residuals import (Segments, feedback_residual, geometry_residual, line_latency, make_segments,
                                         model_line_offsets, timing_residual)
 from feedlog.errors import FeedlogError
 from feedlog.profile import MachineProfile
@@ -76,7 +76,7 @@ class Scorer:
             self.line_model = [model_line_offsets(c, profile) for c in self.cases]
         lengths = [self._length(i) for i in range(len(self.cases))]
         self.data_size = sum(lengths)   # what the level is judged on, in `data_unit`s, over data_s of motion
-        self.data_unit = {"timing": "segments", "feedback": "samples", "line": "blocks"}[level]
+        self.data_unit = {"timing": "segments", "feedback": "samples", "line": "blocks", "geometry": "samples"}[level]
         self.data_s = float(sum(c.cycle_s for c, n in zip(self.cases, lengths) if n > 0))
         self.weights = [s.weight if self.level == "timing" else np.ones(n) for s, n in
                         zip(self.segments or [None] * len(lengths), lengths)]
@@ -87,12 +87,15 @@ class Scorer:
         """The loss a perfect model leaves on a unit: the measurement's own resolution. Timing: each
         segment's two boundaries are uncertain by `Case.segment_sigma_s` (a sampling period / sqrt(12);
         on sparse data, whose sampling the simulation shares, the timestamps' jitter and the position
-        noise); line: a sampling period / sqrt(12); feedback: the noise of the feedback positions at rest."""
+        noise); line: a sampling period / sqrt(12); feedback: the noise of the feedback positions at rest;
+        geometry: the joints' recorded resolution (`geometry_sigma`)."""
         case = self.cases[u.case]
         if self.level == "timing":
             return float(self.weights[u.case][u.lo:u.hi].sum()) * 2.0 * case.segment_sigma_s ** 2
         if self.level == "line":  # two events on each side, each good to a sampling period
             return (u.hi - u.lo) * 4.0 * case.boundary_sigma_s ** 2
+        if self.level == "geometry":
+            return (u.hi - u.lo) * 3 * geometry_sigma(case) ** 2
         from feedlog.align.blocks import rest_noise
 
         fb = case.feedback
@@ -104,6 +107,9 @@ class Scorer:
         if self.level == "line":
             pair = self.line_model[i]
             return 0 if pair is None else len(pair[0])
+        if self.level == "geometry":
+            geo = self.cases[i].geometry
+            return 0 if geo is None else len(geo.t_ns)
         fb = self.cases[i].feedback
         return 0 if fb is None else len(fb.t_ns)
 
@@ -111,8 +117,8 @@ class Scorer:
         """Contiguous chunks of each recording (five of a single recording, three of each of several)."""
         used = [i for i, n in enumerate(lengths) if n > 0]
         per_case = CHUNKS if len(used) == 1 else CHUNKS_EACH
-        minimum = FEEDBACK_CHUNK_MIN if self.level == "feedback" else 1
-        what = {"timing": "segments", "feedback": "samples", "line": "blocks"}[self.level]
+        minimum = FEEDBACK_CHUNK_MIN if self.level in ("feedback", "geometry") else 1
+        what = {"timing": "segments", "feedback": "samples", "line": "blocks", "geometry": "samples"}[self.level]
         units = []
         for i in used:
             n = lengths[i]
@@ -150,6 +156,14 @@ class Scorer:
         self._cache[key] = out
         return out
 
+    def case_residual(self, i: int, values: Mapping[str, Any]) -> np.ndarray | None:
+        """The residual of recording `i` alone for base + `values` (not cached; None where invalid)."""
+        try:
+            profile = keys.with_values(self.profile, values) if values else self.profile
+            return self._residual(i, self.cases[i], profile, bool(values))
+        except FeedlogError:
+            return None
+
     def _residual(self, i: int, case: Case, profile: MachineProfile, changed: bool) -> np.ndarray | None:
         if self.level == "timing":
             from feedlog.sim import simulate
@@ -162,6 +176,8 @@ class Scorer:
             return timing_residual(case, self.segments[i], sim)
         if self.level == "feedback":
             return feedback_residual(case, profile)
+        if self.level == "geometry":
+            return geometry_residual(case, profile)
         if self.level == "line":
             pair = self.line_model[i]
             if pair is None:  # no line stream here: no units of this recording on this level
@@ -182,6 +198,15 @@ class Scorer:
             w = self.weights[u.case][u.lo:u.hi]
             out[j] = float(np.sum(sq * (w[:, None] if sq.ndim == 2 else w)))
         return out
+
+
+def geometry_sigma(case: Case) -> float:
+    """What a perfect kinematic model still misses per joint sample: the joints' recorded resolution (the
+    smallest step between distinct values / sqrt(12)), at least 1e-6 mm."""
+    from feedlog.align.pipeline import position_quantum
+
+    geo = case.geometry
+    return max(float(position_quantum(geo.joints[:, :3])) / np.sqrt(12.0), 1e-6)
 
 
 @dataclass

@@ -4,7 +4,8 @@ A `Hypothesis` names a parameter by its dotted profile key (`feedlog.diagnose.ke
 profile has in force (`baseline`; `switches_on` when the parameter belongs to a mechanism the profile
 has switched off, which the hypothesis switches on), its bounds and search scale, the residual level it
 is judged on (`timing`: segment times from re-simulation; `feedback`: feedback positions from the
-recording's own command; `line`: the line stream against the positions) and the residual pattern
+recording's own command; `line`: the line stream against the positions; `geometry`: the commanded joints
+from the recording's own axis positions through the kinematics) and the residual pattern
 it predicts (shown with a finding).
 
 Hypotheses come from *families*, one module each, registered in `FAMILIES` (name -> "module:FAMILY").
@@ -34,12 +35,12 @@ if TYPE_CHECKING:
     from feedlog.diagnose.evidence import Evidence
 
 SCALES = ("log", "linear", "int", "choice")
-LEVELS = ("timing", "feedback", "line")
+LEVELS = ("timing", "feedback", "line", "geometry")
 # The least data a cause is judged on: so many of the level's units (timing: segments, line: blocks,
 # feedback: samples) and MIN_SECONDS of motion. Below that a parameter fits the noise of a handful of
 # blocks (a 0.5 s cut once "found" a feed override of 2, a 1 s cut of 15 segments a blend tolerance);
 # two programs at 5 Hz (11 long segments over 20 s) still carry an axis limit.
-MIN_DATA = {"timing": 8, "line": 8, "feedback": 1000}
+MIN_DATA = {"timing": 8, "line": 8, "feedback": 1000, "geometry": 1000}
 MIN_SECONDS = 5.0
 
 # family name -> "module:FAMILY" (a `Family`). One line per family.
@@ -52,6 +53,7 @@ FAMILIES: dict[str, str] = {
     "tool_change": "feedlog.diagnose.hyp_tool_change:FAMILY",
     "feedback": "feedlog.diagnose.hyp_feedback:FAMILY",
     "logger": "feedlog.diagnose.hyp_logger:FAMILY",
+    "geometry": "feedlog.diagnose.hyp_geometry:FAMILY",
 }
 
 

@@ -1,7 +1,8 @@
 """Profile parameters by dotted key, exactly as the profile TOML spells them.
 
 `axes.x.acc_max`, `interpolator.servo_period_s`, `rapid_mm_min`, `sim.feed_override.override`,
-`sim.following_lag.lag_s.x`: a key walks the profile's TOML tables. `value(profile, key)` reads the
+`sim.following_lag.lag_s.x`, `kinematics.rotary_offset_mm.1` (one element of a list, counted from 0): a
+key walks the profile's TOML tables. `value(profile, key)` reads the
 value that is in force (for a `sim.<mechanism>` parameter the profile does not set: the mechanism's
 default for that profile), `with_values(profile, {key: value})` returns a new, checked profile.
 Setting a parameter of a mechanism the profile has switched off switches it on: that is how a
@@ -40,7 +41,7 @@ def unit(key: str) -> str:
     parts = split(key)
     if parts[0] == "axes" and len(parts) == 3 and parts[2] in _AXIS_UNITS:
         return _AXIS_UNITS[parts[2]][0 if parts[1] in LINEAR_AXES else 1]
-    name = parts[-2] if parts[0] == "sim" and len(parts) == 4 else parts[-1]  # lag_s.x -> lag_s
+    name = parts[-2] if (parts[0] == "sim" and len(parts) == 4) or parts[-1].isdigit() else parts[-1]  # lag_s.x -> lag_s
     if name == "lookahead_blocks":
         return "blocks"
     for suffix, text in _SUFFIX_UNITS:
@@ -89,6 +90,9 @@ def value(profile: MachineProfile, key: str) -> Any:
     data = profile.to_dict()
     node = data
     for p in parts:
+        if isinstance(node, list) and p.isdigit() and int(p) < len(node):  # one element of a list
+            node = node[int(p)]
+            continue
         if not isinstance(node, Mapping) or p not in node:
             default = _dataclass_default(profile, parts)
             if default is not None:
@@ -117,6 +121,11 @@ def with_values(profile: MachineProfile, values: Mapping[str, Any], *, name: str
     for key, v in values.items():
         parts = split(key)
         node = data
+        if parts[0] != "sim" and parts[-1].isdigit():    # one element of a list (`kinematics.rotary_offset_mm.1`)
+            listed = _walk(data, parts[:-1])
+            if isinstance(listed, list) and int(parts[-1]) < len(listed):
+                listed[int(parts[-1])] = _plain(v)
+                continue
         for p in parts[:-1]:
             child = node.get(p)
             if not isinstance(child, dict):
@@ -134,6 +143,15 @@ def with_values(profile: MachineProfile, values: Mapping[str, Any], *, name: str
     if name is not None:
         data["name"] = name
     return MachineProfile.from_dict(data, source=f"{profile.name} + {', '.join(values)}")
+
+
+def _walk(data: Mapping[str, Any], parts: list[str]) -> Any:
+    node: Any = data
+    for p in parts:
+        if not isinstance(node, Mapping) or p not in node:
+            return None
+        node = node[p]
+    return node
 
 
 def _plain(v: Any) -> Any:

@@ -24,7 +24,7 @@ import pandas as pd
 from feedlog.diagnose.attribution import class_table, segment_table, top_segments, where_text
 from feedlog.diagnose.cases import Case, position_columns
 from feedlog.diagnose.evidence import _derivatives
-from feedlog.diagnose.residuals import (feedback_residual, rms, sample_bounds, sim_span, simulated_segments,
+from feedlog.diagnose.residuals import (feedback_residual, geometry_residual, rms, sample_bounds, sim_span, simulated_segments,
                                         timing_residual)
 from feedlog.profile import LINEAR_AXES, MachineProfile
 from feedlog.toolpath.schema import AXIS_UNITS
@@ -226,6 +226,13 @@ def measure_levels(dx) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
             return rms(np.concatenate([p.ravel() for p in parts])) if parts else None
         levels["feedback"] = {"rms_before_mm": lin_rms(fb_b), "rms_after_mm": lin_rms(fb_a),
                               "recordings": [c.name for c in cases if c.feedback is not None]}
+    geo_b = [geometry_residual(c, prof) for c in cases]
+    levels["geometry"] = None
+    if any(r is not None for r in geo_b):
+        geo_a = [geometry_residual(c, ext) for c in cases]
+        levels["geometry"] = {"rms_before_mm": rms(np.concatenate([r.ravel() for r in geo_b if r is not None])),
+                              "rms_after_mm": rms(np.concatenate([r.ravel() for r in geo_a if r is not None])),
+                              "recordings": [c.name for c in cases if c.geometry is not None]}
     if scorer is not None:
         where["curves"] = {c.name: progress_curves(c, prof, s, {"before": b, "after": a})
                            for c, s, b, a in zip(cases, scorer.segments, before, after)}

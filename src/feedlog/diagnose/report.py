@@ -177,12 +177,28 @@ def write_report(dx, out: Path) -> Path:
                           "gain": f"{100 * j.held.gain:.1f} %", "why": "; ".join(j.reasons)} for lvl, j in rejected],
                         [("level", "level"), ("parameter", "parameter"), ("fitted", "fitted"), ("gain", "held-out gain"),
                          ("why", "why not")])
+    if dx.changes:
+        lines += ["", "## Changes during a session", "",
+                  "A parameter that took one value, then another: not averaged into one value (the extended "
+                  "profile keeps the profile's value for it).", ""]
+        lines += _table([{"rec": c.recording, "parameter": f"`{c.parameter}`", "before": _fmt(c.before, c.unit),
+                          "after": _fmt(c.after, c.unit), "at": f"{c.at_s:.2f} s" + (f" (line {c.line})" if c.line else ""),
+                          "single": _fmt(c.single_value, c.unit),
+                          "error": f"{c.error_single_pct:.2f} % -> {c.error_change_pct:.2f} %"} for c in dx.changes],
+                        [("rec", "recording"), ("parameter", "parameter"), ("before", "before"), ("after", "after"),
+                         ("at", "when (from motion start)"), ("single", "one value would be"),
+                         ("error", "timing error")])
     if dx.unexplained:
         lines += ["", "## Unexplained", ""]
         for u in dx.unexplained:
-            lines.append(f"- {u['level']}: {u['error_pct']:.2f} % of the time misplaced, {u['systematic_share_pct']:.0f} % "
-                         f"of it systematic (a model of the block classes predicts it on held-out data); "
-                         f"{u['where']}.")
+            lines.append(f"- {u['level']}, **cause unknown**: {u['error_pct']:.2f} % of the time misplaced, "
+                         f"{u['systematic_share_pct']:.0f} % of it systematic (a model of the block classes predicts "
+                         f"it on held-out data); {u['where']}.")
+            if (u.get("signature") or {}).get("text"):
+                lines.append(f"  Signature: {u['signature']['text']}.")
+            if u.get("error_after_class_model_pct") is not None:
+                lines.append(f"  Learned correction (the block-class model, fitted without each held-out stretch): "
+                             f"held-out error {u['error_pct']:.2f} % -> {u['error_after_class_model_pct']:.2f} %.")
             lc = u.get("learned_correction") or {}
             if "held_out" in lc:
                 lines.append(f"  Learned correction (train's hybrid model on the extended profile): held-out mean "

@@ -21,6 +21,10 @@ simulation is sampled at the recording's instants phased on the first moving sam
 mechanisms (`feedlog.sim.feedback`) against its feedback positions: the feedback model is judged
 independently of the timing.
 
+**Geometry.** The recording's own axis (program frame) positions through the profile's kinematics
+against the commanded joint positions it recorded: the machine's geometry (a trunnion's offsets),
+judged without any simulation.
+
 **Line.** Per block, when the line stream says it ended minus when the positions say so, against
 the same offset of the simulation recorded and aligned alike plus the profile's logger latency.
 """
@@ -219,6 +223,17 @@ def predicted_feedback(case: Case, profile: MachineProfile) -> np.ndarray | None
     if fb is None:
         return None
     return feedback_positions(feedback_chain(resolve_mechanisms(profile)), fb.dt_s, fb.axes, fb.cmd)
+
+
+def geometry_residual(case: Case, profile: MachineProfile) -> np.ndarray | None:
+    """The joints `profile`'s kinematics make of the recording's own axis positions, minus the commanded
+    joints it recorded: (n, 3), the linear joints (mm; the rotary ones equal their axes)."""
+    from feedlog.sim.kinematics import machine_joints
+
+    geo = case.geometry
+    if geo is None:
+        return None
+    return machine_joints(profile, geo.pos)[:, :3] - geo.joints[:, :3]
 
 
 def feedback_residual(case: Case, profile: MachineProfile) -> np.ndarray | None:

@@ -63,7 +63,10 @@ def summary_lines(dx) -> list[str]:
     fb_text = ""
     if fb and fb.get("rms_before_mm") is not None:
         fb_text = f"; feedback RMS {fb['rms_before_mm'] * 1e3:.2f} -> {fb['rms_after_mm'] * 1e3:.2f} um"
-    if dx.findings or dx.calibration is not None:
+    if dx.changes and not dx.findings and dx.calibration is None:
+        lines.append("no single value explains the data: a parameter changed during a session (below); the "
+                     "profile keeps its value for it")
+    elif dx.findings or dx.calibration is not None:
         target = dx.profile_out or "(not written; pass -o DIR)"
         lines.append(f"extended profile {target}: error {_signed(cyc['error_before_pct'])} -> "
                      f"{_signed(cyc['error_after_pct'])}{held_text}{fb_text}")
@@ -71,9 +74,15 @@ def summary_lines(dx) -> list[str]:
         lines.append("no cause found: no registered hypothesis removes a material, repeatable share of the "
                      "held-out residual" + (f" (noise floor {dx.noise_floor['timing_pct']:.2f} %)"
                                            if dx.noise_floor.get("timing_pct") is not None else ""))
+    lines += [c.text() for c in dx.changes]
     for u in dx.unexplained:
-        text = (f"unexplained ({u['level']}): {u['error_pct']:.2f} % of the time misplaced, "
+        text = (f"unexplained ({u['level']}), cause unknown: {u['error_pct']:.2f} % of the time misplaced, "
                 f"{u['systematic_share_pct']:.0f} % of it systematic; {u['where']}")
+        if (u.get("signature") or {}).get("text"):
+            text += f"; signature: {u['signature']['text']}"
+        if u.get("error_after_class_model_pct") is not None:
+            text += (f"; learned correction (block classes): held-out error {u['error_pct']:.2f} % -> "
+                     f"{u['error_after_class_model_pct']:.2f} %")
         lc = u.get("learned_correction") or {}
         if "gain_pct" in lc:
             text += (f"; learned correction (hybrid): held-out error {lc['mean_abs_error_before_pct']:.2f} % -> "
@@ -135,6 +144,7 @@ def to_json(dx) -> dict[str, Any]:
         "feedback_rms_before_mm": fb.get("rms_before_mm"), "feedback_rms_after_mm": fb.get("rms_after_mm"),
         "held_out": dx.held_out, "levels": levels,
         "findings": [f.as_dict() for f in dx.findings], "unexplained": dx.unexplained,
+        "changes": [c.as_dict() for c in dx.changes],
         "profile_out": dx.profile_out, "profile_diff": [{"key": k, "before": a, "after": b} for k, a, b in dx.diff],
         "evidence": dx.evidence.as_dict(), "noise_floor": dx.noise_floor, "rejected": rejected,
         "where": {k: v for k, v in dx.where.items() if k in ("before", "after", "classes_before", "top_segments")},

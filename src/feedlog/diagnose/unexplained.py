@@ -5,8 +5,10 @@ After the accepted causes, is the timing residual still systematic? A linear mod
 residuals on the block classes (`attribution.CLASSES`: per class value, time lost per second spent
 in it and per occurrence) is fitted without each held-out unit and scored on it. If it removes at
 least `min_gain` of the held-out residual and the error drops by `min_effect_pct` points, the residual
-is systematic: it is reported as *unexplained*, with the block classes the regression puts it in,
-never as a cause. The fallback extension is then a learned correction, train/'s hybrid model (the
+is systematic: it is reported as *unexplained*, with the block classes the regression puts it in and
+its signature (`signature`: where on the part, along which axis, at which programmed speeds the time
+is lost), never as a cause: the report says the cause is unknown. A change found during a session
+(`changes`) is applied to its recording first: what it explains is not unexplained. The fallback extension is then a learned correction, train/'s hybrid model (the
 simulation's block times times a learned Bi-LSTM factor), trained on the recordings with the
 extended profile and judged on the same held-out units; `learned_model` keeps it (trained on all).
 """
@@ -79,7 +81,14 @@ def find_unexplained(dx, *, learned: bool, min_effect_pct: float, min_gain: floa
     from feedlog.diagnose.engine import timing_error
 
     model = dx.selections["timing"].model if "timing" in dx.selections else {}
-    res = scorer.residuals(model)
+    stepped = {c.parameter for c in getattr(dx, "changes", [])}
+    model = {k: v for k, v in model.items() if k not in stepped}
+    res = list(scorer.residuals(model))
+    for c in getattr(dx, "changes", []):      # the recording's two values, each on its side of the change
+        i = next(k for k, case in enumerate(scorer.cases) if case.name == c.recording)
+        r1, r2 = scorer.residuals({**model, c.parameter: c.before})[i], scorer.residuals({**model, c.parameter: c.after})[i]
+        # the segment the change happened in is the two mixed, its time of change fitted to it: no residual
+        res[i] = None if r1 is None or r2 is None else np.concatenate([r1[:c.segment], [0.0], r2[c.segment + 1:]])
     if any(r is None for r in res):
         return []
     tables = [segment_table(c, s) for c, s in zip(scorer.cases, scorer.segments)]
@@ -104,9 +113,10 @@ def find_unexplained(dx, *, learned: bool, min_effect_pct: float, min_gain: floa
         "level": "timing", "error_pct": e_before, "cycle_error_pct": 100 * float(residual.sum()) / float(
             table["measured_s"].sum()),
         "systematic_share_pct": 100 * sys["gain"], "error_after_class_model_pct": e_after,
-        "where": where_text(table, residual), "classes": sys["classes"],
-        "note": "systematic (a model of the block classes predicts it on held-out data) but no registered "
-                "hypothesis explains it"}
+        "where": where_text(table, residual), "classes": sys["classes"], "signature": signature(table, residual),
+        "cause": "unknown",
+        "note": "cause unknown: systematic (a model of the block classes predicts it on held-out data) but no "
+                "registered hypothesis explains it"}
     if learned:
         if progress:
             progress("timing: unexplained residual; fitting the learned correction (hybrid)")
@@ -115,6 +125,41 @@ def find_unexplained(dx, *, learned: bool, min_effect_pct: float, min_gain: floa
         except FeedlogError as exc:
             entry["learned_correction"] = {"error": str(exc)}
     return [entry]
+
+
+SIGNATURE_SHARE = 0.8   # the segments carrying this share of the lost (or gained) time make the place
+
+
+def signature(table: pd.DataFrame, residual: np.ndarray) -> dict[str, Any]:
+    """Where a residual lives: on the part (the program lines and the box of the block ends of the segments
+    carrying `SIGNATURE_SHARE` of it), along which axis and at which programmed speeds (the dominant-axis
+    and feed classes, each with its share of it)."""
+    r = np.asarray(residual, dtype=np.float64)
+    lost = r.sum() < 0
+    part = np.clip(-r if lost else r, 0.0, None)
+    total = float(part.sum())
+    if not len(table) or total <= 0:
+        return {}
+    order = np.argsort(-part, kind="stable")
+    keep = order[:int(np.searchsorted(np.cumsum(part[order]), SIGNATURE_SHARE * total)) + 1]
+    out: dict[str, Any] = {"share": round(float(part[keep].sum()) / total, 4), "segments": int(len(keep)),
+                           "of_segments": int(len(table))}
+    lines = table.iloc[keep]
+    out["lines"] = [int(lines[["first_line", "line"]].min().min()), int(lines["line"].max())]
+    box = {a: [round(float(lines[f"{a}_end_mm"].min()), 3), round(float(lines[f"{a}_end_mm"].max()), 3)]
+           for a in ("x", "y", "z") if f"{a}_end_mm" in lines.columns and lines[f"{a}_end_mm"].notna().any()}
+    out["box_mm"] = box
+    for name, cls in (("along", "dominant"), ("speeds", "feed")):
+        if cls in table.columns:
+            shares = pd.Series(part).groupby(table[cls].astype(str).to_numpy()).sum() / total
+            shares = shares.sort_values(ascending=False)
+            out[name] = [{"value": str(v), "share": round(float(x), 4)} for v, x in shares.head(2).items() if x > 0]
+    place = ", ".join(f"{a.upper()} {lo:g} to {hi:g}" for a, (lo, hi) in box.items())
+    along = ", ".join(f"{d['value'].removeprefix('along ')} {100 * d['share']:.0f} %" for d in out.get("along", []))
+    speeds = ", ".join(f"{d['value']} {100 * d['share']:.0f} %" for d in out.get("speeds", []))
+    out["text"] = (f"{100 * out['share']:.0f} % of it in {len(keep)} of {len(table)} segments, program lines "
+                   f"{out['lines'][0]}-{out['lines'][1]}, on the part {place} mm; along {along}; at {speeds}")
+    return out
 
 
 def learned_correction(dx) -> dict[str, Any]:

@@ -292,7 +292,8 @@ def _launch_command(ini_path: Path, *, isolate: bool, keep: tuple[Path, ...] = (
 def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeout_s: float = 600.0,
                 keep_workdir: bool = False, stop_event: threading.Event | None = None,
                 priority: str = "normal", feed_override: float | None = None,
-                subroutine_path: tuple[Path, ...] = ()) -> SessionResult:
+                subroutine_path: tuple[Path, ...] = (),
+                feed_override_at: tuple[tuple[float, float], ...] = ()) -> SessionResult:
     """Run `program` on the machine `ini` from homing to program end; return the capture.
 
     Errors of the run itself (G-code errors, aborts) are in the report: see session_error(). Call
@@ -301,7 +302,8 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
     recorded up to then is returned as usual, with `report["stopped"]`. `priority` ('normal', 'high':
     nice -10, 'realtime': SCHED_FIFO 20; root only) schedules the whole LinuxCNC process tree above other
     work on the host, so that a program whose block rate LinuxCNC's task limits runs as on a quiet host.
-    `feed_override` sets the feed override dial (1.0 = 100 %) before the program starts.
+    `feed_override` sets the feed override dial (1.0 = 100 %) before the program starts;
+    `feed_override_at` ((seconds after the start, dial), ...) turns it while the program runs.
     `subroutine_path`: folders where LinuxCNC finds `o<name> call` files, before the INI's SUBROUTINE_PATH
     (the program runs from a copy, so its own folder is not searched).
     """
@@ -332,7 +334,8 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
         job = {"program": str(program_copy), "channels": layout.channels,
                "sample_files": [str(p) for p in sample_files], "result": str(workdir / "result.json"),
                "enable_signal": ENABLE_SIGNAL, "motion_time_pin": f"{MOTION_TIME_COMPONENT}.out",
-               "timeout_s": timeout_s, "stop_file": str(workdir / "stop"), "feed_override": feed_override}
+               "timeout_s": timeout_s, "stop_file": str(workdir / "stop"), "feed_override": feed_override,
+               "feed_override_at": [list(map(float, turn)) for turn in feed_override_at]}
         job_path.write_text(json.dumps(job))
         ini_path = workdir / "machine.ini"
         ini_path.write_text(ini.rewritten(display=f"{driver} {job_path}", recorder=recorder,

@@ -97,6 +97,24 @@ def trunnion_columns(x: np.ndarray, y: np.ndarray, z: np.ndarray, a_deg: np.ndar
     return q0 - r[0], (ca * q1 - sa * q2) - r[1], (sa * q1 + ca * q2) - r[2]
 
 
+def machine_joints(profile: MachineProfile, pos: np.ndarray) -> np.ndarray:
+    """The machine joints (n, k) of axis positions `pos` (n, k), columns in `profile.axis_names` order,
+    through the profile's kinematics: the trunnion's Eq. 10 (with the offsets in force) for a trunnion
+    machine, the positions themselves for a Cartesian one."""
+    from feedlog.sim.mechanism import resolve_mechanisms
+
+    pos = np.asarray(pos, dtype=np.float64)
+    names = profile.axis_names
+    for mech in resolve_mechanisms(profile):
+        if isinstance(mech, TrunnionKinematics):
+            ia, ic = names.index("a"), names.index("c")
+            out = pos.copy()
+            out[:, :3] = trunnion_joints(pos[:, :3], pos[:, ia], pos[:, ic], workpiece_offset_mm=mech.workpiece_offset_mm,
+                                         rotary_offset_mm=mech.rotary_offset_mm)
+            return out
+    return pos.copy()
+
+
 @dataclass
 class TrunnionKinematics(Mechanism):
     name = "trunnion"

@@ -60,6 +60,8 @@ REGISTRY: dict[str, str] = {
     "tool_change": "feedlog.sim.tool_change:ToolChangeTime",
     "following_lag": "feedlog.sim.following_lag:FollowingLag",
     "feedback_delay": "feedlog.sim.feedback_delay:FeedbackDelay",
+    "axis_scale": "feedlog.sim.axis_scale:AxisScale",
+    "backlash": "feedlog.sim.backlash:Backlash",
     "logger_latency": "feedlog.sim.logger_latency:LoggerLatency",
     "jerk_filter": "feedlog.sim.jerk_filter:JerkFilter",
 }

@@ -1,0 +1,225 @@
+"""Changes during a session: a parameter that took one value, then another (a dial turned mid-program).
+
+One value fitted to a recording whose feed override went from 100 % to 70 % halfway is a wrong value
+for both halves. For each recording, each timing hypothesis that can change while a machine runs
+(`CHANGING`: the operator's dials; and every timing cause already named) is tried as a *step*: one
+value up to a segment boundary, another after it. The recording's segment residuals are simulated for a
+grid of values (`_OneRecording`, cached), every boundary is scored from cumulative sums, the two values
+are refined on their sides (Brent, `fit.refine`) and the boundary is found again with them.
+
+Judged like a cause, on data the fit has not seen: the boundary and both values are fitted on the even
+segments and scored on the odd ones, against one value fitted on the same even segments. A change is
+reported when it removes at least `min_gain` of that held-out loss above the noise floor, the
+recording's timing error drops by at least `min_effect_pct` points, and each side has `MIN_SIDE`
+segments that the two values tell apart (by `SENSITIVE` timing sigmas: on a family of six bundled
+LinuxCNC recordings a rapid dial of 0.36 "before" rested on the one approach rapid it touched). It says when (the measured time of the boundary, from motion start, the segment it ends and
+the program line), from what, to what, and what one value would have been. The averaged finding of the
+same parameter is not reported, and the extended profile keeps the profile's value for it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from feedlog.diagnose.fit import Scorer, _grid, refine
+from feedlog.diagnose.hypothesis import Hypothesis
+
+CHANGING = ("sim.feed_override.override", "sim.rapid_override.override")
+MIN_SIDE = 2          # segments on each side of the segment a change happened in, at least (that its values move)
+SENSITIVE = 3.0       # a segment a value moves: the two values' residuals differ by this many timing sigmas
+REFINE_ITER = 12
+
+
+@dataclass
+class Change:
+    recording: str
+    parameter: str
+    unit: str
+    before: float
+    after: float
+    at_s: float                  # measured time of the boundary, from motion start
+    between_s: tuple[float, float]  # the boundary lies within this (the segment it ends)
+    line: int | None             # program line of the boundary's block
+    segment: int                 # the segment the change happened in (before it: `before`; after it: `after`)
+    error_single_pct: float      # the recording's timing error with one value for the whole session
+    error_change_pct: float      # ... with the change
+    held_out_gain: float         # share of the held-out loss (odd segments) removed against one value
+    single_value: float          # the one value the whole session would be averaged into
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"recording": self.recording, "parameter": self.parameter, "unit": self.unit,
+                "before": self.before, "after": self.after, "at_s": self.at_s, "between_s": list(self.between_s),
+                "line": self.line, "segment": self.segment, "error_single_pct": self.error_single_pct,
+                "error_change_pct": self.error_change_pct, "held_out_gain": self.held_out_gain,
+                "single_value": self.single_value}
+
+    def text(self) -> str:
+        where = f" (program line {self.line})" if self.line is not None else ""
+        return (f"change during {self.recording}: {self.parameter} {self.before:.4g} -> {self.after:.4g} "
+                f"{self.unit} at {self.at_s:.2f} s{where}, not one value ({self.single_value:.4g}): "
+                f"timing error {self.error_single_pct:.2f} % -> {self.error_change_pct:.2f} %").replace("  ", " ")
+
+
+def _best_split(sq: np.ndarray, use: np.ndarray, at: np.ndarray) -> tuple[int, float, float]:
+    """(boundary segment k, loss of the best step at k, loss of the best single value) for squared
+    residuals `sq` (grid, segments) counted where `use`: one value before segment k, another after it;
+    segment k itself, where the change happened, is the two mixed and counts in neither (`at`: the
+    segments that may be the boundary)."""
+    s = sq * use
+    cum = np.cumsum(s, axis=1)
+    total = cum[:, -1]
+    best_k, best = -1, np.inf
+    for k in np.flatnonzero(at):
+        left = cum[:, k - 1].min() if k else 0.0
+        loss = float(left + (total - cum[:, k]).min())
+        if loss < best:
+            best_k, best = int(k), loss
+    return best_k, best, float(total.min())
+
+
+class _OneRecording:
+    """Squared, weighted segment residuals of one recording for values of one hypothesis (cached)."""
+
+    def __init__(self, scorer: Scorer, base: Mapping[str, Any], hyp: Hypothesis, case: int) -> None:
+        self.scorer, self.base, self.hyp, self.case = scorer, dict(base), hyp, case
+        self._cache: dict[float, np.ndarray] = {}
+
+    def sq(self, v: float) -> np.ndarray:
+        key = float(f"{v:.12g}")
+        if key not in self._cache:
+            r = self.scorer.case_residual(self.case, {**self.base, **self.hyp.values(key)})
+            w = self.scorer.weights[self.case]
+            self._cache[key] = np.full(len(w), np.inf) if r is None else w * np.square(r)
+        return self._cache[key]
+
+    def best(self, rows: np.ndarray, grid: list[float], sq: np.ndarray) -> tuple[float, float]:
+        """The value with the least loss over the segments `rows` (grid, then Brent between neighbours)."""
+        value, loss, _ = refine(self.hyp, lambda v: float(self.sq(v)[rows].sum()), grid, sq[:, rows].sum(axis=1),
+                                REFINE_ITER)
+        return float(value), float(loss)
+
+
+def _error_pct(scorer: Scorer, case: int, loss: float) -> float:
+    seg = scorer.segments[case]
+    w = scorer.weights[case]
+    n, total = float(w.sum()), float((seg.measured_s * w).sum())
+    floor = float(w.sum()) * 2.0 * scorer.cases[case].segment_sigma_s ** 2
+    return 100.0 * float(np.sqrt(n * max(loss - floor, 0.0))) / total if total > 0 else 0.0
+
+
+def find_changes(scorer: Scorer, model: Mapping[str, Any], hyps: Sequence[Hypothesis], *, min_gain: float,
+                 min_effect_pct: float) -> list[Change]:
+    """Step changes of the changing hypotheses in each recording of a timing `scorer`, on top of `model`."""
+    out: list[Change] = []
+    for hyp in hyps:
+        if hyp.level != "timing" or hyp.scale not in ("log", "linear") or not (hyp.key in CHANGING or hyp.key in model):
+            continue
+        grid = [float(v) for v in _grid(hyp)]
+        if hyp.key in model:
+            grid = sorted({*grid, float(model[hyp.key])})
+        base = {k: v for k, v in model.items() if k != hyp.key}
+        for i, case in enumerate(scorer.cases):
+            seg = scorer.segments[i] if i < len(scorer.segments) else None
+            if seg is None or len(seg) < 2 * MIN_SIDE + 2:
+                continue
+            one = _OneRecording(scorer, base, hyp, i)
+            sq = np.vstack([one.sq(v) for v in grid])
+            if not np.isfinite(sq).all(axis=1).any():
+                continue
+            change = _judge(one, grid, sq, min_gain=min_gain, min_effect_pct=min_effect_pct)
+            if change is not None:
+                out.append(change)
+    return out
+
+
+def _split(one: _OneRecording, use: np.ndarray, at: np.ndarray, grid: list[float],
+           sq: np.ndarray) -> tuple[int, float, float]:
+    """The boundary segment k and the values before and after it, fitted on the segments `use`: k from
+    the grid, the values refined on their sides, k found again with them."""
+    k, _, _ = _best_split(np.where(np.isfinite(sq), sq, 1e30), use, at)
+    v1 = v2 = np.nan
+    rows = np.arange(sq.shape[1])
+    for _ in range(3):
+        if k < 0:
+            return -1, np.nan, np.nan
+        v1, _ = one.best(rows[use & (rows < k)], grid, sq)
+        v2, _ = one.best(rows[use & (rows > k)], grid, sq)
+        a, b = one.sq(v1) * use, one.sq(v2) * use
+        cand = [(float(a[:j].sum() + b[j + 1:].sum()), int(j)) for j in np.flatnonzero(at)]
+        k_new = min(cand)[1]
+        if k_new == k:
+            break
+        k = k_new
+    return k, v1, v2
+
+
+def _turn_time(r1: float, r2: float, measured: float) -> float:
+    """When, within a segment of `measured` duration, a change from the value whose simulation misses
+    it by r1 to the one that misses it by r2 explains it: the segment run at the first value's speed for
+    tau, then the second's, tau = r2 (D + r1) / (r2 - r1) (constant speeds; clipped to the segment)."""
+    if not np.isfinite(r1) or not np.isfinite(r2) or r2 == r1:
+        return 0.5 * measured
+    return float(np.clip(r2 * (measured + r1) / (r2 - r1), 0.0, measured))
+
+
+def _judge(one: _OneRecording, grid: list[float], sq: np.ndarray, *, min_gain: float,
+           min_effect_pct: float) -> Change | None:
+    scorer, hyp, i = one.scorer, one.hyp, one.case
+    n = sq.shape[1]
+    rows = np.arange(n)
+    inner = (rows >= MIN_SIDE) & (rows < n - MIN_SIDE)      # a boundary leaves MIN_SIDE segments each side
+    even, odd = rows % 2 == 0, rows % 2 == 1
+    # held out: boundary (an odd segment, between two even ones) and both values from the even segments,
+    # scored on the other odd ones against one value fitted on the same even segments
+    k_e, a_e, b_e = _split(one, even, inner & odd, grid, sq)
+    if k_e < 0:
+        return None
+    single_e, _ = one.best(rows[even], grid, sq)
+    scored = odd & (rows != k_e)
+    single_odd = float(one.sq(single_e)[scored].sum())
+    change_odd = float(one.sq(a_e)[scored & (rows < k_e)].sum() + one.sq(b_e)[scored & (rows > k_e)].sum())
+    case = scorer.cases[i]
+    floor_odd = float(scorer.weights[i][scored].sum()) * 2.0 * case.segment_sigma_s ** 2
+    excess = single_odd - floor_odd
+    gain = (single_odd - change_odd) / excess if excess > 0 else 0.0
+    if gain < min_gain:
+        return None
+    # all segments: where, from what, to what
+    k, v1, v2 = _split(one, np.ones(n, bool), inner, grid, sq)
+    if k < 0:
+        return None
+    v0, l0 = one.best(rows, grid, sq)
+    a, b = one.sq(v1), one.sq(v2)
+    l12 = float(a[:k].sum() + b[k + 1:].sum())     # the boundary segment: its two values mixed
+    err_single, err_change = _error_pct(scorer, i, l0), _error_pct(scorer, i, l12)
+    if err_single - err_change < min_effect_pct:
+        return None
+    seg = scorer.segments[i]
+    start = float(seg.end_s[k - 1]) if k else 0.0
+    end = float(seg.end_s[k])
+    r1 = scorer.case_residual(i, {**one.base, **hyp.values(v1)})
+    r2 = scorer.case_residual(i, {**one.base, **hyp.values(v2)})
+    if r1 is None or r2 is None:
+        return None
+    # each value must rest on segments it moves: a dial that acts on one rapid either side is not a change
+    moved = np.abs(r1 - r2) * scorer.weights[i] > SENSITIVE * case.segment_sigma_s
+    if moved[:k].sum() < MIN_SIDE or moved[k + 1:].sum() < MIN_SIDE:
+        return None
+    tau = _turn_time(float(r1[k]), float(r2[k]), float(seg.measured_s[k]))
+    return Change(recording=case.name, parameter=hyp.key, unit=hyp.unit, before=v1, after=v2,
+                  at_s=end - float(seg.measured_s[k]) + tau, between_s=(start, end),
+                  line=_line_of(case, int(seg.anchors[k])), segment=k,
+                  error_single_pct=err_single, error_change_pct=err_change, held_out_gain=float(gain),
+                  single_value=v0)
+
+
+def _line_of(case: Any, block: int) -> int | None:
+    blocks = case.alignment.blocks
+    if block < 0 or "line" not in blocks.columns:
+        return None
+    hit = blocks.loc[blocks["block"].to_numpy() == block, "line"]
+    return int(hit.iloc[0]) if len(hit) else None

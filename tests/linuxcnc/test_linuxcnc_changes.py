@@ -1,0 +1,53 @@
+"""A change during a session on a real NC kernel: the feed override dial turned from 100 % to 70 % while
+LinuxCNC runs the pocket program (the driver turns it 3.5 s after the start), the corner program
+recorded at 100 %. Diagnose with the shipped profile must report a change in the pocket recording
+(when, from what, to what) within 5 % of both dial values and at the segment where the dial turned,
+not one averaged override, and nothing left unexplained; the corner recording gives no change."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from feedlog.diagnose.engine import DiagnoseConfig, diagnose
+from feedlog.ingest import read_recording
+from feedlog.ingest.linuxcnc import record_linuxcnc
+from feedlog.ingest.linuxcnc_session import isolation_available
+
+pytestmark = [pytest.mark.linuxcnc, pytest.mark.slow]
+
+ROOT = Path(__file__).resolve().parents[2]
+PROGRAMS = ROOT / "recordings" / "programs"
+CONFIGS = ROOT / "recordings" / "configs"
+TURN = (3.5, 0.7)   # seconds after the start, dial
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory) -> list[Path]:
+    root = tmp_path_factory.mktemp("dial")
+    isolate = isolation_available() is None   # private namespaces where allowed: other sessions may run
+    out = []
+    for program, turns in (("pocket_f3000_p001", (TURN,)), ("corners_f3000_p001", ())):
+        path = root / f"{program}.mcap"
+        summary = record_linuxcnc(CONFIGS / "xyz.ini", PROGRAMS / f"{program}.ngc", path, timeout_s=120,
+                                  feed_override_at=turns, isolate=isolate)
+        assert summary["status"] == "complete", summary
+        out.append(path)
+    return out
+
+
+def test_a_dial_turned_mid_program_is_found_as_a_change(recorded):
+    turned_s, dial = (float(x) for x in read_recording(recorded[0]).metadata["feed_override_turns"].split(":"))
+    assert dial == TURN[1] and turned_s == pytest.approx(TURN[0], abs=0.1)
+    dx = diagnose(recorded, "linuxcnc-xyz", config=DiagnoseConfig(learned=False))
+    (change,) = dx.changes
+    assert change.recording == "pocket_f3000_p001" and change.parameter == "sim.feed_override.override"
+    assert change.before == pytest.approx(1.0, rel=0.05) and change.after == pytest.approx(0.7, rel=0.05)
+    # motion starts a few tens of ms after the start; the change lies in the segment it names, and its
+    # time within it (the speeds before and after) is the dial's (measured 3.52 s for 3.520)
+    assert change.between_s[0] - 0.1 <= turned_s <= change.between_s[1] + 0.1, (change.between_s, turned_s)
+    assert change.at_s == pytest.approx(turned_s, abs=0.1)
+    assert "sim.feed_override.override" not in {f.parameter for f in dx.findings}
+    assert dx.unexplained == []
+    assert change.error_change_pct < 1.0 < change.error_single_pct
