@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from feedlog.errors import SimulationError
 from feedlog.profile import load_profile
 from feedlog.sim import simulate
 from feedlog.sim.window import simulate_windowed
@@ -142,3 +143,11 @@ def test_a_sharp_corner_into_a_tight_arc_is_left_to_the_kink_rule():
                for flag in (True, False))
     assert on.notes.get("curved_blends", 0) == 0
     assert on.cycle_time_s == pytest.approx(off.cycle_time_s, abs=1e-12)
+
+
+def test_the_short_arc_switches_are_checked():
+    program = load_program("G21 G90 G64 P0.01 F1200\nG0 X0 Y0\nG3 X2 Y2 I2 J0\nM2\n", name="check.ngc")
+    with pytest.raises(SimulationError, match="curved_blend_turn must be >= 0, got -0.1"):
+        simulate(program, PROFILE, mechanisms={"blend_arc": {"curved_blend_turn": -0.1}})
+    with pytest.raises(SimulationError, match="arcs_as_lines"):
+        simulate(program, PROFILE, mechanisms={"naive_cam": {"arcs_as_lines": 2.5}})

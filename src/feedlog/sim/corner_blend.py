@@ -116,7 +116,7 @@ class BlendArcCorner(Mechanism):
         self.check_positive(servo_period_s=self.servo_period_s, tolerance_ratio=self.tolerance_ratio,
                             tolerance_scale=self.tolerance_scale)
         self.check_non_negative(kink_ratio=self.kink_ratio, gap_cycles=self.gap_cycles,
-                                sharp_corner_deg=self.sharp_corner_deg)
+                                sharp_corner_deg=self.sharp_corner_deg, curved_blend_turn=self.curved_blend_turn)
         if self.rotary_blend not in ("parabolic", "stop"):
             raise ValueError(f"rotary_blend must be 'parabolic' or 'stop', got {self.rotary_blend!r}")
 

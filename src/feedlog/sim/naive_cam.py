@@ -222,6 +222,8 @@ class NaiveCamMerge(Mechanism):
             if window is not None and window.mine(self.name).get("half") and len(split) > 1 \
                     and split.block[0] == split.block[1]:
                 split = split.take(np.arange(1, len(split)))   # its first half ran in the window before
+            if window is None and len(split) > len(ctx.blocks):
+                ctx.notes["arcs_as_lines"] = int(len(split) - len(ctx.blocks))
             ctx.blocks = split
         b = ctx.blocks
         n = len(b)
