@@ -23,13 +23,15 @@ from feedlog.profile import MachineProfile
 from feedlog.sim import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
-OFF = {"lookahead": {"arc_share_from_speed": False}, "naive_cam": {"arcs_as_lines": False},
-       "blend_arc": {"curved_blend_speed": False}}
-# cumulative: none of the rules, then the share, then the split, then the curved corners (all: the default)
-STEPS = [("none", OFF),
-         ("+share", {**OFF, "lookahead": {"arc_share_from_speed": True}}),
-         ("+as lines", {"blend_arc": {"curved_blend_speed": False}}),
-         ("+curved", {})]
+def _rules(share: bool, as_lines: bool, curved: bool) -> dict:
+    return {"lookahead": {"arc_share_from_speed": share}, "naive_cam": {"arcs_as_lines": as_lines},
+            "blend_arc": {"curved_blend_speed": curved}}
+
+
+# cumulative: none of the rules, then the share, then the split, then the curved corners (all three: the
+# LinuxCNC profiles' setting; a recording's attached profile may predate them, so they are set here)
+STEPS = [("none", _rules(False, False, False)), ("+share", _rules(True, False, False)),
+         ("+as lines", _rules(True, True, False)), ("+curved", _rules(True, True, True))]
 
 
 def main() -> None:

@@ -240,6 +240,7 @@ def test_feedlog_sim_reads_subroutine_files_and_compensates_with_a_tool_table(ca
 # LinuxCNC's short-arc rules (docs/sim.md "Short arcs"), each switched off: what the simulation gave before
 OLD_ARC_RULES = {"lookahead": {"arc_share_from_speed": False}, "naive_cam": {"arcs_as_lines": False},
                  "blend_arc": {"curved_blend_speed": False}}
+ARC_RULES = {name: {key: True for key in params} for name, params in OLD_ARC_RULES.items()}
 
 
 @pytest.mark.parametrize("name, within, before", [("splines_g64_f3000", 0.005, 0.04),
@@ -251,8 +252,9 @@ def test_spline_biarcs_are_simulated_as_linuxcnc_runs_them(name, within, before)
     rec = _recording(name)
     program = load_recorded_program(rec, name=f"{name}:program.ngc")
     measured = float(rec.metadata["cycle_time_s"])
-    res = simulate(program, _profile(rec))
+    res = simulate(program, _profile(rec))       # the profile it was recorded with: the rules are on in it
     assert res.cycle_time_s == pytest.approx(measured, rel=within), (res.cycle_time_s, measured)
+    assert simulate(program, _profile(rec), mechanisms=ARC_RULES).cycle_time_s == res.cycle_time_s
     old = simulate(program, _profile(rec), mechanisms=OLD_ARC_RULES).cycle_time_s
     assert old > measured * (1 + before), (old, measured)
     if name == "splines_g611_f1200":     # every stop-to-stop biarc: the recording's block times

@@ -109,7 +109,7 @@ class BlendArcCorner(Mechanism):
     rotary_blend: str = "parabolic"  # or "stop"
     rapid_feed_stop: bool = True      # stop where the motion switches between rapid and feed
     halve_after_blend: bool = False   # halve the acceleration of the block after a parabolic blend too
-    curved_blend_speed: bool = True   # line-arc / arc-arc corners: the blend arc's speed, no stop-like kink
+    curved_blend_speed: bool = False  # line-arc / arc-arc corners: the blend arc's speed, not the kink's
     curved_blend_turn: float = 0.1    # ... where the arc turns at most this (rad) over the blend's length
 
     def __post_init__(self) -> None:

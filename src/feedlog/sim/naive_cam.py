@@ -6,7 +6,7 @@ stays within Q of the straight line from the chain's start to the newest end poi
 `max_chain` points; the chain then goes to the planner as one line (reported with the last block's
 line number). Merged-away blocks get no time in the block table.
 
-Flat arcs go in too (`arcs_as_lines`): in continuous mode (G64) in the XY plane, LinuxCNC's canon
+Flat arcs go in too (`arcs_as_lines`, on in the LinuxCNC profiles): in continuous mode (G64) in the XY plane, LinuxCNC's canon
 (emccanon.cc `ARC_FEED`, `chord_deviation`) sends an arc whose chord deviation r (1 - cos(sweep / 2))
 is below Q as two straight segments, start -> the arc's midpoint -> end, into the same merge; the
 motion controller then runs lines (with a line's projected acceleration, up to sqrt(2) times an arc's
@@ -138,7 +138,7 @@ class NaiveCamMerge(Mechanism):
     windowed = True
 
     max_chain: int = 100
-    arcs_as_lines: bool = True   # G64, XY plane: an arc within Q of its chord goes in as two lines
+    arcs_as_lines: bool = False  # G64, XY plane: an arc within Q of its chord goes in as two lines
 
     def __post_init__(self) -> None:
         self.check_positive(max_chain=self.max_chain)

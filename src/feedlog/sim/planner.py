@@ -10,7 +10,8 @@ A programmed arc (G2/G3, a spline's biarcs) keeps that 0.5 share only where its 
 whole normal share: LinuxCNC 2.9 (tc.c `tcUpdateCircleAccRatio`, blendmath.c `pmCircleActualMaxVel`)
 gives it the tangential share sqrt(1 - (v_ini^2 / R / a)^2), where v_ini is the arc's maximum speed
 (the canon's `ini_maxvel`: plane axes, centripetal cap, one servo cycle over its length; not the feed),
-so a wide arc accelerates almost as a line (`arc_share_from_speed`; a blend arc keeps 0.5).
+so a wide arc accelerates almost as a line (`arc_share_from_speed`, on in the LinuxCNC profiles; a
+blend arc keeps 0.5).
 The look-ahead window guarantees that the tool can stop within the next `lookahead_blocks` queue
 entries (a line a blend arc consumed is part of that arc's entry, as in LinuxCNC's queue). Each
 piece lasts at least `min_piece_cycles` servo periods over its clamp length: LinuxCNC caps a
@@ -48,7 +49,7 @@ class LookAheadPlanner(Mechanism):
     servo_period_s: float = 0.001
     path_acc_max_mm_s2: float = math.inf  # cap on the TCP acceleration of every block (inf: axes only)
     stop_settle_s: float = 0.0  # standstill added at every exact stop inside the program
-    arc_share_from_speed: bool = True  # programmed arcs: tangential share from their max speed (LinuxCNC)
+    arc_share_from_speed: bool = False  # programmed arcs: tangential share from their max speed (LinuxCNC)
 
     def __post_init__(self) -> None:
         self.check_positive(lookahead_blocks=self.lookahead_blocks, servo_period_s=self.servo_period_s)
