@@ -70,13 +70,14 @@ class LookAheadPlanner(Mechanism):
     stream = "feedlog.sim.stream_plan:LookaheadStream"   # its windowed form (feedlog.sim.window)
 
     def limit_pieces(self, pieces: Pieces, scale: np.ndarray | None = None, *, ends_program: bool = True,
-                     v_limit: np.ndarray | None = None) -> Pieces:
+                     v_axis: np.ndarray | None = None) -> Pieces:
         """Centripetal and sample-rate limits on the pieces' cruise speed and acceleration. `scale`: per
         piece, the feed override factor, which scales a programmed arc's centripetal speed (part of its
         requested speed in LinuxCNC) but not a blend arc's or the sample-rate clamp (caps).
         `ends_program`: the last piece is the program's last (a windowed run passes False before).
-        `v_limit`: per piece, its block's speed limit without the feed (axes), which sets a programmed
-        arc's tangential share (`arc_share_from_speed`); without it every arc gets the fixed share."""
+        `v_axis`: per piece, its block's axis speed limit (`Blocks.v_axis`: not the feed, not the TRAJ cap,
+        which LinuxCNC applies while running), which sets a programmed arc's tangential share
+        (`arc_share_from_speed`); without it every arc gets the fixed share."""
         curved = pieces.radius > 0
         pieces = with_columns(pieces, a_max=np.minimum(pieces.a_max, self.path_acc_max_mm_s2))
         ratio_n = math.sqrt(1.0 - self.arc_acc_ratio_tangential ** 2)
@@ -86,9 +87,9 @@ class LookAheadPlanner(Mechanism):
             v_curve = v_curve * np.where(pieces.blend, 1.0, scale)
         v_max = np.where(curved, np.minimum(pieces.v_max, v_curve), pieces.v_max)
         share = np.full(len(pieces), self.arc_acc_ratio_tangential)
-        if self.arc_share_from_speed and v_limit is not None:
+        if self.arc_share_from_speed and v_axis is not None:
             share = np.where(curved & ~pieces.blend,
-                             self.programmed_arc_share(pieces, v_limit, v_curve_max), share)
+                             self.programmed_arc_share(pieces, v_axis, v_curve_max), share)
         a_max = np.where(curved, pieces.a_max * share, pieces.a_max)
         if self.min_piece_cycles > 0:
             v_sample = pieces.clamp_len / (self.min_piece_cycles * self.servo_period_s)
@@ -101,14 +102,14 @@ class LookAheadPlanner(Mechanism):
             hold = hold + np.where(stops, self.stop_settle_s, 0.0)
         return with_columns(pieces, v_max=v_max, a_max=a_max, hold_s=hold)
 
-    def programmed_arc_share(self, pieces: Pieces, v_limit: np.ndarray, v_curve: np.ndarray) -> np.ndarray:
+    def programmed_arc_share(self, pieces: Pieces, v_axis: np.ndarray, v_curve: np.ndarray) -> np.ndarray:
         """Per piece, the tangential acceleration share of a programmed arc: its maximum speed v_ini
-        (`v_limit`, the centripetal cap `v_curve`, one servo period over its clamp length) needs the normal
+        (`v_axis`, the centripetal cap `v_curve`, one servo period over its clamp length) needs the normal
         acceleration a_n = v_ini^2 / R; what is left of the path acceleration a goes along the path,
         sqrt(1 - (a_n / a)^2), and never less than `arc_acc_ratio_tangential` (where a_n reaches the
         normal share the speed is capped there instead)."""
         with np.errstate(divide="ignore", invalid="ignore"):
-            v_ini = np.minimum(v_limit, v_curve)
+            v_ini = np.minimum(v_axis, v_curve)
             if self.servo_period_s > 0:
                 v_ini = np.where(pieces.clamp_len > 0, np.minimum(v_ini, pieces.clamp_len / self.servo_period_s),
                                  v_ini)
@@ -119,6 +120,6 @@ class LookAheadPlanner(Mechanism):
 
     def run(self, ctx: Context) -> Trajectory:
         pieces = self.limit_pieces(ctx.pieces, feed_scale(ctx.blocks)[ctx.pieces.block],
-                                   v_limit=ctx.blocks.v_limit[ctx.pieces.block])
+                                   v_axis=ctx.blocks.v_axis[ctx.pieces.block])
         plan = plan_speeds(pieces, lookahead=int(self.lookahead_blocks))
         return trajectory_from_plan(plan, pieces, ctx.blocks, ctx.dt_s)

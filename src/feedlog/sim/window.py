@@ -227,7 +227,7 @@ class WindowedSimulation:
                 b = int(line[hi - lo_ctx]) if hi - lo_ctx < len(line) else len(out)
                 core = out.slice(a, b)
                 side = {"block": view.block.take(core.block), "line": view.line.take(core.block),
-                        "feed": view.feed.take(core.block), "v_limit": view.v_limit.take(core.block),
+                        "feed": view.feed.take(core.block), "v_axis": view.v_axis.take(core.block),
                         "tol": view.tol.take(core.block),
                         "stop_after": view.stop_after.take(core.block),
                         "feed_scale": (view.extra["feed_scale"].take(core.block) if "feed_scale" in view.extra
@@ -265,7 +265,7 @@ class WindowedSimulation:
             for chunk, end in chunks:
                 if limit is not None:
                     chunk.pieces = limit(chunk.pieces, chunk.side["feed_scale"], ends_program=end,
-                                         v_limit=chunk.side["v_limit"])
+                                         v_axis=chunk.side["v_axis"])
                 final = stream.push(chunk, end)
                 if final is not None:
                     yield self._window(stream, final, end)
