@@ -46,12 +46,17 @@ VENDORED = {
     "cutter_comp": (OWN / "cutter_comp.ngc", "ours: G41/G42 with T1 (6 mm), lines and an arc"),
     "subs_loops": (OWN / "subs_loops.ngc", "ours: o<square> in the file called from repeat, "
                                            "o<bolt_row> (subs/) from while, with a while inside"),
+    "splines_g64_f3000": (OWN / "splines_g64_f3000.ngc", "ours: two G5, two G5.1 (biarcs), G64 P0.01 F3000"),
+    "splines_g611_f1200": (OWN / "splines_g611_f1200.ngc", "ours: two G5, two G5.1 (biarcs), exact stop G61.1 "
+                                                           "F1200"),
 }
 # not recorded: skeleton.ngc and tort.ngc stop at M0/M00 for the operator (the driver does not press
 # cycle start: tort waited 12 minutes at its line 4); daisy.ngc and b-index.ngc move A and B, which the
 # bundled machine lacks; the others of ncfiles have no motion, use probing, lathe codes, or cutter
 # compensation that is refused before it moves (entry too short)
 # examples that run for minutes: recorded and measured with --long, not vendored (size)
+# the same splines in G64 P0.01 F1200 (160 kB): not vendored (size), recorded live by
+# tests/linuxcnc/test_linuxcnc_interp_live.py
 LONG = {
     "spiral": NCFILES / "spiral.ngc", "arcspiral": NCFILES / "arcspiral.ngc",
     "flowsnake": NCFILES / "flowsnake.ngc", "cds": NCFILES / "cds.ngc",

@@ -167,6 +167,15 @@ def cover_motion(b_start: np.ndarray, b_end: np.ndarray, m_start: float, m_end: 
     return b_start, b_end
 
 
+def one_row_per_block(block: np.ndarray, line: np.ndarray, start: np.ndarray, end: np.ndarray):
+    """Rows of one block next to each other (an arc LinuxCNC's canon ran as two lines in two chains,
+    feedlog.sim.naive_cam) become one: the first start, the last end."""
+    if len(block) < 2 or not np.any(block[1:] == block[:-1]):
+        return block, line, start, end
+    first = np.flatnonzero(np.r_[True, block[1:] != block[:-1]])
+    return block[first], line[first], start[first], np.maximum.reduceat(end, first)
+
+
 def trajectory_from_plan(plan: Plan, pieces: Pieces, blocks: Blocks, dt_s: float) -> Trajectory:
     # during a parabolic blend both pieces move; the executing block changes halfway through the
     # overlap (LinuxCNC reports whichever segment is faster, which swaps at the middle)

@@ -109,12 +109,14 @@ class BlendArcCorner(Mechanism):
     rotary_blend: str = "parabolic"  # or "stop"
     rapid_feed_stop: bool = True      # stop where the motion switches between rapid and feed
     halve_after_blend: bool = False   # halve the acceleration of the block after a parabolic blend too
+    curved_blend_speed: bool = False  # line-arc / arc-arc corners: the blend arc's speed, not the kink's
+    curved_blend_turn: float = 0.1    # ... where the arc turns at most this (rad) over the blend's length
 
     def __post_init__(self) -> None:
         self.check_positive(servo_period_s=self.servo_period_s, tolerance_ratio=self.tolerance_ratio,
                             tolerance_scale=self.tolerance_scale)
         self.check_non_negative(kink_ratio=self.kink_ratio, gap_cycles=self.gap_cycles,
-                                sharp_corner_deg=self.sharp_corner_deg)
+                                sharp_corner_deg=self.sharp_corner_deg, curved_blend_turn=self.curved_blend_turn)
         if self.rotary_blend not in ("parabolic", "stop"):
             raise ValueError(f"rotary_blend must be 'parabolic' or 'stop', got {self.rotary_blend!r}")
 
@@ -200,9 +202,17 @@ class BlendArcCorner(Mechanism):
 
         # blend arcs for the remaining continuous-mode line-line corners
         arc_ok = cand & ~g61 & ~tangent & (pc.radius[:-1] <= 0) & (pc.radius[1:] <= 0)
-        arcs = self._arcs(pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, arc_ok, v_tc)
+        curved = cand & ~g61 & ~tangent & ~arc_ok if self.curved_blend_speed else np.zeros(m - 1, bool)
+        arcs = self._arcs(pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, arc_ok | curved, v_tc)
         use_arc = arc_ok & arcs["ok"] & (arcs["v_arc"] >= kink_vel)
-        use_kink = cand & ~use_arc & ~(g61 & ~tangent)   # tangent blends, incl. arcs worse than the kink
+        # line-arc, arc-line, arc-arc corners: LinuxCNC 2.9 blends them too (tp.c tpCreateLineArcBlend,
+        # tpCreateArcLineBlend, tpCreateArcArcBlend); the junction gets the speed of the blend arc the
+        # tolerance and the half-lengths allow along the junction tangents (the arc itself is not placed)
+        r_arc = np.minimum(np.where(pc.radius[:-1] > 0, pc.radius[:-1], np.inf),
+                           np.where(pc.radius[1:] > 0, pc.radius[1:], np.inf))
+        short = arcs["d"] <= self.curved_blend_turn * r_arc
+        use_curved = curved & arcs["ok"] & short & (arcs["v_arc"] >= kink_vel)
+        use_kink = cand & ~use_arc & ~use_curved & ~(g61 & ~tangent)   # tangent, incl. arcs worse than the kink
         jk = np.flatnonzero(use_kink)
         v_end[jk] = kink_vel[jk]
         # G61 corners that are not tangent stop, but keep LinuxCNC's kink acceleration reduction
@@ -223,10 +233,13 @@ class BlendArcCorner(Mechanism):
         # tp.c tpGetRealTargetVel) under the TRAJ velocity cap
         v_dial = arcs["v_req"] * feed_scale(blocks)[b1]
         arcs["v_run"] = np.minimum(np.minimum(arcs["v"], v_dial), ctx.profile.interpolator.path_vel_max_mm_s)
+        jb = np.flatnonzero(use_curved)
+        v_end[jb] = np.minimum(arcs["v_run"][jb], np.minimum(pc.v_max[jb], pc.v_max[jb + 1]))
         ctx.pieces, line_clamp = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)
         # counts over the junctions after the pieces a window keeps (all of them when not windowed)
         lo, hi = ctx.window.core if ctx.window is not None and ctx.window.core is not None else (0, m)
-        ctx.notes.update(blend_arcs=int(use_arc[lo:hi].sum()), tangent_junctions=int(use_kink[lo:hi].sum()),
+        ctx.notes.update(blend_arcs=int(use_arc[lo:hi].sum()), curved_blends=int(use_curved[lo:hi].sum()),
+                         tangent_junctions=int(use_kink[lo:hi].sum()),
                          parabolic_blends=int(overlap[lo:hi].sum()), consumed_lines=int((line_clamp[lo:hi] == 0).sum()))
 
     @staticmethod

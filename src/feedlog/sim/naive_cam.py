@@ -6,6 +6,14 @@ stays within Q of the straight line from the chain's start to the newest end poi
 `max_chain` points; the chain then goes to the planner as one line (reported with the last block's
 line number). Merged-away blocks get no time in the block table.
 
+Flat arcs go in too (`arcs_as_lines`, on in the LinuxCNC profiles): in continuous mode (G64) in the XY plane, LinuxCNC's canon
+(emccanon.cc `ARC_FEED`, `chord_deviation`) sends an arc whose chord deviation r (1 - cos(sweep / 2))
+is below Q as two straight segments, start -> the arc's midpoint -> end, into the same merge; the
+motion controller then runs lines (with a line's projected acceleration, up to sqrt(2) times an arc's
+on a diagonal) where the program has arcs. Short tangent arcs (a spline's biarcs, CAM arc fits) are
+mostly such arcs. A block whose two halves end up in different chains has two rows (both with its
+block number; the block table gives it the first start and the last end).
+
 How it is computed (`chains`): a three-point pre-test (the previous end point against the line from
 the previous start to the new end) finds the rows that may join their predecessor; an isolated
 candidate forms the chain [i - 1, i] that the pre-test already decided. Runs of candidates are
@@ -28,7 +36,7 @@ import numpy as np
 
 from feedlog.sim.context import Context
 from feedlog.sim.mechanism import Mechanism
-from feedlog.sim.path import KIND_LINEAR, projected_limits
+from feedlog.sim.path import KIND_ARC, KIND_LINEAR, Blocks, projected_limits
 
 
 def _ragged(counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -130,9 +138,66 @@ class NaiveCamMerge(Mechanism):
     windowed = True
 
     max_chain: int = 100
+    arcs_as_lines: bool = False  # G64, XY plane: an arc within Q of its chord goes in as two lines
 
     def __post_init__(self) -> None:
         self.check_positive(max_chain=self.max_chain)
+
+    @staticmethod
+    def flat_arcs(b: Blocks) -> np.ndarray:
+        """Rows LinuxCNC's canon turns into two lines: continuous-mode XY arcs without rotary motion whose
+        chord deviation r (1 - cos(|sweep| / 2)) is below their Q (merge tolerance)."""
+        tol = np.nan_to_num(b.merge_tol, nan=0.0)
+        continuous = b.extra.get("continuous")
+        if continuous is None:
+            continuous = ~b.stop_after
+        with np.errstate(invalid="ignore"):
+            deviation = b.radius * (1.0 - np.cos(np.abs(b.sweep) / 2.0))
+        return ((b.kind == KIND_ARC) & (b.normal_axis == 2) & continuous.astype(bool) & ~b.rotary
+                & (b.length > 0) & (tol > 0) & (deviation < tol))
+
+    def split_flat_arcs(self, b: Blocks, vel: np.ndarray, acc: np.ndarray, v_path: float) -> Blocks:
+        """`b` with every flat arc (`flat_arcs`) replaced by its two lines: start -> midpoint (no stop,
+        no dwell, no time floor) and midpoint -> end (the arc's own end conditions); both keep the block.
+        `vel`, `acc`: the axis limits (profile order); `v_path`: the path speed cap of lines."""
+        flat = self.flat_arcs(b)
+        if not flat.any():
+            return b
+        rows_idx = np.repeat(np.arange(len(b)), np.where(flat, 2, 1))
+        first = np.zeros(len(rows_idx), bool)
+        first[1:] = (rows_idx[1:] == rows_idx[:-1])
+        first = np.roll(first, -1)            # the first of each pair (its twin follows it)
+        out = b.take(rows_idx)
+        lin = b.linear_index
+        ia = np.flatnonzero(flat)
+        x, y, z = lin[0], lin[1], lin[2]
+        cx, cy = b.center[ia, 0], b.center[ia, 1]
+        half = b.sweep[ia] / 2.0
+        dx, dy = b.p0[ia, x] - cx, b.p0[ia, y] - cy
+        mid = b.p0[ia].copy()
+        mid[:, x] = cx + dx * np.cos(half) - dy * np.sin(half)
+        mid[:, y] = cy + dx * np.sin(half) + dy * np.cos(half)
+        mid[:, z] = (b.p0[ia, z] + b.p1[ia, z]) / 2.0
+        a_rows = np.flatnonzero(first)
+        b_rows = a_rows + 1
+        out.p1[a_rows] = mid
+        out.p0[b_rows] = mid
+        pairs = np.concatenate([a_rows, b_rows])
+        out.kind[pairs] = KIND_LINEAR
+        out.radius[pairs] = 0.0
+        out.sweep[pairs] = 0.0
+        out.stop_after[a_rows] = False
+        out.exact_path[a_rows] = False
+        out.hold_s[a_rows] = 0.0
+        out.min_time_s[a_rows] = 0.0
+        delta = out.p1[pairs] - out.p0[pairs]
+        length = np.linalg.norm(delta[:, lin], axis=1)
+        v_axis, a_axis = projected_limits(delta, length, vel, acc)
+        out.length[pairs] = length
+        out.v_axis[pairs] = v_axis
+        out.v_limit[pairs] = np.minimum(v_axis, v_path)
+        out.a_max[pairs] = a_axis
+        return out
 
     @staticmethod
     def candidates(b) -> np.ndarray:
@@ -149,9 +214,19 @@ class NaiveCamMerge(Mechanism):
         return ok[:-1] & ok[1:] & (b.feed[1:] == b.feed[:-1]) & (d3 <= tol[1:])
 
     def limit(self, ctx: Context) -> None:
+        vel = np.array([ctx.profile.axes[a].vel_max for a in ctx.blocks.axes])
+        acc = np.array([ctx.profile.axes[a].acc_max for a in ctx.blocks.axes])
+        window = ctx.window
+        if self.arcs_as_lines:
+            split = self.split_flat_arcs(ctx.blocks, vel, acc, ctx.profile.interpolator.path_vel_max_mm_s)
+            if window is not None and window.mine(self.name).get("half") and len(split) > 1 \
+                    and split.block[0] == split.block[1]:
+                split = split.take(np.arange(1, len(split)))   # its first half ran in the window before
+            if window is None and len(split) > len(ctx.blocks):
+                ctx.notes["arcs_as_lines"] = int(len(split) - len(ctx.blocks))
+            ctx.blocks = split
         b = ctx.blocks
         n = len(b)
-        window = ctx.window
         if window is not None:
             lead = bool(window.mine(self.name).get("lead", False))
         if n < 2:
@@ -171,8 +246,16 @@ class NaiveCamMerge(Mechanism):
                 window.pending(self.name, int(b.block[open_from]))
             blocks = b.block.copy()
 
+            # the open chain may start at the second half of a split arc whose first half closed the chain
+            # before it: the next window then starts with that second half
+            half_from = open_from if 0 < open_from < n and blocks[open_from] == blocks[open_from - 1] \
+                and bool(np.any((start < open_from - 1) & (end == open_from - 1))) else -1
+
             def state_at(block: int) -> dict:
-                """Whether the row of `block` began its chain after a failed test (a candidate before it)."""
+                """Whether the row of `block` began its chain after a failed test (a candidate before it),
+                and whether it resumes at the second half of a split arc."""
+                if half_from > 0 and blocks[half_from] == block:
+                    return {"lead": bool(cand[half_from - 1]), "half": True}
                 r = int(np.searchsorted(blocks, block))
                 return {"lead": bool(cand[r - 1]) if 0 < r <= len(cand) else lead}
 
@@ -187,8 +270,6 @@ class NaiveCamMerge(Mechanism):
         b.p0[merged] = b.p0[start]
         delta = b.p1[merged] - b.p0[merged]
         length = np.linalg.norm(delta[:, lin], axis=1)
-        vel = np.array([ctx.profile.axes[a].vel_max for a in b.axes])
-        acc = np.array([ctx.profile.axes[a].acc_max for a in b.axes])
         v_axis, a_axis = projected_limits(delta, length, vel, acc)
         b.length[merged] = length
         b.v_axis[merged] = v_axis

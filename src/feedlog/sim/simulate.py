@@ -16,7 +16,7 @@ import pandas as pd
 
 from feedlog.profile import MachineProfile, load_profile
 from feedlog.sim.cam import cam_block_times
-from feedlog.sim.context import Context, Trajectory
+from feedlog.sim.context import Context, Trajectory, one_row_per_block
 from feedlog.sim.feedback import feedback_chain, feedback_table
 from feedlog.sim.mechanism import Mechanism, MechanismSpec, resolve_mechanisms
 from feedlog.sim.path import Blocks, build_pieces, prepare_blocks
@@ -165,5 +165,7 @@ def _block_table(blocks: Blocks, traj: Trajectory) -> pd.DataFrame:
     ran = ~np.isnan(traj.block_start_s)
     start_ns = seconds_to_ns(traj.block_start_s[ran])
     end_ns = seconds_to_ns(traj.block_end_s[ran])
-    return pd.DataFrame({"block": blocks.block[ran].astype(np.int64), "line": blocks.line[ran].astype(np.int64),
+    block, line = blocks.block[ran].astype(np.int64), blocks.line[ran].astype(np.int64)
+    block, line, start_ns, end_ns = one_row_per_block(block, line, start_ns, end_ns)
+    return pd.DataFrame({"block": block, "line": line,
                          "t_start_ns": start_ns, "t_end_ns": end_ns, "duration_s": (end_ns - start_ns) / 1e9})

@@ -36,7 +36,7 @@ import pandas as pd
 from feedlog.errors import SimulationError
 from feedlog.profile import MachineProfile, load_profile
 from feedlog.sim.cam import cam_block_times
-from feedlog.sim.context import Context, Window
+from feedlog.sim.context import Context, Window, one_row_per_block
 from feedlog.sim.mechanism import Mechanism, MechanismSpec, resolve_mechanisms
 from feedlog.sim.path import Blocks, Pieces, ProgramArrays, build_pieces, prepare_blocks
 from feedlog.sim.simulate import mechanism_params
@@ -218,7 +218,7 @@ class WindowedSimulation:
                               window=Window(last=last, core=(held - lo_ctx, hi - lo_ctx)))
                 for mech in corners:
                     mech.corner(ctx)
-                for name in ("blend_arcs", "tangent_junctions", "parabolic_blends", "consumed_lines"):
+                for name in ("blend_arcs", "curved_blends", "tangent_junctions", "parabolic_blends", "consumed_lines"):
                     if name in ctx.notes:
                         self._count(name, int(ctx.notes.pop(name)))
                 out = ctx.pieces
@@ -227,7 +227,8 @@ class WindowedSimulation:
                 b = int(line[hi - lo_ctx]) if hi - lo_ctx < len(line) else len(out)
                 core = out.slice(a, b)
                 side = {"block": view.block.take(core.block), "line": view.line.take(core.block),
-                        "feed": view.feed.take(core.block), "tol": view.tol.take(core.block),
+                        "feed": view.feed.take(core.block), "v_axis": view.v_axis.take(core.block),
+                        "tol": view.tol.take(core.block),
                         "stop_after": view.stop_after.take(core.block),
                         "feed_scale": (view.extra["feed_scale"].take(core.block) if "feed_scale" in view.extra
                                        else np.ones(len(core)))}
@@ -263,7 +264,8 @@ class WindowedSimulation:
         try:
             for chunk, end in chunks:
                 if limit is not None:
-                    chunk.pieces = limit(chunk.pieces, chunk.side["feed_scale"], ends_program=end)
+                    chunk.pieces = limit(chunk.pieces, chunk.side["feed_scale"], ends_program=end,
+                                         v_axis=chunk.side["v_axis"])
                 final = stream.push(chunk, end)
                 if final is not None:
                     yield self._window(stream, final, end)
@@ -312,7 +314,9 @@ class WindowedSimulation:
 def _block_table(packed: np.ndarray, start_s: np.ndarray, end_s: np.ndarray) -> pd.DataFrame:
     start_ns = seconds_to_ns(start_s)
     end_ns = seconds_to_ns(end_s)
-    return pd.DataFrame({"block": (packed // LINE_SPAN).astype(np.int64), "line": (packed % LINE_SPAN).astype(np.int64),
+    block, line, start_ns, end_ns = one_row_per_block((packed // LINE_SPAN).astype(np.int64),
+                                                      (packed % LINE_SPAN).astype(np.int64), start_ns, end_ns)
+    return pd.DataFrame({"block": block, "line": line,
                          "t_start_ns": start_ns, "t_end_ns": end_ns, "duration_s": (end_ns - start_ns) / 1e9})
 
 
