@@ -10,9 +10,9 @@ from feedlog import cli
 
 
 def test_every_registered_command_names_a_feedlog_module():
-    for name, (module, help_text) in cli.COMMANDS.items():
-        assert module.startswith("feedlog."), name
-        assert help_text
+    for name in cli.COMMANDS:
+        assert cli.COMMANDS.target(name).startswith("feedlog."), name
+        assert cli.COMMANDS.doc(name)
 
 
 def test_profile_command_lists_shipped_profiles(capsys):

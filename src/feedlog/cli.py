@@ -11,14 +11,20 @@ cannot be used (as argparse does for usage errors), 1 for an output that could n
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
+from types import ModuleType
 
 from feedlog import __version__
 from feedlog.errors import FeedlogError
+from feedlog.registry import Registry, TargetMissing
+
+
+def _not_in_this_version(name: str, missing: TargetMissing) -> FeedlogError:
+    return FeedlogError(f"feedlog {name} is not available in this version")
+
 
 # name -> (module, one-line help). One line per subcommand.
-COMMANDS: dict[str, tuple[str, str]] = {
+COMMANDS: Registry[ModuleType] = Registry.lazy("command", {
     "program": ("feedlog.toolpath.cli", "summarise a part program (blocks, length, CAM time)"),
     "profile": ("feedlog.profile_cli", "show a machine profile, or list the shipped ones"),
     "sim": ("feedlog.sim.cli", "simulate the NC interpolator on a part program"),
@@ -32,26 +38,16 @@ COMMANDS: dict[str, tuple[str, str]] = {
                  "extend the profile"),
     "view": ("feedlog.viz.cli", "show a recording in Rerun"),
     "demo": ("feedlog.viz.demo", "run the whole pipeline on the bundled recordings"),
-}
+}, unavailable=_not_in_this_version)
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="feedlog", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"feedlog {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name, (_, help_text) in COMMANDS.items():
-        sub.add_parser(name, help=help_text, add_help=False)
+    for name in COMMANDS:
+        sub.add_parser(name, help=COMMANDS.doc(name), add_help=False)
     return parser
-
-
-def _command_module(name: str):
-    module_name = COMMANDS[name][0]
-    try:
-        return importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        if exc.name == module_name:
-            raise FeedlogError(f"feedlog {name} is not available in this version") from None
-        raise
 
 
 def one_line(text: str) -> str:
@@ -68,8 +64,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     name, rest = argv[0], argv[1:]
     try:
-        module = _command_module(name)
-        parser = argparse.ArgumentParser(prog=f"feedlog {name}", description=COMMANDS[name][1])
+        module = COMMANDS.get(name)
+        parser = argparse.ArgumentParser(prog=f"feedlog {name}", description=COMMANDS.doc(name))
         module.configure(parser)
         args = parser.parse_args(rest)
         return int(module.run(args) or 0)

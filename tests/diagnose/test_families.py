@@ -56,7 +56,7 @@ def test_a_family_without_a_rank_or_without_evidence_cannot_be_made():
 def test_an_unregistered_or_misnamed_family_is_an_error_not_the_lowest_rank(monkeypatch):
     with pytest.raises(FeedlogError, match="unknown hypothesis family 'jerk'"):
         family("jerk")
-    monkeypatch.setitem(hypothesis.FAMILIES, "jerk", "feedlog.diagnose.hyp_dwell:FAMILY")
+    monkeypatch.setattr(hypothesis, "FAMILIES", hypothesis.FAMILIES.copy({"jerk": "feedlog.diagnose.hyp_dwell:FAMILY"}))
     with pytest.raises(FeedlogError, match="not a Family named 'jerk'"):
         family("jerk")
     from feedlog.diagnose.select import _priority

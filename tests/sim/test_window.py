@@ -160,3 +160,13 @@ def test_windows_stream_without_holding_the_program():
 def test_a_mechanism_without_a_windowed_form_is_one_clear_error():
     with pytest.raises(SimulationError, match="jerk_filter cannot run window by window"):
         WindowedSimulation("G1 X1 F100\n", "linuxcnc-xyz", mechanisms={"jerk_filter": True})
+
+
+def test_a_windowed_form_naming_a_missing_class_is_one_error_naming_the_mechanism(monkeypatch):
+    run = WindowedSimulation("G1 X1 F100\n", "linuxcnc-xyz")
+    cls = type(run.interpolator)
+    monkeypatch.setattr(cls, "stream", "feedlog.sim.stream_plan:NoSuchStream")
+    with pytest.raises(SimulationError, match=rf"^mechanism {run.interpolator.name!r}: its windowed form "
+                       r"feedlog.sim.stream_plan:NoSuchStream is not available \(feedlog.sim.stream_plan has no "
+                       r"NoSuchStream\)$"):
+        list(run)

@@ -140,7 +140,8 @@ def test_demo_without_align_measures_from_the_line_stream_and_says_so(recordings
                                                                       capsys):
     from feedlog.viz import stages
 
-    monkeypatch.setitem(stages.STAGE_FUNCTIONS, "align_recording", ("feedlog.align", "no_such_function"))
+    monkeypatch.setattr(stages, "STAGE_FUNCTIONS",
+                        stages.STAGE_FUNCTIONS.copy({"align_recording": "feedlog.align:no_such_function"}))
     out = tmp_path / "demo"
     assert main(["demo", "--recordings", str(recordings_dir), "--out", str(out), "--detail-plots", "0",
                  "--json"]) == 0

@@ -28,8 +28,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 from feedlog.diagnose import keys
 from feedlog.errors import FeedlogError
-from feedlog.lazy import load_entry
 from feedlog.profile import MachineProfile
+from feedlog.registry import Registry
 
 if TYPE_CHECKING:
     from feedlog.diagnose.evidence import Evidence
@@ -44,7 +44,7 @@ MIN_DATA = {"timing": 8, "line": 8, "feedback": 1000, "geometry": 1000}
 MIN_SECONDS = 5.0
 
 # family name -> "module:FAMILY" (a `Family`). One line per family.
-FAMILIES: dict[str, str] = {
+FAMILIES: Registry[Family] = Registry.lazy("hypothesis family", {
     "axis_limits": "feedlog.diagnose.hyp_axes:FAMILY",
     "path_limits": "feedlog.diagnose.hyp_path:FAMILY",
     "overrides": "feedlog.diagnose.hyp_override:FAMILY",
@@ -54,7 +54,7 @@ FAMILIES: dict[str, str] = {
     "feedback": "feedlog.diagnose.hyp_feedback:FAMILY",
     "logger": "feedlog.diagnose.hyp_logger:FAMILY",
     "geometry": "feedlog.diagnose.hyp_geometry:FAMILY",
-}
+}, sort_known=True)
 
 
 @dataclass(frozen=True)
@@ -149,9 +149,9 @@ class Family(ABC):
 
 def family(name: str) -> Family:
     """The registered family `name`; an unknown name is an error listing the known ones."""
-    fam = load_entry(FAMILIES, name, what="hypothesis family")
+    fam = FAMILIES.get(name)
     if not isinstance(fam, Family) or fam.name != name:
-        raise FeedlogError(f"hypothesis family {name!r}: {FAMILIES[name]} is not a Family named {name!r}")
+        raise FeedlogError(f"hypothesis family {name!r}: {FAMILIES.target(name)} is not a Family named {name!r}")
     return fam
 
 

@@ -10,33 +10,30 @@ with code 1: the recording holds everything flushed before.
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import signal
 import threading
 from pathlib import Path
+from types import ModuleType
 
 from feedlog.cli_options import add_output, add_overwrite, add_quiet
 from feedlog.errors import FeedlogError, IngestError, OutputError
 from feedlog.recording import PROFILE_ATTACHMENT, PROGRAM_ATTACHMENT
+from feedlog.registry import Registry
 
 # source name -> module with add_arguments(group) and record(args) -> dict
-SOURCES: dict[str, str] = {
+SOURCES: Registry[ModuleType] = Registry.lazy("record source", {
     "can": "feedlog.ingest.source_can",
     "sim": "feedlog.ingest.source_sim",
     "linuxcnc": "feedlog.ingest.linuxcnc",
     "mtconnect": "feedlog.ingest.source_mtconnect",
     "opcua": "feedlog.ingest.source_opcua",
-}
+})
 
 
-def _source_module(name: str):
-    try:
-        return importlib.import_module(SOURCES[name])
-    except ModuleNotFoundError as exc:
-        if exc.name == SOURCES[name]:
-            return None
-        raise
+def _source_module(name: str) -> ModuleType | None:
+    """The source's module, or None when it is not in this installation."""
+    return SOURCES.get_optional(name)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:

@@ -7,23 +7,24 @@ use. An unknown suffix or scheme raises `IngestError` listing the supported ones
 
 from __future__ import annotations
 
-import importlib
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from feedlog.errors import IngestError
 from feedlog.ingest.mapping import ColumnMap, load_preset, parse_map
 from feedlog.recording import Recording
+from feedlog.registry import Registry
 
-# scheme -> (module, function); each function is `read(path: Path, options: ImportOptions) -> Recording`
-READERS: dict[str, tuple[str, str]] = {
-    "mcap": ("feedlog.ingest.mcap_import", "read_mcap_source"),
-    "csv": ("feedlog.ingest.csv_reader", "read_csv_source"),
-    "can": ("feedlog.ingest.can_log", "read_can_source"),
-    "mtconnect": ("feedlog.ingest.mtconnect", "read_mtconnect_source"),
-}
+# scheme -> "module:function"; each function is `read(path: Path, options: ImportOptions) -> Recording`
+READERS: Registry[Callable[..., Recording]] = Registry.lazy("reader", {
+    "mcap": "feedlog.ingest.mcap_import:read_mcap_source",
+    "csv": "feedlog.ingest.csv_reader:read_csv_source",
+    "can": "feedlog.ingest.can_log:read_can_source",
+    "mtconnect": "feedlog.ingest.mtconnect:read_mtconnect_source",
+}, error=IngestError)
 # file suffix -> scheme (one line per format)
 SUFFIXES: dict[str, str] = {
     ".mcap": "mcap",
@@ -104,6 +105,4 @@ def read_source(source: str | os.PathLike, options: ImportOptions | None = None)
     scheme, path = split_source(source)
     if not path.is_file():
         raise IngestError("no such file", file=str(path))
-    module_name, function = READERS[scheme]
-    reader = getattr(importlib.import_module(module_name), function)
-    return reader(path, options or ImportOptions())
+    return READERS.get(scheme)(path, options or ImportOptions())

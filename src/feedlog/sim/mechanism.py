@@ -30,8 +30,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from feedlog.errors import ProfileError, SimulationError
-from feedlog.lazy import load_entry
 from feedlog.profile import MachineProfile
+from feedlog.registry import Registry
 
 KINDS = ("limits", "corner", "interpolator", "series", "feedback", "measurement")
 MAX_PARAM_S = 3600.0  # a mechanism's time parameter (a dwell, a lag, a period): at most an hour
@@ -45,7 +45,7 @@ def check_override(name: str, override: float) -> None:
                               f"{MAX_OVERRIDE:g} (0.1 % to 1000 %), got {override}")
 
 # name -> "module:Class" (imported on first use). One line per mechanism.
-REGISTRY: dict[str, str] = {
+REGISTRY: Registry[type[Mechanism]] = Registry.lazy("sim mechanism", {
     "cam": "feedlog.sim.cam:CamEstimate",
     "lookahead": "feedlog.sim.planner:LookAheadPlanner",
     "fir": "feedlog.sim.fir:FirInterpolator",
@@ -64,7 +64,7 @@ REGISTRY: dict[str, str] = {
     "backlash": "feedlog.sim.backlash:Backlash",
     "logger_latency": "feedlog.sim.logger_latency:LoggerLatency",
     "jerk_filter": "feedlog.sim.jerk_filter:JerkFilter",
-}
+}, error=SimulationError, sort_known=True)
 
 @dataclass
 class Mechanism:
@@ -188,7 +188,7 @@ def _checked(mechanism: str, name: str, value: Any, default: Any, *, signed: boo
 
 
 def mechanism_class(name: str) -> type[Mechanism]:
-    return load_entry(REGISTRY, name, what="sim mechanism", error=SimulationError)
+    return REGISTRY.get(name)
 
 
 def mechanism_params(profile: MachineProfile | None, name: str) -> dict[str, Any]:

@@ -24,7 +24,6 @@ The chain is the one `simulate` runs, in stages that each hold a few windows of 
 
 from __future__ import annotations
 
-import importlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,6 +34,7 @@ import pandas as pd
 
 from feedlog.errors import SimulationError
 from feedlog.profile import MachineProfile, load_profile
+from feedlog.registry import TargetMissing, import_target
 from feedlog.sim.cam import cam_block_times
 from feedlog.sim.context import Context, Window, one_row_per_block
 from feedlog.sim.mechanism import Mechanism, MechanismSpec, resolve_mechanisms
@@ -246,8 +246,11 @@ class WindowedSimulation:
 
     # -- 4. and 5. plan, block times, series ---------------------------------------------------------
     def _stream(self):
-        module, _, cls = self.interpolator.stream.partition(":")
-        stream_cls = getattr(importlib.import_module(module), cls)
+        try:
+            stream_cls = import_target(self.interpolator.stream)
+        except TargetMissing as missing:
+            raise SimulationError(f"mechanism {self.interpolator.name!r}: its windowed form "
+                                  f"{self.interpolator.stream} is not available ({missing})") from None
         if self.interpolator.name == "fir":
             return stream_cls(self.interpolator, self.dt_s,
                               [i for i, a in enumerate(self.profile.axis_names) if a in ("x", "y", "z")])
