@@ -18,6 +18,7 @@ from pathlib import Path
 from feedlog.errors import FeedlogError
 from feedlog.cli_options import add_output
 from feedlog.execution import add_arguments as add_execution_arguments
+from feedlog.viz.decimate import SCREEN_COLUMNS
 from feedlog.viz.overlay import save_view
 from feedlog.viz.mystery import Mystery, diagnose_mystery
 from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, discover, run_demo
@@ -125,7 +126,7 @@ def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PL
         if rrd:
             rerun_dir.mkdir(parents=True, exist_ok=True)
             run.rrd = rerun_dir / f"{run.entry.name}.rrd"
-            save_view(run.data, run.rrd)
+            save_view(run.data, run.rrd, columns=SCREEN_COLUMNS)
         log(f"[{k}/{len(result.runs)}] {run.entry.name}: plots" + (f" and {run.rrd.name}" if rrd else "") + " written")
         run.view_notes = list(run.data.notes)
         if release:  # written: the recording's samples are not needed again (peak memory, benchmarks/bench_demo.py)
