@@ -21,7 +21,7 @@ from feedlog.execution import add_arguments as add_execution_arguments
 from feedlog.viz.decimate import SCREEN_COLUMNS
 from feedlog.viz.overlay import save_view
 from feedlog.viz.mystery import Mystery, diagnose_mystery
-from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, discover, run_demo
+from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, discover, run_demo, view_of
 from feedlog.viz.plots import plot_cycle_times, plot_view
 from feedlog.viz.answer import TERMS, summary_sentences
 from feedlog.viz.report import ReportSection, TableRow, cycle_time_table, headline, table_json, write_report
@@ -88,10 +88,10 @@ def _rows(result: DemoResult) -> list[TableRow]:
 def detail_runs(result: DemoResult, count: int) -> set[str]:
     """Recordings that get every plot, `count` in all: held-out (test) ones first, one per program
     family and five-axis ones early, so the report shows the variety of the set."""
-    shown = [r for r in result.runs if r.data is not None]
+    shown = [r for r in result.runs if r.data is not None or r.has_view]
     chosen: list[RecordingRun] = []
     families: set[str] = set()
-    for run in sorted(shown, key=lambda r: (r.entry.split != "test", len(r.data.axes) <= 3)):
+    for run in sorted(shown, key=lambda r: (r.entry.split != "test", len(r.data.axes if r.data else r.view_axes) <= 3)):
         if len(chosen) < count and (not run.entry.family or run.entry.family not in families):
             chosen.append(run)
             families.add(run.entry.family)
@@ -119,6 +119,7 @@ def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PL
     table = cycle_time_table(_rows(result), model_names=model_names)
     detailed = detail_runs(result, detail)
     for k, run in enumerate(result.runs, start=1):
+        run.data = view_of(run)  # built again here when the pipeline did not hold every recording's (peak memory)
         if run.data is None:
             continue
         kinds = None if run.entry.name in detailed else ("feed",)
@@ -244,7 +245,7 @@ def run(args: argparse.Namespace) -> int:
     recordings = args.recordings or default_recordings()
     models = tuple(m.strip() for m in args.models.split(",") if m.strip()) if args.models else None
     config = DemoConfig(recordings=recordings, out=args.out, train=not args.no_train, models=models, log=log,
-                        jobs=args.jobs, scheduler=args.scheduler, progress=not args.json)
+                        jobs=args.jobs, scheduler=args.scheduler, progress=not args.json, keep_views=False)
     discover(config.recordings)  # a broken manifest is refused before the output folder is touched
     prepare_out(args.out)
     result = run_demo(config)
