@@ -9,9 +9,14 @@ from pathlib import Path
 
 import pytest
 from tests.viz import synthetic as syn
-from tests.viz.conftest import rrd_content
+from tests.viz.conftest import column_values, rrd_content
+
+import numpy as np
 
 from feedlog.cli import main
+from feedlog.viz.decimate import SCREEN_COLUMNS
+from feedlog.viz.overlay import TIMELINE_TIME
+from feedlog.viz.prepare import ViewInputs, prepare_view
 from feedlog.ingest import write_recording
 from feedlog.viz.stages import availability
 
@@ -82,7 +87,17 @@ def test_demo_writes_an_rrd_per_readable_recording(demo_run):
     _, out = demo_run
     assert sorted(p.name for p in (out / "rerun").iterdir()) == ["square_a.rrd", "square_b.rrd"]
     content = rrd_content(out / "rerun" / "square_b.rrd")
-    assert content["/feed/measured"]["rows"] == len(syn.recording(lead_s=0.5).streams["axes"])
+    # downsampled to what the blueprint's series views show (viz.decimate): fewer rows than samples, every
+    # row a real sample, the series' highest and lowest feed among them
+    full = prepare_view(ViewInputs(syn.recording(lead_s=0.5))).measured
+    rows = content["/feed/measured"]["rows"]
+    assert rows <= 4 * SCREEN_COLUMNS < len(full)
+    t = column_values(content["/feed/measured"], TIMELINE_TIME)
+    feed = column_values(content["/feed/measured"], "Scalars:scalars")
+    finite = full.dropna(subset=["feed_mm_min"])
+    by_time = finite.set_index(finite["t_rel_ns"] - finite["t_rel_ns"].iloc[0])["feed_mm_min"]
+    np.testing.assert_allclose(feed, by_time.loc[t - t[0]].to_numpy())
+    assert feed.max() == pytest.approx(by_time.max()) and feed.min() == pytest.approx(by_time.min())
 
 
 def test_demo_json_prints_only_the_table_and_reruns_into_its_own_folder(demo_run, recordings_dir, capsys):

@@ -19,6 +19,7 @@ import rerun.blueprint as rrb
 
 from feedlog.colors import feed_colors, residual_colors, source_color
 from feedlog.rerun_stream import new_stream
+from feedlog.viz.decimate import linear_keep, rate_keep, spacing_keep
 from feedlog.viz.prepare import AXIS_COLUMNS, ViewData
 
 TIMELINE_TIME, TIMELINE_BLOCK, TIMELINE_PATH = "time", "block", "path_um"
@@ -29,6 +30,7 @@ ENTITY_TOOL = "path/tool"
 ENTITY_ORIENTATION = "path/orientation"
 FEED, AXES, RESIDUAL, BLOCKS = "feed", "axes", "residual", "blocks"
 MAX_CLOUD_POINTS = 250_000  # static coloured path clouds are decimated above this
+CLOUD_RADIUS = 0.15  # mm, the points of the coloured path clouds
 
 
 class _Indexes:
@@ -64,20 +66,33 @@ class _Indexes:
 
 
 def _series(stream: rr.RecordingStream, entity: str, values: np.ndarray, indexes: _Indexes, *, label: str,
-            color: tuple[int, int, int], counts: dict[str, int], block: bool = True, path: bool = False) -> None:
-    """One scalar series in one `send_columns` call (non-finite samples left out: Rerun draws a gap)."""
+            color: tuple[int, int, int], counts: dict[str, int], block: bool = True, path: bool = False,
+            columns: int | None = None) -> None:
+    """One scalar series in one `send_columns` call (non-finite samples left out: Rerun draws a gap).
+    `columns`: keep what a view that many pixels wide draws (`viz.decimate.linear_keep`)."""
     values = np.asarray(values, dtype=np.float64)
     keep = np.isfinite(values)
     if not keep.any():
         return
+    if columns is not None:
+        finite = np.flatnonzero(keep)
+        shown = linear_keep(indexes.t_rel_ns[finite], values[finite], columns)
+        if not shown.all():
+            keep = np.zeros_like(keep)
+            keep[finite[shown]] = True
     stream.log(entity, rr.SeriesLines(colors=[color], names=[label]), static=True)
     stream.send_columns(entity, indexes=indexes(keep, block=block, path=path),
                         columns=rr.Scalars.columns(scalars=values if keep.all() else values[keep]))
     counts[entity] = int(keep.sum())
 
 
-def log_view(data: ViewData, stream: rr.RecordingStream) -> dict[str, int]:
-    """Log every overlay of `data` to `stream`; returns entity path -> samples sent over time."""
+def log_view(data: ViewData, stream: rr.RecordingStream, *, columns: int | None = None) -> dict[str, int]:
+    """Log every overlay of `data` to `stream`; returns entity path -> samples sent over time.
+
+    `columns` (None: every sample): each time series keeps the first, last, lowest and highest sample
+    per `columns`-th of its time span (what a view that many pixels wide draws; straight stretches
+    only their ends: `viz.decimate.linear_keep`), the moving tool one position per display frame
+    (`rate_keep`) and the coloured path clouds a point per pixel along the path (`spacing_keep`)."""
     counts: dict[str, int] = {}
     m = data.measured
     measured = _Indexes(m["t_rel_ns"].to_numpy(), m["block"].to_numpy(), m["s_mm"].to_numpy())
@@ -89,14 +104,17 @@ def log_view(data: ViewData, stream: rr.RecordingStream) -> dict[str, int]:
         stream.log(ENTITY_PROGRAMMED, rr.LineStrips3D([pts], colors=[source_color("programmed")], radii=[0.05]),
                    static=True)
     step = max(1, -(-len(m) // MAX_CLOUD_POINTS))  # the static clouds are views, not data: cap their size
-    stream.log(ENTITY_MEASURED_PATH, rr.Points3D(xyz[::step], colors=feed_colors(m["feed_mm_min"].to_numpy()[::step]),
-                                                 radii=[0.15]), static=True)
+    cloud = slice(None, None, step) if columns is None else spacing_keep(xyz, columns, radius=CLOUD_RADIUS)
+    stream.log(ENTITY_MEASURED_PATH, rr.Points3D(xyz[cloud], colors=feed_colors(m["feed_mm_min"].to_numpy()[cloud]),
+                                                 radii=[CLOUD_RADIUS]), static=True)
     if data.model_series or data.sim is not None:
         first = next(iter(data.model_series), "sim")
-        stream.log(ENTITY_RESIDUAL_PATH, rr.Points3D(xyz[::step], colors=residual_colors(data.residuals[first][::step]),
-                                                     radii=[0.15]), static=True)
-    stream.send_columns(ENTITY_TOOL, indexes=measured(None), columns=rr.Points3D.columns(positions=xyz))
-    counts[ENTITY_TOOL] = len(m)
+        stream.log(ENTITY_RESIDUAL_PATH, rr.Points3D(xyz[cloud], colors=residual_colors(data.residuals[first][cloud]),
+                                                     radii=[CLOUD_RADIUS]), static=True)
+    tool = None if columns is None else rate_keep(measured.t_rel_ns)
+    stream.send_columns(ENTITY_TOOL, indexes=measured(tool),
+                        columns=rr.Points3D.columns(positions=xyz if tool is None else xyz[tool]))
+    counts[ENTITY_TOOL] = len(m) if tool is None else int(tool.sum())
     if data.orientation is not None and len(data.orientation):
         o = data.orientation
         scale = max(float(np.ptp(xyz, axis=0).max()) * 0.05, 1.0)
@@ -106,38 +124,38 @@ def log_view(data: ViewData, stream: rr.RecordingStream) -> dict[str, int]:
 
     # path feed: measured, commanded, simulated, learned (over time, block and path length)
     _series(stream, f"{FEED}/measured", m["feed_mm_min"].to_numpy(), measured, label="measured",
-            color=source_color("measured"), counts=counts, path=True)
+            color=source_color("measured"), counts=counts, path=True, columns=columns)
     if "commanded_feed_mm_min" in m.columns:
         _series(stream, f"{FEED}/commanded", m["commanded_feed_mm_min"].to_numpy(), measured,
-                label="commanded F", color=source_color("commanded"), counts=counts, path=True)
+                label="commanded F", color=source_color("commanded"), counts=counts, path=True, columns=columns)
     if data.sim is not None:
         s = data.sim
         sim = _Indexes(s["t_rel_ns"].to_numpy(), s["block"].to_numpy(), s["s_mm"].to_numpy())
         _series(stream, f"{FEED}/sim", s["feed_mm_min"].to_numpy(), sim, label="simulated",
-                color=source_color("sim"), counts=counts, path=True)
+                color=source_color("sim"), counts=counts, path=True, columns=columns)
         for a in data.axes:
             if f"v{a}" in s.columns:
                 _series(stream, f"{AXES}/{a}/sim", s[f"v{a}"].to_numpy(), sim, label=f"{a} simulated",
-                        color=source_color("sim"), counts=counts, block=False)
+                        color=source_color("sim"), counts=counts, block=False, columns=columns)
     for i, (name, series) in enumerate(data.model_series.items()):
         _series(stream, f"{FEED}/{name}", series["feed_mm_min"].to_numpy(), _Indexes(series["t_rel_ns"].to_numpy()),
-                label=name, color=source_color(name, i), counts=counts)
+                label=name, color=source_color(name, i), counts=counts, columns=columns)
 
     # per-axis feeds (over time) and residuals (over time and block)
     for a in data.axes:
         unit = "deg/min" if AXIS_COLUMNS[a].endswith("deg") else "mm/min"
         _series(stream, f"{AXES}/{a}/measured", m[f"v{a}"].to_numpy(), measured,
-                label=f"{a} measured ({unit})", color=source_color("measured"), counts=counts, block=False)
+                label=f"{a} measured ({unit})", color=source_color("measured"), counts=counts, block=False, columns=columns)
     for i, (name, residual) in enumerate(data.residuals.items()):
         _series(stream, f"{RESIDUAL}/{name}", residual, measured, label=f"measured - {name}",
-                color=source_color(name, i - 1), counts=counts)
+                color=source_color(name, i - 1), counts=counts, columns=columns)
 
     # per block: measured vs predicted block times, on the block timeline and at the block's start time
-    _log_blocks(data, stream, counts)
+    _log_blocks(data, stream, counts, columns)
     return counts
 
 
-def _log_blocks(data: ViewData, stream: rr.RecordingStream, counts: dict[str, int]) -> None:
+def _log_blocks(data: ViewData, stream: rr.RecordingStream, counts: dict[str, int], columns: int | None) -> None:
     blocks = data.blocks
     if not len(blocks):
         return
@@ -148,7 +166,8 @@ def _log_blocks(data: ViewData, stream: rr.RecordingStream, counts: dict[str, in
     index = _Indexes(t_start[has_time].astype(np.int64), blocks["block"].to_numpy(dtype=np.int64)[has_time])
     for i, col in enumerate(c for c in blocks.columns if c.endswith("_s")):
         _series(stream, f"{BLOCKS}/{col[:-2]}", blocks[col].to_numpy(dtype=np.float64)[has_time], index,
-                label=f"{col[:-2]} block time (s)", color=source_color(col[:-2], i - 2), counts=counts)
+                label=f"{col[:-2]} block time (s)", color=source_color(col[:-2], i - 2), counts=counts,
+                columns=columns)
 
 
 def view_blueprint(data: ViewData) -> rrb.Blueprint:
@@ -170,13 +189,14 @@ def view_blueprint(data: ViewData) -> rrb.Blueprint:
     )
 
 
-def save_view(data: ViewData, path: str | Path) -> dict[str, int]:
-    """Write `data` with its blueprint to an .rrd file; returns entity -> samples sent over time."""
+def save_view(data: ViewData, path: str | Path, *, columns: int | None = None) -> dict[str, int]:
+    """Write `data` with its blueprint to an .rrd file; returns entity -> samples sent over time
+    (`columns`: downsampled as in `log_view`)."""
     stream = new_stream(data.name)
     stream.save(str(path), default_blueprint=view_blueprint(data))
     try:
         stream.send_recording_name(data.name)
-        counts = log_view(data, stream)
+        counts = log_view(data, stream, columns=columns)
     finally:
         stream.flush()
         stream.disconnect()

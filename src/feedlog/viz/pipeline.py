@@ -39,6 +39,8 @@ class DemoConfig:
     jobs: int | None = None               # feedlog.execution: local processes (None: all cores) ...
     scheduler: str | None = None          # ... or a Dask cluster for the per-recording stages
     progress: bool = False
+    keep_views: bool = True               # False: each recording's ViewData is built again when written
+                                          # (`view_of`), not held for all recordings at once (peak memory)
 
     def __post_init__(self) -> None:
         self.recordings, self.out = Path(self.recordings), Path(self.out)
@@ -76,6 +78,8 @@ class RecordingRun:
     plots: dict[str, Path] = field(default_factory=dict)
     rrd: Path | None = None
     view_notes: list[str] = field(default_factory=list)   # the overlays' notes, kept when `data` is released
+    view_axes: tuple[str, ...] = ()       # the overlays' axes, known when `data` is not held
+    has_view: bool = False                # the overlays were built (`data`, or `view_of` builds them again)
 
 
 @dataclass
@@ -207,6 +211,13 @@ def prepare_run(run: RecordingRun) -> RecordingRun:
     return run
 
 
+def view_of(run: RecordingRun) -> ViewData | None:
+    """The recording's overlays: `run.data`, or built again from `run.gathered` (`keep_views=False`)."""
+    if run.data is None and run.has_view and run.gathered is not None:
+        return prepare_view(run.gathered.inputs)
+    return run.data
+
+
 def _sendable(run: RecordingRun) -> RecordingRun:
     """The run with absolute paths: a worker may run in another directory."""
     entry = replace(run.entry, path=Path(storage.absolute(run.entry.path)),
@@ -275,6 +286,10 @@ def _run_demo(config: DemoConfig, runner: TaskRunner) -> DemoResult:
         run.data = _guarded(run, "overlays", lambda run=run: prepare_view(run.gathered.inputs))
         _measured(run)
         _check_cycle_time(run)
+        if run.data is not None:
+            run.has_view, run.view_axes = True, run.data.axes
+            if not config.keep_views:
+                run.data = None
     timings["overlays"] = time.perf_counter() - t2
     timings["total"] = time.perf_counter() - t0
     return DemoResult(runs=runs, stages=stages, training=training, timings_s=timings)
