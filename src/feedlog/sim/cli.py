@@ -136,7 +136,10 @@ def _run_one(args: argparse.Namespace, source: str, *, series: Path | None) -> i
                 for temporary, table in zip(temporaries, outputs.values()):
                     table().to_parquet(temporary, index=False)
         notes = program_notes(program)
-        beyond = program_warnings(result.profile, result.series, program.blocks)
+        # only a fitted profile carries coverage: sampling the whole series for it costs memory (and a
+        # program of hours at 1 kHz cannot be sampled at all), so a plain profile never asks for it
+        beyond = (program_warnings(result.profile, result.series, program.blocks)
+                  if getattr(result.profile, "coverage", None) else [])
         if beyond:  # a fitted profile used where its recordings never went
             notes = {**notes, "coverage_warnings": beyond}
     summary = {"program": str(source), **result.summary(), **notes}
