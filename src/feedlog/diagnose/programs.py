@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from feedlog.sim.path import m6_rows
 from feedlog.toolpath.schema import AXIS_UNITS
 
 MOVE = 1e-6
@@ -84,12 +85,8 @@ def tool_changes(cases: Sequence[Any]) -> int:
     total = 0
     for case in cases:
         blocks = case.program.blocks
-        if "mcodes" not in blocks.columns:
-            continue
-        moving = blocks["kind"].astype(str).isin(("rapid", "linear", "arc_cw", "arc_ccw")).to_numpy()
-        m6 = blocks["mcodes"].fillna("").astype(str).str.contains(r"(?i)\bM0*6\b").to_numpy(bool)
-        if not moving.any():
-            continue
-        first, last = np.flatnonzero(moving)[[0, -1]]
-        total += int(m6[first + 1:last + 1].sum())
+        moving = np.flatnonzero(blocks["kind"].astype(str).isin(("rapid", "linear", "arc_cw", "arc_ccw")).to_numpy())
+        if len(moving):
+            m6 = m6_rows(blocks)
+            total += int(((m6 > moving[0]) & (m6 < moving[-1])).sum())
     return total

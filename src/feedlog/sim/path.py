@@ -255,18 +255,24 @@ class ProgramArrays:
         return _where(self.table, int(self.sel[i]))
 
 
-def _tool_changes_after(table: pd.DataFrame, sel: np.ndarray) -> np.ndarray:
-    """Per motion/dwell row: the M6 blocks between it and the next such row (a tool change before the
-    first motion is not counted: the machine starts with the tool in the spindle)."""
-    out = np.zeros(len(sel))
-    if "mcodes" not in table.columns or not len(sel):
-        return out
+def m6_rows(table: pd.DataFrame) -> np.ndarray:
+    """Row positions of the block table's tool changes (an M6 among a row's M codes)."""
+    if "mcodes" not in table.columns:
+        return np.zeros(0, dtype=np.int64)
     codes = table["mcodes"]
     # most rows carry no M code: look at the others only (a regex over a million empty strings costs 25 ms)
     some = np.flatnonzero(np.asarray(pc.greater(pc.binary_length(pa.array(codes, type=pa.string(), from_pandas=True)), 0)
                                      .fill_null(False), dtype=bool))
-    m6 = some[codes.iloc[some].astype(str).str.contains(r"(?i)\bM0*6\b").to_numpy(bool)] if len(some) else some
-    row = np.searchsorted(sel, m6, side="right") - 1   # the motion row each M6 follows
+    return some[codes.iloc[some].astype(str).str.contains(r"(?i)\bM0*6\b").to_numpy(bool)] if len(some) else some
+
+
+def _tool_changes_after(table: pd.DataFrame, sel: np.ndarray) -> np.ndarray:
+    """Per motion/dwell row: the M6 blocks between it and the next such row (a tool change before the
+    first motion is not counted: the machine starts with the tool in the spindle)."""
+    out = np.zeros(len(sel))
+    if not len(sel):
+        return out
+    row = np.searchsorted(sel, m6_rows(table), side="right") - 1   # the motion row each M6 follows
     np.add.at(out, row[row >= 0], 1.0)
     return out
 
