@@ -18,6 +18,7 @@ to the recording). recordings/interp/manifest.toml lists what was recorded and t
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
@@ -105,9 +106,11 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"{name}: FAILED: {exc}", file=sys.stderr)
                 failed += 1
                 continue
-            rel = program.relative_to(ROOT) if program.is_relative_to(ROOT) else program
+            # paths relative to the manifest's folder (feedlog.manifest reads them so); LinuxCNC's own
+            # examples stay absolute: they are read in place where LinuxCNC is installed
+            rel = Path(os.path.relpath(program, outdir)) if program.is_relative_to(ROOT) else program
             manifest["recording"][name] = {
-                "program": str(rel), "what": what, "ini": str(INI.relative_to(ROOT)), "streams": streams,
+                "program": str(rel), "what": what, "ini": os.path.relpath(INI, outdir), "streams": streams,
                 "cycle_time_s": round(float(summary["cycle_time_s"]), 6),
                 "linuxcnc_motion_time_s": round(float(summary["linuxcnc_motion_time_s"]), 6),
                 "samples": int(summary["samples"]), "dropped_frames": int(summary["dropped_frames"]),

@@ -62,7 +62,8 @@ def test_recording_is_complete_and_says_how_it_was_made(name):
     gap = entry["cycle_time_s"] - entry["linuxcnc_motion_time_s"]
     assert -0.001 - 1e-9 <= gap <= 0.001 + 0.005 * spindle + 1e-9, (gap, spindle)
     assert rec.metadata["nominal_rate_hz"] == "1000" and rec.metadata["machine"] == "linuxcnc-xyz"
-    program = Path(entry["program"]) if entry["program"].startswith("/") else ROOT / entry["program"]
+    program = entry.program_path
+    assert entry.program.startswith("/") or program.is_file(), program   # ours are vendored beside it
     if program.is_file():   # LinuxCNC's examples are read in place where LinuxCNC is installed
         assert rec.attachments[PROGRAM_ATTACHMENT] == program.read_bytes()
 
