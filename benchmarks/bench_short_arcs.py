@@ -23,15 +23,17 @@ from feedlog.profile import MachineProfile
 from feedlog.sim import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
-def _rules(share: bool, as_lines: bool, curved: bool) -> dict:
+def _rules(share: bool, as_lines: bool, curved: bool, sync: bool = False) -> dict:
     return {"lookahead": {"arc_share_from_speed": share}, "naive_cam": {"arcs_as_lines": as_lines},
-            "blend_arc": {"curved_blend_speed": curved}}
+            "blend_arc": {"curved_blend_speed": curved, "sync_stop": sync}}
 
 
-# cumulative: none of the rules, then the share, then the split, then the curved corners (all three: the
-# LinuxCNC profiles' setting; a recording's attached profile may predate them, so they are set here)
+# cumulative: none of the rules, then the share, then the split, then the curved corners, then the stop
+# before words run at rest (all four: the LinuxCNC profiles' setting; a recording's attached profile may
+# predate them, so they are set here)
 STEPS = [("none", _rules(False, False, False)), ("+share", _rules(True, False, False)),
-         ("+as lines", _rules(True, True, False)), ("+curved", _rules(True, True, True))]
+         ("+as lines", _rules(True, True, False)), ("+curved", _rules(True, True, True)),
+         ("+sync", _rules(True, True, True, True))]
 
 
 def main() -> None:

@@ -31,6 +31,12 @@ blendmath.c `blendComputeParameters`, `blendCheckConsume`), re-derived here in v
   `rapid_feed_stop = false` blends them like any other junction;
 - a continuous-mode block that is not blended into a next one (the last move, a move before a
   dwell) keeps the parabolic end condition and so half its acceleration;
+- `sync_stop`: a block followed by a word the controller executes only at rest (M3/M5, M8, an S or
+  work offset change, a message: `feedlog.sim.queue_sync`) is never blended into the next move, which
+  is not yet queued when it is planned: it ends at rest, and in G64 with half its acceleration even
+  where the next move is a rapid/feed switch or a sharp corner (its end condition stays parabolic).
+  The few task cycles LinuxCNC then waits per word (plasmatest: cycle minus motion time 104 ms over
+  its 31 M3/M5, 3.4 ms each) are left out: its line stream shows them on the M code's own line;
 - in G61 (exact path) tangent junctions are still passed without stopping; at the other G61
   junctions LinuxCNC keeps the kink acceleration reduction (`kink_ratio`) on both blocks, so exact-stop
   blocks run at 90 % of their acceleration (tp.c: `tpChooseBestBlend` returns before
@@ -111,6 +117,7 @@ class BlendArcCorner(Mechanism):
     halve_after_blend: bool = False   # halve the acceleration of the block after a parabolic blend too
     curved_blend_speed: bool = False  # line-arc / arc-arc corners: the blend arc's speed, not the kink's
     curved_blend_turn: float = 0.1    # ... where the arc turns at most this (rad) over the blend's length
+    sync_stop: bool = False           # stop, parabolic end, before words executed at rest (queue_sync)
 
     def __post_init__(self) -> None:
         self.check_positive(servo_period_s=self.servo_period_s, tolerance_ratio=self.tolerance_ratio,
@@ -168,6 +175,10 @@ class BlendArcCorner(Mechanism):
         rapid = blocks.kind == KIND_RAPID
         mode_change = (rapid[b1] != rapid[b2]) if self.rapid_feed_stop else np.zeros(m - 1, bool)
         hard |= mode_change
+        # a word executed at rest between the blocks: the next move is not queued yet (queue_sync)
+        counts = blocks.extra.get("syncs") if self.sync_stop else None
+        sync = np.zeros(m - 1, bool) if counts is None else (counts[b1] > 0) & (b1 != b2)
+        hard |= sync
 
         v_end = np.zeros(m)
         a_max = pc.a_max.copy()
@@ -225,7 +236,7 @@ class BlendArcCorner(Mechanism):
         # condition and so half its acceleration (tcGetOverallMaxAccel): the program's last move and
         # moves before a dwell or other hard stop that is not a sharp corner
         continuous = ~blocks.stop_after[b] | ((np.arange(m) == m - 1) & ~blocks.exact_path[b] & self._continuous(blocks, b))
-        end_stop = np.append(hard & ~sharp & ~mode_change, True)
+        end_stop = np.append((hard & ~sharp & ~mode_change) | sync, True)
         half = continuous & end_stop & ~halved & (length > 0)
         a_max[half] *= 0.5
         # an arc is sized for its segments' requested speed; it runs at that request times the dial

@@ -22,6 +22,7 @@ import pyarrow.compute as pc
 
 from feedlog.errors import SimulationError
 from feedlog.profile import LINEAR_AXES, MachineProfile
+from feedlog.sim.queue_sync import syncs_after
 from feedlog.toolpath import schema
 from feedlog.toolpath.limits import check_axes
 
@@ -231,6 +232,7 @@ class ProgramArrays:
         self.block = table["block"].to_numpy(np.int64)[self.sel]
         self.line = table["line"].to_numpy(np.int64)[self.sel]
         self.tool_changes = _tool_changes_after(table, self.sel)
+        self.syncs = syncs_after(table, self.sel)
         self._cols: dict[str, np.ndarray | None] = {}
         self._checked: set[tuple[str, ...]] = set()
 
@@ -367,6 +369,7 @@ def prepare_blocks(program, profile: MachineProfile, *, last: bool = True) -> Bl
     exact_path = (mode == 2) & (code != KIND_DWELL)
     extra["continuous"] = mode == 1
     extra["tool_changes"] = arrays.tool_changes.copy()
+    extra["syncs"] = arrays.syncs.copy()
     if n and last:
         stop_after[-1] = True
         exact_path[-1] = False
