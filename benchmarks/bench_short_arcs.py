@@ -29,11 +29,11 @@ def _rules(share: bool, as_lines: bool, curved: bool, sync: bool = False) -> dic
 
 
 # cumulative: none of the rules, then the share, then the split, then the curved corners, then the stop
-# before words run at rest (all four: the LinuxCNC profiles' setting; a recording's attached profile may
-# predate them, so they are set here)
+# before words run at rest with the arc-side blend lengths (all: the LinuxCNC profiles' setting; a
+# recording's attached profile may predate them, so they are set here)
 STEPS = [("none", _rules(False, False, False)), ("+share", _rules(True, False, False)),
          ("+as lines", _rules(True, True, False)), ("+curved", _rules(True, True, True)),
-         ("+sync", _rules(True, True, True, True))]
+         ("+sync+sides", _rules(True, True, True, True))]
 
 
 def main() -> None:

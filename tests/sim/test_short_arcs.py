@@ -151,3 +151,21 @@ def test_the_short_arc_switches_are_checked():
         simulate(program, PROFILE, mechanisms={"blend_arc": {"curved_blend_turn": -0.1}})
     with pytest.raises(SimulationError, match="arcs_as_lines"):
         simulate(program, PROFILE, mechanisms={"naive_cam": {"arcs_as_lines": 2.5}})
+
+
+def test_arc_side_lengths_speed_up_sharp_line_arc_corners_only_and_windows_agree():
+    # 90 deg corners between lines and arcs without P (plasmatest's star): the kink rule nearly stops
+    # there; LinuxCNC's arc-side lengths blend them. Near-tangent spline corners (the splines
+    # recordings) keep their speed either way.
+    text = "G21 G90 G64\nG1 X0 Y0 F5000\n" + "".join(
+        f"G1 X{40 * k + 30} Y0\nG2 X{40 * k + 40} Y10 I10 J0\nG1 Y40\nG0 Y0\n" for k in range(6)) + "M2\n"
+    program = load_program(text, name="star.ngc")
+    gate = {"blend_arc": {"arc_side_lengths": False}}
+    sides = simulate(program, PROFILE)
+    assert sides.cycle_time_s < simulate(program, PROFILE, mechanisms=gate).cycle_time_s - 0.05
+    for size in (3, 11):
+        res, blocks, _ = simulate_windowed(program, PROFILE, window=size)
+        assert res.cycle_time_s == pytest.approx(sides.cycle_time_s, abs=1e-9), size
+    spline = load_program(_flat_arc_chain(60, 30.0, 3.0, "G64 P0.01", seed=5), name="flat.ngc")
+    assert simulate(spline, PROFILE).cycle_time_s == pytest.approx(
+        simulate(spline, PROFILE, mechanisms=gate).cycle_time_s, rel=1e-12)

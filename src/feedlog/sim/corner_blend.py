@@ -10,6 +10,11 @@ blendmath.c `blendComputeParameters`, `blendCheckConsume`), re-derived here in v
   from the corner stays inside the tolerance T (G64 P; without P a quarter of the shorter block):
   d_tol = cos(theta) T / (1 - sin(theta)), and which uses at most half of each block; its speed is
   limited by the normal acceleration, v^2 <= a_n R with a_n = a_plane sqrt(1 - 0.5^2);
+- line-arc, arc-line and arc-arc corners (`curved_blend_speed`) get the speed of a blend arc along
+  the junction tangents; where the arc turns at most `curved_blend_turn` over the blend's length, or,
+  with `arc_side_lengths`, with the lengths LinuxCNC allows on an arc side: a third of the next arc's
+  sweep (two thirds of the previous arc's), capped by the corner's half-angle where the arc bends away
+  from the corner (then along its chord) and by a quarter turn where it bends into it;
 - a line shorter than `gap_cycles` servo cycles at the arc speed is "consumed" by the arc;
 - a blend arc, and a line it consumes, run under the *next* line: LinuxCNC 2.9's
   `motion.program-line` switches to the next line where the tool leaves the straight line into the
@@ -56,6 +61,32 @@ from feedlog.sim.mechanism import Mechanism
 from feedlog.sim.path import KIND_RAPID, Pieces, feed_scale, rows, with_columns
 
 ACC_RATIO_TANGENTIAL = 0.5
+
+
+def _arc_sides(pc: Pieces, u1, u2, theta, side1, side2, lin):
+    """Where a junction's side is an arc, the blend length LinuxCNC allows on it and the corner half-angle
+    it plans with (blendmath.c blendInit3FromLineArc / ArcLine / ArcArc): at most a third of the next
+    arc's sweep (two thirds of the previous arc's), no more than the tangents' half-angle where the arc
+    bends away from the corner (convex: along the chord, sin(phi / 4) R, and the half-angle reduced by
+    phi / 4), a quarter turn where it bends into it (phi R)."""
+    theta_tan = theta
+    theta = theta.copy()
+    side1, side2 = side1.copy(), side2.copy()
+    for first, u_other, sweep_share, side in ((True, u2, 2.0 / 3.0, side1), (False, u1, 1.0 / 3.0, side2)):
+        k = np.flatnonzero(pc.radius[:-1] > 0) if first else np.flatnonzero(pc.radius[1:] > 0)
+        if not len(k):
+            continue
+        p = k if first else k + 1                    # the arc piece at junction k
+        r = pc.radius[p]
+        ang = pc.omega[p] * pc.length[p] if first else np.zeros(len(p))
+        radial = (r[:, None] * (np.cos(ang)[:, None] * pc.e1[p] + np.sin(ang)[:, None] * pc.e2[p]))[:, lin]
+        toward = np.einsum("ij,ij->i", radial, u_other[k]) < 0
+        convex = toward if first else ~toward        # arcConvexTest(center, P, u, reverse) as LinuxCNC calls it
+        sweep = np.abs(pc.omega[p] * pc.length[p])
+        phi = np.minimum(sweep * sweep_share, np.where(convex, theta_tan[k], math.pi / 2))
+        side[k] = np.where(convex, np.sin(phi / 4.0) * r, phi * r)
+        theta[k] = np.where(convex, np.minimum(theta[k], theta_tan[k] - phi / 4.0), theta[k])
+    return theta, side1, side2
 
 
 def _interleave(a: np.ndarray, b: np.ndarray, pos_a: np.ndarray, pos_b: np.ndarray) -> np.ndarray:
@@ -117,6 +148,7 @@ class BlendArcCorner(Mechanism):
     halve_after_blend: bool = False   # halve the acceleration of the block after a parabolic blend too
     curved_blend_speed: bool = False  # line-arc / arc-arc corners: the blend arc's speed, not the kink's
     curved_blend_turn: float = 0.1    # ... where the arc turns at most this (rad) over the blend's length
+    arc_side_lengths: bool = False    # ... with LinuxCNC's blend lengths on the arc sides instead of that gate
     sync_stop: bool = False           # stop, parabolic end, before words executed at rest (queue_sync)
 
     def __post_init__(self) -> None:
@@ -214,7 +246,7 @@ class BlendArcCorner(Mechanism):
         # blend arcs for the remaining continuous-mode line-line corners
         arc_ok = cand & ~g61 & ~tangent & (pc.radius[:-1] <= 0) & (pc.radius[1:] <= 0)
         curved = cand & ~g61 & ~tangent & ~arc_ok if self.curved_blend_speed else np.zeros(m - 1, bool)
-        arcs = self._arcs(pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, arc_ok | curved, v_tc)
+        arcs = self._arcs(pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, arc_ok | curved, v_tc, lin)
         use_arc = arc_ok & arcs["ok"] & (arcs["v_arc"] >= kink_vel)
         # line-arc, arc-line, arc-arc corners: LinuxCNC 2.9 blends them too (tp.c tpCreateLineArcBlend,
         # tpCreateArcLineBlend, tpCreateArcArcBlend); the junction gets the speed of the blend arc the
@@ -222,6 +254,8 @@ class BlendArcCorner(Mechanism):
         r_arc = np.minimum(np.where(pc.radius[:-1] > 0, pc.radius[:-1], np.inf),
                            np.where(pc.radius[1:] > 0, pc.radius[1:], np.inf))
         short = arcs["d"] <= self.curved_blend_turn * r_arc
+        if self.arc_side_lengths:
+            short = np.ones(m - 1, bool)
         use_curved = curved & arcs["ok"] & short & (arcs["v_arc"] >= kink_vel)
         use_kink = cand & ~use_arc & ~use_curved & ~(g61 & ~tangent)   # tangent, incl. arcs worse than the kink
         jk = np.flatnonzero(use_kink)
@@ -275,11 +309,14 @@ class BlendArcCorner(Mechanism):
         v_tol = 2.0 * np.sqrt(a1 * np.where(has_tol, tol, 0.0) / np.where(has_tol, cos_t, 1.0))
         return np.where(has_tol, np.minimum(v_b, v_tol), v_b)
 
-    def _arcs(self, pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, ok, v_tc) -> dict[str, np.ndarray]:
+    def _arcs(self, pc, blocks, j, u1, u2, v_req, acc_bound, vel_bound, ok, v_tc, lin) -> dict[str, np.ndarray]:
         nominal = blocks.length[pc.block]
         n1, n2 = nominal[:-1], nominal[1:]   # junction j: pieces j ([:-1]) and j + 1 ([1:])
         dot = np.clip(np.einsum("ij,ij->i", u1, u2), -1.0, 1.0)
         theta = np.arccos(-dot) / 2.0
+        side1, side2 = 0.5 * n1, 0.5 * n2
+        if self.arc_side_lengths:
+            theta, side1, side2 = _arc_sides(pc, u1, u2, theta, side1, side2, lin)
         ok = ok & (math.pi / 2 - theta >= 1e-6) & (theta >= 1e-6)
         th = np.where(ok, theta, 0.5)
         binormal = np.column_stack([u1[:, 1] * u2[:, 2] - u1[:, 2] * u2[:, 1],
@@ -305,7 +342,7 @@ class BlendArcCorner(Mechanism):
         v_alt = vm1 * vm2 * np.sin(phi) / np.where(base > 0, base, np.inf)
         v_goal = np.minimum(v_goal, np.maximum(v_alt, v_plane))
         d_tol = np.cos(th) * tol / (1 - np.sin(th))
-        d_geom = np.minimum(np.minimum(0.5 * n1, 0.5 * n2), d_tol)
+        d_geom = np.minimum(np.minimum(side1, side2), d_tol)
         d_geom = np.minimum(d_geom, np.minimum(pc.length[:-1], pc.length[1:]))
         r_geom = np.tan(th) * d_geom
         v_plan = np.minimum(np.sqrt(a_n * r_geom), v_goal)
