@@ -25,7 +25,7 @@ from feedlog.sim import simulate
 ROOT = Path(__file__).resolve().parents[1]
 def _rules(share: bool, as_lines: bool, curved: bool, sync: bool = False) -> dict:
     return {"lookahead": {"arc_share_from_speed": share}, "naive_cam": {"arcs_as_lines": as_lines},
-            "blend_arc": {"curved_blend_speed": curved, "sync_stop": sync}}
+            "blend_arc": {"curved_blend_speed": curved, "sync_stop": sync, "arc_side_lengths": sync}}
 
 
 # cumulative: none of the rules, then the share, then the split, then the curved corners, then the stop
