@@ -116,7 +116,8 @@ class ReplayAgent:
         self.buffer_size = buffer_size
         self.start_delay_s = start_delay_s
         self.instance = str(int(time.time()))
-        self.lock = threading.Lock()
+        self.lock = threading.RLock()
+        self.produced = 0       # observations replayed so far (the producer and a restart share it)
         self.buffer: collections.deque = collections.deque(maxlen=buffer_size)   # (seq, item, t_ns, text)
         self.latest: dict[str, tuple[int, str, int, str]] = {}
         self.history: list[tuple[int, str, int, str]] = []    # every observation (for current?at=)
@@ -170,19 +171,33 @@ class ReplayAgent:
     def _produce(self) -> None:
         while time.time_ns() < self.t0_ns and not self.closed.is_set():
             time.sleep(0.005)
-        for t_rel, item, text, *stamp in self.observations:   # (an agent replaying a log keeps its times)
-            due = self.t0_ns + t_rel
-            while time.time_ns() < due and not self.closed.is_set():
-                time.sleep(min(0.002, max(0.0, (due - time.time_ns()) / 1e9)))
-            if self.closed.is_set():
+        while not self.closed.is_set():
+            with self.lock:     # (an agent replaying a log keeps its times)
+                due = self._add_due(time.time_ns())
+            if due is None:
+                self.finished.set()
                 return
+            time.sleep(min(0.002, max(0.0, (due - time.time_ns()) / 1e9)))
+
+    def _add_due(self, now: int) -> int | None:
+        """Add every observation due by `now` (the lock held); the next one's due time, None at the end."""
+        while self.produced < len(self.observations):
+            t_rel, item, text, *stamp = self.observations[self.produced]
+            due = self.t0_ns + t_rel
+            if due > now:
+                return due
             self._add(item, stamp[0] if stamp else due, text)
-        self.finished.set()
+            self.produced += 1
+        return None
 
     def restart(self) -> None:
         """As if the agent process restarted: a new instanceId, sequences from 1, an empty buffer
         that starts with the values the adapter sends on connecting (its whole state); open streams end."""
         with self.lock:
+            # what the replay was due to send by now is sent first: a replayed observation stamped before
+            # the restart must not arrive after the state stamped at it (a flake under load)
+            now = time.time_ns() // 1000 * 1000
+            self._add_due(now)
             state = {item: entry[3] for item, entry in self.latest.items()}
             self.instance = str(int(self.instance) + 1)
             self.buffer.clear()
@@ -190,9 +205,8 @@ class ReplayAgent:
             self.latest.clear()
             self.next_seq = 1
             self.generation += 1
-        now = time.time_ns() // 1000 * 1000
-        for item, text in state.items():
-            self._add(item, now, text)
+            for item, text in state.items():
+                self._add(item, now, text)
         self.events.append(("restart", 1, 1))
 
     def first_seq(self) -> int:
