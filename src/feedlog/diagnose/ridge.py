@@ -35,7 +35,7 @@ from feedlog.diagnose.joint import joint_fit, loss
 CHI2 = 3.84                      # 95 % for one parameter (as calibrate)
 STEP_TOLERANCE = 1.1             # the refitted loss may be this many times the best and stay on the ridge
 FACTORS = (1.05, 1.1, 1.15, 1.2, 1.3, 1.45, 1.7, 2.0, 3.0)   # velocity moved outwards by these factors
-MIN_SPAN = 1.1                   # a ridge this wide (velocity high / low end) makes a pair
+MIN_SPAN = 1.05                  # a ridge this wide (velocity high / low end) makes a pair
 
 
 @dataclass
