@@ -11,8 +11,12 @@ interval (+- 1.96 standard errors of the joint fit, `joint.spread`: there the ot
 so two limits fitted on the same moves widen each other's). A parameter is *constrained*
 when the interval closes on both sides within the search bounds; one the recordings only bound from
 below (an axis that never reached its limit) keeps the larger of the profile's value and that bound,
-and is reported as not constrained. Every recording is also held out in turn (the joint fit on the
-others, scored on it), so the gain is judged on data the fit did not see.
+and is reported as not constrained. An axis whose velocity and acceleration limit trade off along a
+ridge (`ridge.py`: a faster Z with a slower acceleration fits five-axis recordings as well) is reported
+as a pair, neither constrained alone, with the ridge's ends and the calibration air-cut that separates
+them; the Gauss-Newton widening is taken over the limits the scan closed in off any ridge. Every
+recording is also held out in turn (the joint fit on the others, scored on it), so the gain is judged on
+data the fit did not see.
 
 The result goes into the written profile as its `[coverage]` table (`feedlog.coverage`), which `feedlog
 sim` checks a program against; `feedlog program --calibration` writes the air-cut program for what is
@@ -133,8 +137,8 @@ def _widen(hyp: Hypothesis, value: float, scan: tuple[float | None, float | None
     lo, hi = scan
     if not np.isfinite(sigma):
         return lo, None if hi is None else None
-    if hyp.scale == "log":
-        g_lo, g_hi = value * np.exp(-Z95 * sigma), value * np.exp(Z95 * sigma)
+    if hyp.scale == "log":  # (a spread beyond e^50 is open either way: no overflow warning)
+        g_lo, g_hi = value * np.exp(-min(Z95 * sigma, 50.0)), value * np.exp(min(Z95 * sigma, 50.0))
     else:
         span = hyp.upper - hyp.lower
         g_lo, g_hi = value - Z95 * sigma * span, value + Z95 * sigma * span
