@@ -8,6 +8,9 @@ HAL parameters of the copied HAL files changed (`hal_params={"xyzac-trt-kins.y-o
 trunnion's geometry).
 `feedlog diagnose`'s integration tests and the bundled mystery machine (scripts/make_recordings.py)
 are made this way: record on the variant, diagnose with the shipped profile, expect the change back.
+A `backlash={joint: width_mm}` puts mechanical play between a joint's simulated drive and its position
+feedback, as a table with lost motion in its screw measured by a linear scale would show it (LinuxCNC
+ships no play component, so it is made of three standard ones, PLAY_HAL).
 """
 
 from __future__ import annotations
@@ -32,6 +35,26 @@ setp {name}.gain {gain:.9f}
 """
 
 
+# play (backlash) of `width` between joint {joint}'s drive and its feedback: the measured table position p
+# follows the drive's d only where d has crossed the play, p += deadzone(d - p, width), every servo cycle.
+# Added after basic_sim's mux (the drive as the motion controller commanded it this cycle), it feeds
+# motor-pos-fb, which the motion controller reads next cycle: the same one-cycle delay as without it.
+PLAY_HAL = """# mechanical play of {width} mm on joint {joint}: the feedback is a play operator of the drive position
+loadrt sum2 names={name}_diff,{name}_pos
+loadrt deadzone names={name}_dz
+addf {name}_diff servo-thread
+addf {name}_dz servo-thread
+addf {name}_pos servo-thread
+setp {name}_diff.gain1 -1
+setp {name}_dz.threshold {width:.9f}
+unlinkp joint.{joint}.motor-pos-fb
+net J{joint}:pos-fb => {name}_diff.in0
+net J{joint}:play-gap {name}_diff.out => {name}_dz.in
+net J{joint}:play-take {name}_dz.out => {name}_pos.in1
+net J{joint}:table-pos {name}_pos.out => {name}_pos.in0 {name}_diff.in1 joint.{joint}.motor-pos-fb
+"""
+
+
 def set_ini_key(text: str, section: str, key: str, value: object) -> str:
     """`text` with `key = value` in `[section]` (replaced where it is, else added at the section's top)."""
     pattern = re.compile(rf"(^\[{re.escape(section)}\]\n(?:(?!^\[).*\n)*?)^{re.escape(key)}\s*=.*$", re.M)
@@ -53,7 +76,8 @@ def set_hal_param(text: str, param: str, value: object) -> str:
 
 def derive_machine(base: str, folder: str | Path, *, changes: Iterable[tuple[str, str, object]] = (),
                    feedback_lag: Mapping[int, float] | None = None, name: str | None = None,
-                   hal_params: Mapping[str, object] | None = None) -> Path:
+                   hal_params: Mapping[str, object] | None = None,
+                   backlash: Mapping[int, float] | None = None) -> Path:
     """Write the variant's INI (and its HAL files) into `folder`; return the INI's path."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -78,9 +102,13 @@ def derive_machine(base: str, folder: str | Path, *, changes: Iterable[tuple[str
         gain = 1.0 - math.exp(-period_s / tau)
         (folder / hal_name).write_text(LAG_HAL.format(joint=joint, name=f"feedlog_lag_j{joint}", gain=gain))
         extra.append(f"HALFILE = {hal_name}")
+    for joint, width in sorted((backlash or {}).items()):
+        hal_name = f"play_j{joint}.hal"
+        (folder / hal_name).write_text(PLAY_HAL.format(joint=joint, name=f"feedlog_play_j{joint}", width=width))
+        extra.append(f"HALFILE = {hal_name}")
     if extra:
         if RECORDER_HALFILE not in text:
-            raise ValueError("the base INI has no recorder HALFILE line to put the lag before")
+            raise ValueError("the base INI has no recorder HALFILE line to put the lag or play before")
         text = text.replace(RECORDER_HALFILE, "\n".join([*extra, RECORDER_HALFILE]))
     ini = folder / f"{name or folder.name}.ini"
     ini.write_text(text)

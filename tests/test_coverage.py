@@ -39,6 +39,13 @@ def test_a_newer_or_malformed_coverage_is_refused_naming_the_file():
         _fitted({**COVERAGE, "format_version": 2})
     with pytest.raises(ProfileError, match=r"\[coverage.axes\] must hold one table per entry"):
         _fitted({**COVERAGE, "axes": {"z": 3}})
+    params = COVERAGE["parameters"]
+    for pair in (3, "axes.z.vel_max", "axes.q.acc_max"):   # not a string, itself, not in the table
+        bad = {**params, "axes.z.vel_max": {**params["axes.z.vel_max"], "pair": pair}}
+        with pytest.raises(ProfileError, match=r"fitted.toml.*axes.z.vel_max.*pair must name another parameter"):
+            _fitted({**COVERAGE, "parameters": bad})
+    good = {**params, "axes.z.vel_max": {**params["axes.z.vel_max"], "pair": "axes.z.acc_max"}}
+    assert _fitted({**COVERAGE, "parameters": good}).coverage["parameters"]["axes.z.vel_max"]["pair"] == "axes.z.acc_max"
 
 
 @seed(31)

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+
 import pytest
 
 from feedlog.errors import FeedlogError, ModelError, ProfileError
@@ -53,6 +57,25 @@ def test_load_runs_once_on_first_use_and_again_after_a_failure():
     assert len(calls) == 2
     with pytest.raises(FeedlogError, match=r"unknown number 'two'; shipped: half, one \(or a path\)$"):
         reg.get("two")
+
+
+def test_threads_asking_at_once_wait_for_one_load_and_see_it_whole():
+    # two LinuxCNC sessions recorded from two threads both looked up a shipped profile on first use: the
+    # second saw the registry cleared of its loader but not yet filled ("shipped: " with nothing after it)
+    started, calls = threading.Event(), []
+
+    def load(reg: Registry[int]) -> None:
+        calls.append(1)
+        started.set()
+        time.sleep(0.2)            # the other thread asks meanwhile
+        reg.add("one", 1)
+    reg: Registry[int] = Registry("number", load=load)
+    with ThreadPoolExecutor(2) as pool:
+        first = pool.submit(reg.get, "one")
+        started.wait(5)
+        second = pool.submit(reg.get, "one")
+        assert (first.result(), second.result()) == (1, 1)
+    assert calls == [1]
 
 
 def test_unknown_name_is_the_error_of_the_string_registries_too():

@@ -22,6 +22,7 @@ are the planner's, which no axis limit covers.
     [coverage.parameters."axes.z.vel_max"]
     constrained = false
     interval = [40.1, 750.0] # the values the recordings allow (profile likelihood, 95 %)
+    pair = "axes.z.acc_max"  # optional: a limit it trades off against (the interval: along their ridge)
 """
 
 from __future__ import annotations
@@ -55,6 +56,11 @@ def check(coverage: Mapping[str, Any], where: str) -> None:
         table = coverage.get(key, {})
         if not isinstance(table, dict) or not all(isinstance(v, dict) for v in table.values()):
             raise ProfileError(f"{where}: [coverage.{key}] must hold one table per entry")
+    for name, entry in coverage.get("parameters", {}).items():
+        pair = entry.get("pair")  # the limit it trades off against (diagnose --calibrate): one of the others
+        if pair is not None and (not isinstance(pair, str) or pair == name or pair not in coverage["parameters"]):
+            raise ProfileError(f"{where}: [coverage.parameters.\"{name}\"] pair must name another parameter of "
+                               f"the table, got {pair!r}")
 
 
 def move_lengths(blocks: Any, axes: tuple[str, ...]) -> dict[str, float]:

@@ -14,6 +14,7 @@ that says it otherwise). An import error inside an existing module (a missing de
 from __future__ import annotations
 
 import importlib
+import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
@@ -74,6 +75,8 @@ class Registry(Generic[T]):
         self.what, self.error, self.known_word, self.hint = what, error, known_word, hint
         self.sort_known, self.unavailable = sort_known, unavailable
         self._load = load
+        self._loaded = load is None
+        self._lock = threading.RLock()   # one thread fills it; the others wait (threads that record at once)
         self._entries: dict[str, T | _Lazy] = {}
         self._docs: dict[str, str] = {}
 
@@ -173,10 +176,15 @@ class Registry(Generic[T]):
         return self.get(name)
 
     def _ensure_loaded(self) -> None:
-        load, self._load = self._load, None   # cleared first: loading adds entries (and may look them up)
-        if load is not None:
+        if self._loaded:
+            return
+        with self._lock:  # another thread asking meanwhile waits here instead of seeing a half-filled registry
+            load, self._load = self._load, None   # cleared first: loading adds entries (and may look them up)
+            if load is None:                      # the loading thread itself, looking an entry up
+                return
             try:
                 load(self)
             except BaseException:
                 self._load = load                 # a failed load is tried again, not taken as complete
                 raise
+            self._loaded = True

@@ -37,7 +37,8 @@ def make_hidden(name: str, *, values=None, mechanisms=None, programs=PAIR, rate_
     truth = with_values(load_profile(base), values) if values else load_profile(base)
     recordings = []
     for i, program in enumerate(programs):
-        text = (PROGRAMS / f"{program}.ngc").read_text()
+        # a bundled program's name, or (name, G-code text) for a program made by the test
+        program, text = program if isinstance(program, tuple) else (program, (PROGRAMS / f"{program}.ngc").read_text())
         text = program_edit(text) if program_edit is not None else text
         run = edit(text) if edit is not None and i == len(programs) - 1 else text
         result = simulate(parse_program(run, name=program), truth, mechanisms=mechanisms)

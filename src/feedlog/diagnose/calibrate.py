@@ -11,8 +11,12 @@ interval (+- 1.96 standard errors of the joint fit, `joint.spread`: there the ot
 so two limits fitted on the same moves widen each other's). A parameter is *constrained*
 when the interval closes on both sides within the search bounds; one the recordings only bound from
 below (an axis that never reached its limit) keeps the larger of the profile's value and that bound,
-and is reported as not constrained. Every recording is also held out in turn (the joint fit on the
-others, scored on it), so the gain is judged on data the fit did not see.
+and is reported as not constrained. An axis whose velocity and acceleration limit trade off along a
+ridge (`ridge.py`: a faster Z with a slower acceleration fits five-axis recordings as well) is reported
+as a pair, neither constrained alone, with the ridge's ends and the calibration air-cut that separates
+them; the Gauss-Newton widening is taken over the limits the scan closed in off any ridge. Every
+recording is also held out in turn (the joint fit on the others, scored on it), so the gain is judged on
+data the fit did not see.
 
 The result goes into the written profile as its `[coverage]` table (`feedlog.coverage`), which `feedlog
 sim` checks a program against; `feedlog program --calibration` writes the air-cut program for what is
@@ -34,6 +38,8 @@ from feedlog.diagnose.evidence import Evidence
 from feedlog.diagnose.fit import Scorer
 from feedlog.diagnose.hypothesis import Hypothesis, family
 from feedlog.diagnose.joint import joint_fit, spread
+from feedlog.diagnose.ridge import Pair, ridges
+from feedlog.diagnose.separate import separating_program
 from feedlog.profile import MachineProfile
 
 CHI2 = 3.84                     # 95 % for one parameter
@@ -49,10 +55,13 @@ class Parameter:
     fitted_value: float
     constrained: bool
     interval: tuple[float | None, float | None]     # None: open on that side (the search bound reached)
+    pair: str | None = None                          # the limit it trades off against (`ridge`): the pair is
+    # pinned, each alone is not; `interval` is then the ridge's extent
 
     def as_dict(self) -> dict[str, Any]:
         return {"parameter": self.key, "profile_value": self.profile_value, "fitted_value": self.fitted_value,
-                "constrained": self.constrained, "interval": list(self.interval)}
+                "constrained": self.constrained, "interval": list(self.interval),
+                **({"pair": self.pair} if self.pair else {})}
 
 
 @dataclass
@@ -61,10 +70,11 @@ class Calibration:
     parameters: list[Parameter]
     axes: dict[str, dict[str, Any]]                 # observed per axis (coverage.axes)
     held_out: list[dict[str, Any]] = field(default_factory=list)   # per recording: error before / after (%)
+    pairs: list[Pair] = field(default_factory=list)                 # limits the recordings cannot tell apart
 
     def as_dict(self) -> dict[str, Any]:
         return {"parameters": [p.as_dict() for p in self.parameters], "axes": self.axes,
-                "held_out": self.held_out}
+                "held_out": self.held_out, "pairs": [r.as_dict() for r in self.pairs]}
 
     @property
     def unconstrained(self) -> list[str]:
@@ -127,8 +137,8 @@ def _widen(hyp: Hypothesis, value: float, scan: tuple[float | None, float | None
     lo, hi = scan
     if not np.isfinite(sigma):
         return lo, None if hi is None else None
-    if hyp.scale == "log":
-        g_lo, g_hi = value * np.exp(-Z95 * sigma), value * np.exp(Z95 * sigma)
+    if hyp.scale == "log":  # (a spread beyond e^50 is open either way: no overflow warning)
+        g_lo, g_hi = value * np.exp(-min(Z95 * sigma, 50.0)), value * np.exp(min(Z95 * sigma, 50.0))
     else:
         span = hyp.upper - hyp.lower
         g_lo, g_hi = value - Z95 * sigma * span, value + Z95 * sigma * span
@@ -147,11 +157,34 @@ def calibrate(profile: MachineProfile, cases: Sequence[Case], ev: Evidence, *, m
     say(f"calibrating {len(hyps)} axis limits together on {len(cases)} recording(s)")
     model = joint_fit(scorer, start, hyps)
     n = float(sum(w.sum() for w in scorer.weights))
-    sigma = spread(scorer, model, hyps)
+    scans = {h.key: _interval(scorer, model, h, n) for h in hyps}
+    closed = [h for h in hyps if None not in scans[h.key]]
+    say("looking for pairs of limits the recordings cannot tell apart")
+    found = ridges(scorer, model, closed, n, scans)
+    for r in found:  # a velocity free along its ridge on its own: its scan widened to the ridge's ends
+        if not r.trade_off:
+            key = r.keys[0]
+            lo, hi = scans[key]
+            scans[key] = (None if r.open_ends[0] else min(lo, r.low[key]), None if r.open_ends[1] else max(hi, r.high[key]))
+    pairs = [r for r in found if r.trade_off]
+    closed = [h for h in hyps if None not in scans[h.key]]
+    on_ridge = {k: r for r in pairs for k in r.keys}
+    # the Gauss-Newton spread of the limits the scan closed in, off any ridge: a limit whose loss stays
+    # flat above it (a velocity never reached) or a pair on a ridge makes J'J singular and blows up the
+    # spread of every limit fitted beside it (a Z pair fitted on its ridge, 351.6 / 39.3 for 350 / 40,
+    # was reported open on both sides and replaced by generic-xyzac's 2000 / 250)
+    sigma = spread(scorer, model, [h for h in closed if h.key not in on_ridge])
     params = []
     for h in hyps:
-        lo, hi = _widen(h, float(model[h.key]), _interval(scorer, model, h, n), sigma.get(h.key, float("inf")))
         value = float(model[h.key])
+        ridge = on_ridge.get(h.key)
+        if ridge is not None:  # jointly pinned, each alone not: the fitted point of the ridge, its ends
+            ends = (ridge.low[h.key], ridge.high[h.key])
+            params.append(Parameter(key=h.key, profile_value=float(h.baseline), fitted_value=value,
+                                    constrained=False, interval=(min(ends), max(ends)),
+                                    pair=next(k for k in ridge.keys if k != h.key)))
+            continue
+        lo, hi = _widen(h, value, scans[h.key], sigma.get(h.key, float("inf")))
         constrained = lo is not None and hi is not None
         if hi is None:  # bounded from below only: the limit never bound and the fit's value is arbitrary
             # (on LinuxCNC recordings an X limit drifted to the search bound): the profile's, or the bound
@@ -166,11 +199,14 @@ def calibrate(profile: MachineProfile, cases: Sequence[Case], ev: Evidence, *, m
                 "parameters": {p.key: {"constrained": p.constrained,
                                        "interval": [x for x in p.interval if x is not None] if p.constrained else
                                        [p.interval[0] if p.interval[0] is not None else h.lower,
-                                        p.interval[1] if p.interval[1] is not None else h.upper]}
+                                        p.interval[1] if p.interval[1] is not None else h.upper],
+                                       **({"pair": p.pair} if p.pair else {})}
                                for p, h in zip(params, hyps)}}
     fitted = keys.with_values(profile, final, name=f"{profile.name}-calibrated")
     fitted = replace(fitted, coverage=coverage)
-    cal = Calibration(profile=fitted, parameters=params, axes=axes)
+    for r in pairs:  # the air-cut whose time differs most between the ridge's two ends
+        r.separated_by = separating_program(fitted, r.low, r.high)
+    cal = Calibration(profile=fitted, parameters=params, axes=axes, pairs=pairs)
     cal.held_out = _held_out(scorer, start, hyps, final)
     return cal
 

@@ -102,10 +102,23 @@ def calibration_lines(cal) -> list[str]:
         if p.constrained:
             out.append(f"calibrated {p.key} = {p.fitted_value:.4g} (profile {p.profile_value:.4g}), constrained: "
                        f"{p.interval[0]:.4g} .. {p.interval[1]:.4g}{obs_text}")
+        elif p.pair:
+            out.append(f"calibrated {p.key} = {p.fitted_value:.4g}: NOT constrained on its own, a pair with "
+                       f"{p.pair} (below){obs_text}")
         else:
             low = "" if p.interval[0] is None else f" at least {p.interval[0]:.4g}"
             out.append(f"calibrated {p.key} = {p.fitted_value:.4g}: NOT constrained by these recordings{low}"
                        f"{obs_text}; record a program that drives it (feedlog program --calibration)")
+    for r in cal.pairs:
+        (v, a), ends = r.keys, (r.low, r.high)
+        reach = ["" if not o else (" or lower" if i == 0 else " or higher") for i, o in enumerate(r.open_ends)]
+        out.append(f"pair {v} and {a}: these recordings fit as well with {ends[0][v]:.4g}{reach[0]} and {ends[0][a]:.4g} "
+                   f"as with {ends[1][v]:.4g}{reach[1]} and {ends[1][a]:.4g} (fitted {r.fitted[v]:.4g} and "
+                   f"{r.fitted[a]:.4g}): the pair is pinned, each alone is not")
+        sep = r.separated_by
+        out.append(f"  to tell them apart record: {sep['program']} (predicted {sep['cycle_s'][0]:.3f} s against "
+                   f"{sep['cycle_s'][1]:.3f} s at the two ends)" if sep else
+                   "  no calibration air-cut tells them apart: record other kinds of programs")
     for h in cal.held_out:
         out.append(f"  held out {h['recording']}: {_signed(h['error_before_pct'])} -> {_signed(h['error_after_pct'])}")
     return out
