@@ -5,6 +5,7 @@ on those files (docs/diagnose.md, "Line stream only")."""
 from __future__ import annotations
 
 import json
+from datetime import datetime
 from pathlib import Path
 
 import pytest
@@ -71,6 +72,21 @@ def test_diagnose_explains_the_cycle_from_the_line_stream(box, capsys):
     assert fit["held_out_error_after_pct"] < fit["held_out_error_before_pct"]
     assert fit["values"]["sim.tool_change.time_s"] == pytest.approx(6.94, abs=0.01)
     assert abs(f["error_before_pct"]) > 30 and abs(f["error_after_pct"]) < 2
+    # the recorded rapid override (`Rapid_Override`): read from the file here, the dial's last rise to 100 %
+    # after the first block (Block_Number 8) started, and the wait at line 9 ran with the dial turned down
+    stamps = {}
+    for row in HURCO.read_text().splitlines():
+        fields = row.split("|")
+        for key, value in zip(fields[1::2], fields[2::2]):
+            stamps.setdefault((key, value), []).append(datetime.fromisoformat(fields[0][:26]))
+    start = stamps[("Block_Number", "8")][0]
+    full = stamps[("Rapid_Override", "100.000000")][-1]
+    rd = f["rapid_override"]
+    assert rd["min"] == 0.0 and rd["full_from_s"] == pytest.approx((full - start).total_seconds(), abs=1e-3)
+    assert 0 < rd["below_full_s"] <= rd["full_from_s"]
+    (slow,) = rd["events_below_full"]
+    assert (slow["kind"], slow["recorded_line"]) == ("wait on M codes", 9) and slow["rapid_override_mean"] < 0.5
+    assert "recorded rapid override: lowest 0 %" in printed
     profile = (out / "profile.toml").read_text()
     assert "[sim.tool_change]" in profile and "time_s = 6.938" in profile
     # the fitted profile simulates the program with the tool change in it

@@ -52,6 +52,15 @@ def summary_lines(ld: LineDiagnosis) -> list[str]:
     for kind, s in sorted(f["events_s"].items()):
         count = int((ld.session.events["kind"] == kind).sum())
         out.append(f"  {kind}: {count} x, {s:.2f} s ({100 * s / f['measured_cycle_s']:.1f} % of the cycle)")
+    rd = f.get("rapid_override")
+    if rd is not None and rd["min"] is not None:
+        text = (f"  recorded rapid override: lowest {100 * rd['min']:.0f} %, below 100 % for {rd['below_full_s']:.2f} s"
+                + (f" (at 100 % from {rd['full_from_s']:.2f} s on)" if rd["full_from_s"] is not None else ""))
+        slow = [f"{e['kind']} at recorded line {e['recorded_line']} ({e['duration_s']:.2f} s, dial "
+                f"{100 * e['rapid_override_mean']:.0f} % on average)" for e in rd["events_below_full"]]
+        out.append(text + ("; during " + ", ".join(slow) if slow else "")
+                   + (f"; rapid factor where it read 100 %: {fit['k_rapid_full_dial']:.3f}"
+                      if fit.get("k_rapid_full_dial") is not None and np.isfinite(fit["k_rapid_full_dial"]) else ""))
     kf = ", ".join(f"tool section {s}: {k:.3f}" for s, k in zip(fit["sections"], fit["k_feed"]) if np.isfinite(k))
     out.append(f"  motion: {f['motion_measured_s']:.2f} s measured outside the events; time factors "
                f"(measured / simulated) feed {kf or 'n/a'}; rapid "
