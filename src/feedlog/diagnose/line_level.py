@@ -116,9 +116,12 @@ def intervals(session: Session, lines: pd.DataFrame, tool_lines: list[int]) -> p
     before_feed = pd.Series(np.r_[0.0, lines["feed_s"].cumsum().to_numpy()[:-1]], index=lines.index)
     before_rapid = pd.Series(np.r_[0.0, lines["rapid_s"].cumsum().to_numpy()[:-1]], index=lines.index)
     out = []
+    offs = session.line_map.offsets
     for i, j in zip(rows[:-1], rows[1:]):
         pa, pb = int(pl[i]), int(pl[j])
         if pb <= pa or not np.isfinite(pl[i:j + 1]).all():   # backwards, or over runs the data cannot place
+            continue
+        if len(offs) == len(pl) and offs[i] != offs[j]:    # lines inserted or removed in between: no block time
             continue
         t0, t1 = start[i], start[j]
         inside = float(evs[(ev0 >= t0) & (ev1 <= t1)].sum())
@@ -220,6 +223,26 @@ def fit_factors(iv: pd.DataFrame) -> dict[str, Any]:
             "fitted_s": float(_predict(iv, sections, k_feed, k_rapid).sum())}
 
 
+def stretch_figures(session: Session, iv: pd.DataFrame, fit: dict[str, Any]) -> list[dict[str, Any]]:
+    """The stretches placed between the first mismatch and the anchor (`line_stretches`): their lines and
+    offset, and per stretch the measured seconds of its intervals (events out) against the simulated
+    ones and the ones the fitted factors predict."""
+    out = []
+    pred = _predict(iv, fit["sections"], fit["k_feed"], fit["k_rapid"]) if len(iv) else np.empty(0)
+    for st in session.line_map.stretches:
+        lo, hi = st["program_lines"]
+        inside = (iv["from_line"] >= lo).to_numpy() & (iv["to_line"] <= hi).to_numpy() if len(iv) else np.empty(0, bool)
+        part = iv[inside]
+        out.append({**st, "intervals": int(inside.sum()), "measured_s": float(part["measured_s"].sum()),
+                    "simulated_s": float((part["feed_s"] + part["rapid_s"]).sum()),
+                    "fitted_s": float(pred[inside].sum()),
+                    "blocks": [{"from_line": int(r["from_line"]), "to_line": int(r["to_line"]),
+                                "recorded_from_line": int(r["from_line"]) + st["offset"],
+                                "measured_s": float(r["measured_s"]), "simulated_s": float(r["feed_s"] + r["rapid_s"])}
+                               for r in part.to_dict("records")]})
+    return out
+
+
 def diagnose_lines(recording: Recording, profile: MachineProfile | str | None, program: Any, *,
                    lenient: bool = False, numbering: str = "auto") -> LineDiagnosis:
     """See the module docstring."""
@@ -280,6 +303,10 @@ def diagnose_lines(recording: Recording, profile: MachineProfile | str | None, p
         "line_period_s": float(np.median(np.diff(stream["t_ns"].to_numpy(np.int64)))) / 1e9,
     }
     figures["rapid_override"] = rapid_dial_figures(recording, session)
+    # the motion time (events out) compared stretch by stretch between placed line changes
+    figures["timed_per_block_s"] = float(iv["measured_s"].sum())
+    figures["timed_per_block_pct"] = 100 * float(iv["measured_s"].sum()) / figures["motion_measured_s"]
+    figures["stretches"] = stretch_figures(session, iv, fit)
     runs = session.runs
     figures["unplaced_s"] = float(runs.loc[runs["program_line"].isna(), "dur_s"].sum())
     figures["remaining_s"] = measured - figures["predicted_after_s"]
@@ -289,4 +316,5 @@ def diagnose_lines(recording: Recording, profile: MachineProfile | str | None, p
                          figures=figures, fit=fit, warnings=list(session.warnings))
 
 
-__all__ = ["BLIND", "LineDiagnosis", "LineDiagnoseError", "diagnose_lines", "fit_factors", "intervals"]
+__all__ = ["BLIND", "LineDiagnosis", "LineDiagnoseError", "diagnose_lines", "fit_factors", "intervals",
+           "stretch_figures"]

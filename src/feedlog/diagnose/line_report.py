@@ -47,6 +47,15 @@ def summary_lines(ld: LineDiagnosis) -> list[str]:
     lm = ld.session.line_map
     if lm.first_mismatch is not None:
         out.append("  program mismatch: " + (lm.warning("the program") or ""))
+    for st in f.get("stretches", []):
+        if st["established"]:
+            out.append(f"  placed after the mismatch: recorded {st['recorded_lines'][0]}-{st['recorded_lines'][1]} = program "
+                       f"{st['program_lines'][0]}-{st['program_lines'][1]} ({st['offset']:+d}): {st['intervals']} "
+                       f"stretches, {st['measured_s']:.2f} s measured, {st['simulated_s']:.2f} s simulated, "
+                       f"{st['fitted_s']:.2f} s with the fitted factors")
+    if "timed_per_block_s" in f:
+        out.append(f"  timed between placed line changes: {f['timed_per_block_s']:.2f} s of the "
+                   f"{f['motion_measured_s']:.2f} s of motion ({f['timed_per_block_pct']:.1f} %)")
     out.append(f"  cycle: measured {f['measured_cycle_s']:.2f} s, simulated {f['simulated_cycle_s']:.2f} s "
                f"({f['error_before_pct']:+.1f} %)")
     for kind, s in sorted(f["events_s"].items()):
@@ -94,6 +103,14 @@ def report_md(ld: LineDiagnosis) -> str:
     for e in ld.session.events.to_dict("records"):
         lines.append(f"| {e['kind']} | {e['recorded_line']} | {e['program_line'] if e['program_line'] is not None else '?'} "
                      f"| {e['m_codes']} | {(e['t_start_ns'] - t0) / 1e9:.2f} | {e['duration_s']:.2f} | {e['spindle_off']} |")
+    for st in ld.figures.get("stretches", []):
+        if not st["established"]:
+            continue
+        lines += ["", f"## Placed after the mismatch: recorded {st['recorded_lines'][0]}-{st['recorded_lines'][1]} = "
+                  f"program {st['program_lines'][0]}-{st['program_lines'][1]} ({st['offset']:+d})", "",
+                  "| program lines | recorded line | measured (s) | simulated (s) |", "|---|---|---|---|"]
+        lines += [f"| {b['from_line']}-{b['to_line']} | {b['recorded_from_line']} | {b['measured_s']:.3f} | "
+                  f"{b['simulated_s']:.3f} |" for b in st["blocks"]]
     lines += ["", "## Warnings", ""] + [f"- {w}" for w in ld.warnings] + [""]
     return "\n".join(lines)
 
