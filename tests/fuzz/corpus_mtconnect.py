@@ -155,6 +155,13 @@ def _nist(rng: random.Random) -> list[Case]:
             return case(f"{_l}-{name}", *a, **kw)
 
         cases += _damaged(labelled, data, rng, cuts=cuts, edits=1)
+    # the Hurco's dials and tool (Rapid_Override, Current_Tool): their own generator, so the cases above
+    # keep their mutations
+    own = random.Random(28)
+    for key, values in ((b"Rapid_Override", (b"NaN", b"fast", b"1e400", b"")), (b"Current_Tool", (b"21.5", b"T21", b"inf"))):
+        cases += [case(f"hurco-{key.decode().lower()}-{v.decode() or 'empty'}", _shdr_value(hurco, own, key, v), "error",
+                       lenient="ok") for v in values]
+    cases.append(case("hurco-rapid-override-over-100", _shdr_value(hurco, own, b"Rapid_Override", b"150"), "ok"))
     return cases
 
 

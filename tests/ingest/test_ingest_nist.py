@@ -26,10 +26,11 @@ def test_the_hurco_split_shdr_imports_with_no_options_and_says_what_it_mapped(tm
     out = tmp_path / "op2.mcap"
     assert main(["import", str(HURCO), "-o", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert "mapped: feed=Feed_Rate, line=Block_Number, spindle=Spindle_Speed (preset mtconnect-shdr)" in printed
+    assert ("mapped: feed=Feed_Rate, line=Block_Number, rapid_override=Rapid_Override, tool=Current_Tool, "
+            "spindle=Spindle_Speed (preset mtconnect-shdr)") in printed
     assert "no positions: align works on the line stream alone" in printed
     rec = read_recording(out)
-    assert set(rec.streams) == {"feed", "line", "spindle"}
+    assert set(rec.streams) == {"feed", "line", "spindle", "override", "tool"}
     lines = rec.streams["line"]["line"].to_numpy()
     assert lines[0] == 0 and lines[1] == 8          # idle, then the first block: line 8 counting `%` as line 1
     assert lines.max() == 1209
@@ -38,6 +39,42 @@ def test_the_hurco_split_shdr_imports_with_no_options_and_says_what_it_mapped(tm
     cutting = both[both["line"].between(1190, 1191) | both["line"].between(1200, 1202)]
     assert np.median(cutting["feed_mm_min"]) == pytest.approx(30 * 25.4, rel=0.01)
     assert rec.duration_s == pytest.approx(102.734, abs=0.001)  # first to last Block_Number/Feed_Rate/Spindle_Speed
+
+
+def _observations(key: str) -> list[tuple[np.datetime64, str]]:
+    """(time, value) of every observation of `key` in the Hurco file, read here line by line."""
+    out = []
+    for line in HURCO.read_text().splitlines():
+        fields = line.split("|")
+        out += [(np.datetime64(fields[0].rstrip("Z"), "ns"), fields[i + 1]) for i in range(1, len(fields) - 1, 2)
+                if fields[i] == key]
+    return out
+
+
+def _changes(t: np.ndarray, v: np.ndarray) -> list[tuple[int, float]]:
+    keep = np.r_[True, v[1:] != v[:-1]]
+    return list(zip(t[keep].tolist(), v[keep].tolist()))
+
+
+def test_the_hurco_rapid_override_and_current_tool_are_streams(tmp_path):
+    out = tmp_path / "op2.mcap"
+    assert main(["import", str(HURCO), "-o", str(out)]) == 0
+    rec = read_recording(out)
+    # the file, read here: each change of the dial (percent) and of the tool, with its time
+    rapid = _observations("Rapid_Override")
+    tool = _observations("Current_Tool")
+    assert len(rapid) == 54 and len(tool) == 2                    # what the file holds
+    t_rapid = np.array([t.astype(np.int64) for t, _ in rapid])
+    want = _changes(t_rapid, np.array([float(v) / 100 for _, v in rapid]))
+    ov = rec.streams["override"]
+    got = _changes(ov["t_ns"].to_numpy(np.int64), ov["rapid_override"].to_numpy(np.float64))
+    assert got == want
+    assert want[0][1] == pytest.approx(0.54) and want[-1][1] == pytest.approx(1.0)   # turned up to 100 %
+    assert min(v for _, v in want) == 0.0                                            # from 0 % at the start
+    tl = rec.streams["tool"]
+    assert _changes(tl["t_ns"].to_numpy(np.int64), tl["tool"].to_numpy(np.int64)) == [
+        (int(t.astype(np.int64)), int(float(v))) for t, v in tool]
+    assert [int(float(v)) for _, v in tool] == [0, 21]        # T21 in the spindle after the M6
 
 
 def test_an_unknown_shdr_lists_its_real_keys_not_vector_items(tmp_path):

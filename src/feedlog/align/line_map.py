@@ -12,10 +12,10 @@ on, and part programs repeat their passes), so `map_lines` claims only what the 
   expects about that time is named as the likely place;
 - anchors after it: each program tool change (M6) against the recorded tool change (a standstill on
   one line with the spindle stopped, `session_events`), and the program's last block against the last
-  recorded line; when they agree, the runs from the first anchor on are mapped with that offset.
-
-Runs between the first mismatch and the first anchor are left out of block timing (their time still
-counts in the cycle); the report says so (`LineMap.as_dict`).
+  recorded line; when they agree, the runs from the first anchor on are mapped with that offset;
+- between the first mismatch and the first anchor, the offset per stretch (`line_stretches`): placed
+  where the line times establish it, the rest left out of block timing (their time still counts in the
+  cycle); the report says which (`LineMap.as_dict`: `stretches`, `offset_changes`).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from feedlog.align.line_numbering import EPS_S
+from feedlog.align.line_stretches import stretch_offsets
 
 MAX_OFFSET = 64       # lines the run program may be ahead of (or behind) the published one
 MISMATCH_S = 0.5      # a run this long ...
@@ -40,6 +41,8 @@ class LineMap:
     offsets: list[int | None]
     first_mismatch: dict | None = None
     anchors: list[dict] = field(default_factory=list)
+    stretches: list[dict] = field(default_factory=list)   # between the mismatch and the anchor (`line_stretches`)
+    changes: list[dict] = field(default_factory=list)     # where the offset changes there
 
     @property
     def matches(self) -> bool:
@@ -54,7 +57,8 @@ class LineMap:
         left_out = sum(o is None for o in self.offsets)
         return {"matches": self.matches, "first_mismatch": self.first_mismatch, "anchors": self.anchors,
                 "runs": len(self.offsets), "runs_left_out": left_out,
-                "offsets": sorted({int(o) for o in self.offsets if o is not None})}
+                "offsets": sorted({int(o) for o in self.offsets if o is not None}),
+                "stretches": self.stretches, "offset_changes": self.changes}
 
     def warning(self, program_name: str) -> str | None:
         if self.first_mismatch is None:
@@ -73,6 +77,11 @@ class LineMap:
             a = self.anchors[0]
             text += (f"; {a['what']} recorded on line {a['recorded_line']} is program line {a['program_line']} "
                      f"({a['offset']:+d})")
+        placed = [st for st in self.stretches if st["established"]]
+        if placed:
+            text += "; placed between them by the line times: " + ", ".join(
+                f"recorded {st['recorded_lines'][0]}-{st['recorded_lines'][1]} = program "
+                f"{st['program_lines'][0]}-{st['program_lines'][1]} ({st['offset']:+d})" for st in placed)
         left = sum(o is None for o in self.offsets)
         return text + (f"; {left} of {len(self.offsets)} line runs between them are left out of block timing"
                        if left else "")
@@ -127,6 +136,13 @@ def map_lines(run_lines: np.ndarray, run_s: np.ndarray, run_t_s: np.ndarray, exp
             r0 -= 1
         for r in range(r0, n):
             offsets[r] = off
+        if bad.any() and r0 - i >= 2:
+            # between the mismatch and the anchor: the offset per stretch, where the line times establish it
+            still = np.zeros(n) if still_s is None else np.asarray(still_s, dtype=np.float64)
+            between, stretches, changes = stretch_offsets(lines, np.asarray(run_t_s, dtype=np.float64), still, expected,
+                                                          i, r0, 0, off)
+            offsets[i:r0] = between
+            return LineMap(offsets, first, kept, stretches, changes)
     return LineMap(offsets, first, kept)
 
 

@@ -22,6 +22,7 @@ import pandas as pd
 
 from feedlog.align.attached import attached_program
 from feedlog.align.blocks import NO_TIME
+from feedlog.align.holds import find_holds, hold_free
 from feedlog.diagnose.progress import block_end_progress, crossing_times, sample_progress
 from feedlog.errors import AlignmentError, FeedlogError
 from feedlog.profile import LINEAR_AXES, MachineProfile, path_acc_limit
@@ -119,10 +120,26 @@ class Case:
     span_samples: tuple[tuple[float, float] | None, tuple[float, float] | None] | None = None
                                          # sparse data: (time from motion start, distance from where the
                                          # motion began / ends) of the first and last moving sample (`moving_samples`)
+    holds: pd.DataFrame | None = None    # still stretches inside the motion (`align.holds.find_holds`)
+    removed_s: list[tuple[float, float]] = field(default_factory=list)
+                                         # feed holds taken out of the comparison: (start, end) s from motion
+                                         # start on the recording's clock; cycle_s and block_end_s are without them
 
     @property
     def sparse(self) -> bool:
         return self.period_s > SPARSE_S
+
+    def compared_s(self, t_s: np.ndarray) -> np.ndarray:
+        """Recorded times (s from motion start) on the comparison's clock: the feed holds taken out."""
+        return hold_free(t_s, self.removed_s) if self.removed_s else np.asarray(t_s, dtype=np.float64)
+
+    def in_hold(self, t_s: np.ndarray) -> np.ndarray:
+        """Recorded times (s from motion start) after a feed hold's start up to its end: samples of the hold."""
+        t = np.asarray(t_s, dtype=np.float64)
+        out = np.zeros(t.shape, dtype=bool)
+        for a, b in self.removed_s:
+            out |= (t > a) & (t <= b)
+        return out
 
     @property
     def sim_input(self) -> Any:
@@ -325,8 +342,23 @@ def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, pro
         source_kind = "progress"
     line_info = alignment.report.get("line_stream") or {}
     offset = (line_info.get("offset_vs_geometry") or {}).get("offset_ns")
+    cycle = float(alignment.cycle_time_s)
+    still = float(alignment.report.get("still_mm", 1e-3))
+    holds = find_holds(axes, blocks, prog, span_ns=(t0, t0 + int(round(cycle * 1e9))), still_mm=still)
+    removed: list[tuple[float, float]] = []
+    if period <= SPARSE_S and holds["removed"].any():
+        # feed holds: out of the motion comparison (block ends and cycle); the sparse path is left as it is
+        removed = [((h["t_start_ns"] - t0) / 1e9, (h["t_end_ns"] - t0) / 1e9)
+                   for h in holds[holds["removed"]].to_dict("records")]
+        ends = pd.Series(hold_free(ends.to_numpy(np.float64), removed), index=ends.index)
+        cycle = float(hold_free(cycle, removed))
+        notes.append("feed hold(s) taken out of the comparison: " + "; ".join(
+            f"{h['duration_s']:.2f} s at line {h['line']} ({(h['t_start_ns'] - t0) / 1e9:.2f} s into the motion)"
+            for h in holds[holds["removed"]].to_dict("records")))
+    else:
+        holds = holds.assign(removed=False)
     return Case(name=name, source=src, recording=rec, program=prog, alignment=alignment, period_s=period, t0_ns=t0,
-                cycle_s=float(alignment.cycle_time_s), block_end_s=ends, block_source=source_kind,
+                cycle_s=cycle, block_end_s=ends, holds=holds, removed_s=removed, block_source=source_kind,
                 feedback=feedback_data(rec, profile), geometry=geometry_data(rec, profile), line_offset_s=None if offset is None else offset / 1e9,
                 line_offsets=line_offsets(alignment),
                 machine=machine_identity(rec), still_mm=float(alignment.report.get("still_mm", 1e-6)),

@@ -61,8 +61,9 @@ def _sim_positions(case: Case, sim, t_rel: np.ndarray, cols: list[str]) -> np.nd
 def _measured(case: Case, profile: MachineProfile) -> tuple[np.ndarray, np.ndarray, list[str]]:
     axes = case.recording.streams["axes"]
     cols = [c for c in position_columns(profile) if c in axes.columns]
-    t = (axes["t_ns"].to_numpy(np.int64) - case.t0_ns) / 1e9
-    keep = (t >= 0) & (t <= case.cycle_s)
+    raw = (axes["t_ns"].to_numpy(np.int64) - case.t0_ns) / 1e9
+    t = case.compared_s(raw)         # feed holds taken out, as the comparison has them
+    keep = (t >= 0) & (t <= case.cycle_s) & ~case.in_hold(raw)
     return t[keep], axes[cols].to_numpy(np.float64)[keep], cols
 
 
@@ -139,7 +140,8 @@ def progress_curves(case: Case, profile: MachineProfile, segments, sims: dict[st
     feed = case.recording.streams.get("feed")
     if feed is not None and "feed_mm_min" in feed.columns and len(feed) > 2:
         ft = (feed["t_ns"].to_numpy(np.int64) - case.t0_ns) / 1e9
-        speed = np.interp(t, ft, feed["feed_mm_min"].to_numpy(np.float64))
+        fk = ~case.in_hold(ft)
+        speed = np.interp(t, case.compared_s(ft)[fk], feed["feed_mm_min"].to_numpy(np.float64)[fk])
     grid = np.linspace(0.0, s_anchor[-1], GRID)
     out = {"s_mm": grid}
     t_anchor = np.concatenate([[0.0], segments.end_s])

@@ -12,7 +12,9 @@ lines between them, to be compared with the simulation's. What it does:
    simulation gives no time, and intervals over runs the data cannot place, are left out.
 3. The causes the block level can see: measured = k_feed,s x feed time (one k per tool section s: the
    feed override an operator sets per tool) + k_rapid x rapid time, each k the median ratio of the
-   intervals of that kind alone; and the tool change time (the recorded M6 events' median). Fitted on
+   intervals of that kind alone (with a recorded rapid override dial, the `override` stream, also the
+   rapid factor of the stretches where it read 100 %, and the dial's time below 100 % with the events it
+   covered); and the tool change time (the recorded M6 events' median). Fitted on
    every other interval and judged on the rest (held out), then on all.
 4. The extended profile (`sim.feed_override`, `sim.rapid_override`, `sim.tool_change`) and the cycle
    before and after: measured, simulated, the share that is tool change and other standstill, what
@@ -114,20 +116,71 @@ def intervals(session: Session, lines: pd.DataFrame, tool_lines: list[int]) -> p
     before_feed = pd.Series(np.r_[0.0, lines["feed_s"].cumsum().to_numpy()[:-1]], index=lines.index)
     before_rapid = pd.Series(np.r_[0.0, lines["rapid_s"].cumsum().to_numpy()[:-1]], index=lines.index)
     out = []
+    offs = session.line_map.offsets
     for i, j in zip(rows[:-1], rows[1:]):
         pa, pb = int(pl[i]), int(pl[j])
         if pb <= pa or not np.isfinite(pl[i:j + 1]).all():   # backwards, or over runs the data cannot place
+            continue
+        if len(offs) == len(pl) and offs[i] != offs[j]:    # lines inserted or removed in between: no block time
             continue
         t0, t1 = start[i], start[j]
         inside = float(evs[(ev0 >= t0) & (ev1 <= t1)].sum())
         out.append({"from_line": pa, "to_line": pb, "measured_s": (t1 - t0) / 1e9 - inside, "events_s": inside,
                     "feed_s": float(before_feed[pb] - before_feed[pa]),
                     "rapid_s": float(before_rapid[pb] - before_rapid[pa]),
-                    "section": int(np.searchsorted(tool_lines, pa))})
-    return pd.DataFrame(out, columns=["from_line", "to_line", "measured_s", "events_s", "feed_s", "rapid_s", "section"])
+                    "section": int(np.searchsorted(tool_lines, pa)), "t0_ns": int(t0), "t1_ns": int(t1)})
+    return pd.DataFrame(out, columns=["from_line", "to_line", "measured_s", "events_s", "feed_s", "rapid_s", "section",
+                                      "t0_ns", "t1_ns"])
 
 
 MIN_SIM_S = 0.1      # intervals the simulation gives less time than this say little against the sampling
+FULL_DIAL = 0.995    # a recorded override dial at or above this reads 100 %
+
+
+def dial(recording: Recording, column: str, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
+    """The recorded override dial (`override` stream, a fraction) over each [t0, t1): its held value
+    averaged over the time; NaN without the stream (or before its first value)."""
+    table = recording.streams.get("override")
+    out = np.full(len(t0), np.nan)
+    if table is None or column not in table.columns or not len(table):
+        return out
+    ts, v = table["t_ns"].to_numpy(np.int64), table[column].to_numpy(np.float64)
+    for k, (a, b) in enumerate(zip(np.asarray(t0, np.int64), np.asarray(t1, np.int64))):
+        a = max(int(a), int(ts[0]))         # the dial's value is known from its first sample on
+        if b <= a:
+            continue
+        i = int(np.searchsorted(ts, a, side="right")) - 1
+        j = int(np.searchsorted(ts, b, side="left"))
+        edges = np.r_[a, ts[i + 1:j], b]
+        out[k] = float(np.sum(v[i:j] * np.diff(edges)) / (b - a))
+    return out
+
+
+def rapid_dial_figures(recording: Recording, session: Session) -> dict[str, Any] | None:
+    """What the recorded rapid override dial says over the run (None without one): its lowest value,
+    the time the dial stood below 100 %, when it last came up to 100 % (s from the first run's start),
+    and the events that ran with it below 100 % (their mean dial)."""
+    table = recording.streams.get("override")
+    if table is None or "rapid_override" not in table.columns or not len(table):
+        return None
+    runs = session.runs
+    t_start, t_end = int(runs["t_start_ns"].iloc[0]), int(runs["t_end_ns"].iloc[-1])
+    ts, v = table["t_ns"].to_numpy(np.int64), table["rapid_override"].to_numpy(np.float64)
+    edges = np.clip(np.r_[ts, t_end], t_start, t_end)
+    below = float(np.diff(edges)[v < FULL_DIAL].sum()) / 1e9
+    inside = (ts < t_end) & (np.r_[ts[1:], t_end] > t_start)
+    low = np.flatnonzero(inside & (v < FULL_DIAL))
+    full_from = None
+    if len(low) and low[-1] + 1 < len(ts):
+        full_from = (int(ts[low[-1] + 1]) - t_start) / 1e9
+    ev = session.events
+    slow: list[dict[str, Any]] = []
+    if len(ev):
+        mean = dial(recording, "rapid_override", ev["t_start_ns"].to_numpy(np.int64), ev["t_end_ns"].to_numpy(np.int64))
+        slow = [{"kind": e["kind"], "recorded_line": e["recorded_line"], "duration_s": e["duration_s"],
+                 "rapid_override_mean": m} for e, m in zip(ev.to_dict("records"), mean) if np.isfinite(m) and m < FULL_DIAL]
+    return {"min": float(v[inside].min()) if inside.any() else None, "below_full_s": below,
+            "full_from_s": full_from, "events_below_full": slow}
 
 
 def _factors(iv: pd.DataFrame, sections: list[int]) -> tuple[list[float], float]:
@@ -160,10 +213,34 @@ def fit_factors(iv: pd.DataFrame) -> dict[str, Any]:
     before = float(np.abs(y[~even] - sim[~even]).sum() / y[~even].sum())
     after = float(np.abs(y[~even] - _predict(odd, sections, kf_half, kr_half)).sum() / y[~even].sum())
     k_feed, k_rapid = _factors(iv, sections)
-    return {"sections": sections, "k_feed": k_feed, "k_rapid": k_rapid,
+    full = None
+    if "rapid_override" in iv.columns and np.isfinite(iv["rapid_override"]).any():
+        # with a recorded rapid dial: the rapid factor of the stretches where it read 100 % (the machine's own)
+        _, full = _factors(iv[~(iv["rapid_override"] < FULL_DIAL)], sections)
+    return {"sections": sections, "k_feed": k_feed, "k_rapid": k_rapid, "k_rapid_full_dial": full,
             "held_out_error_before_pct": 100 * before, "held_out_error_after_pct": 100 * after,
             "intervals": int(len(iv)), "measured_s": float(y.sum()), "simulated_s": float(sim.sum()),
             "fitted_s": float(_predict(iv, sections, k_feed, k_rapid).sum())}
+
+
+def stretch_figures(session: Session, iv: pd.DataFrame, fit: dict[str, Any]) -> list[dict[str, Any]]:
+    """The stretches placed between the first mismatch and the anchor (`line_stretches`): their lines and
+    offset, and per stretch the measured seconds of its intervals (events out) against the simulated
+    ones and the ones the fitted factors predict."""
+    out = []
+    pred = _predict(iv, fit["sections"], fit["k_feed"], fit["k_rapid"]) if len(iv) else np.empty(0)
+    for st in session.line_map.stretches:
+        lo, hi = st["program_lines"]
+        inside = (iv["from_line"] >= lo).to_numpy() & (iv["to_line"] <= hi).to_numpy() if len(iv) else np.empty(0, bool)
+        part = iv[inside]
+        out.append({**st, "intervals": int(inside.sum()), "measured_s": float(part["measured_s"].sum()),
+                    "simulated_s": float((part["feed_s"] + part["rapid_s"]).sum()),
+                    "fitted_s": float(pred[inside].sum()),
+                    "blocks": [{"from_line": int(r["from_line"]), "to_line": int(r["to_line"]),
+                                "recorded_from_line": int(r["from_line"]) + st["offset"],
+                                "measured_s": float(r["measured_s"]), "simulated_s": float(r["feed_s"] + r["rapid_s"])}
+                               for r in part.to_dict("records")]})
+    return out
 
 
 def diagnose_lines(recording: Recording, profile: MachineProfile | str | None, program: Any, *,
@@ -190,6 +267,7 @@ def diagnose_lines(recording: Recording, profile: MachineProfile | str | None, p
     codes = prog.blocks["mcodes"].fillna("").astype(str).str.contains(r"(?i)\bM0*6\b")
     tool_lines = sorted(int(v) for v in prog.blocks.loc[codes, "line"] if v > lines.index.min())
     iv = intervals(session, lines, tool_lines)
+    iv["rapid_override"] = dial(recording, "rapid_override", iv["t0_ns"].to_numpy(), iv["t1_ns"].to_numpy())
     if len(iv) < MIN_INTERVALS:
         raise LineDiagnoseError(f"{name}: only {len(iv)} stretches between recorded line changes could be placed "
                                 f"on {prog.name}; at least {MIN_INTERVALS} are needed")
@@ -224,6 +302,11 @@ def diagnose_lines(recording: Recording, profile: MachineProfile | str | None, p
         "predicted_after_s": float(after.cycle_time_s) + not_tool,
         "line_period_s": float(np.median(np.diff(stream["t_ns"].to_numpy(np.int64)))) / 1e9,
     }
+    figures["rapid_override"] = rapid_dial_figures(recording, session)
+    # the motion time (events out) compared stretch by stretch between placed line changes
+    figures["timed_per_block_s"] = float(iv["measured_s"].sum())
+    figures["timed_per_block_pct"] = 100 * float(iv["measured_s"].sum()) / figures["motion_measured_s"]
+    figures["stretches"] = stretch_figures(session, iv, fit)
     runs = session.runs
     figures["unplaced_s"] = float(runs.loc[runs["program_line"].isna(), "dur_s"].sum())
     figures["remaining_s"] = measured - figures["predicted_after_s"]
@@ -233,4 +316,5 @@ def diagnose_lines(recording: Recording, profile: MachineProfile | str | None, p
                          figures=figures, fit=fit, warnings=list(session.warnings))
 
 
-__all__ = ["BLIND", "LineDiagnosis", "LineDiagnoseError", "diagnose_lines", "fit_factors", "intervals"]
+__all__ = ["BLIND", "LineDiagnosis", "LineDiagnoseError", "diagnose_lines", "fit_factors", "intervals",
+           "stretch_figures"]

@@ -47,11 +47,29 @@ def summary_lines(ld: LineDiagnosis) -> list[str]:
     lm = ld.session.line_map
     if lm.first_mismatch is not None:
         out.append("  program mismatch: " + (lm.warning("the program") or ""))
+    for st in f.get("stretches", []):
+        if st["established"]:
+            out.append(f"  placed after the mismatch: recorded {st['recorded_lines'][0]}-{st['recorded_lines'][1]} = program "
+                       f"{st['program_lines'][0]}-{st['program_lines'][1]} ({st['offset']:+d}): {st['intervals']} "
+                       f"stretches, {st['measured_s']:.2f} s measured, {st['simulated_s']:.2f} s simulated, "
+                       f"{st['fitted_s']:.2f} s with the fitted factors")
+    if "timed_per_block_s" in f:
+        out.append(f"  timed between placed line changes: {f['timed_per_block_s']:.2f} s of the "
+                   f"{f['motion_measured_s']:.2f} s of motion ({f['timed_per_block_pct']:.1f} %)")
     out.append(f"  cycle: measured {f['measured_cycle_s']:.2f} s, simulated {f['simulated_cycle_s']:.2f} s "
                f"({f['error_before_pct']:+.1f} %)")
     for kind, s in sorted(f["events_s"].items()):
         count = int((ld.session.events["kind"] == kind).sum())
         out.append(f"  {kind}: {count} x, {s:.2f} s ({100 * s / f['measured_cycle_s']:.1f} % of the cycle)")
+    rd = f.get("rapid_override")
+    if rd is not None and rd["min"] is not None:
+        text = (f"  recorded rapid override: lowest {100 * rd['min']:.0f} %, below 100 % for {rd['below_full_s']:.2f} s"
+                + (f" (at 100 % from {rd['full_from_s']:.2f} s on)" if rd["full_from_s"] is not None else ""))
+        slow = [f"{e['kind']} at recorded line {e['recorded_line']} ({e['duration_s']:.2f} s, dial "
+                f"{100 * e['rapid_override_mean']:.0f} % on average)" for e in rd["events_below_full"]]
+        out.append(text + ("; during " + ", ".join(slow) if slow else "")
+                   + (f"; rapid factor where it read 100 %: {fit['k_rapid_full_dial']:.3f}"
+                      if fit.get("k_rapid_full_dial") is not None and np.isfinite(fit["k_rapid_full_dial"]) else ""))
     kf = ", ".join(f"tool section {s}: {k:.3f}" for s, k in zip(fit["sections"], fit["k_feed"]) if np.isfinite(k))
     out.append(f"  motion: {f['motion_measured_s']:.2f} s measured outside the events; time factors "
                f"(measured / simulated) feed {kf or 'n/a'}; rapid "
@@ -85,6 +103,14 @@ def report_md(ld: LineDiagnosis) -> str:
     for e in ld.session.events.to_dict("records"):
         lines.append(f"| {e['kind']} | {e['recorded_line']} | {e['program_line'] if e['program_line'] is not None else '?'} "
                      f"| {e['m_codes']} | {(e['t_start_ns'] - t0) / 1e9:.2f} | {e['duration_s']:.2f} | {e['spindle_off']} |")
+    for st in ld.figures.get("stretches", []):
+        if not st["established"]:
+            continue
+        lines += ["", f"## Placed after the mismatch: recorded {st['recorded_lines'][0]}-{st['recorded_lines'][1]} = "
+                  f"program {st['program_lines'][0]}-{st['program_lines'][1]} ({st['offset']:+d})", "",
+                  "| program lines | recorded line | measured (s) | simulated (s) |", "|---|---|---|---|"]
+        lines += [f"| {b['from_line']}-{b['to_line']} | {b['recorded_from_line']} | {b['measured_s']:.3f} | "
+                  f"{b['simulated_s']:.3f} |" for b in st["blocks"]]
     lines += ["", "## Warnings", ""] + [f"- {w}" for w in ld.warnings] + [""]
     return "\n".join(lines)
 

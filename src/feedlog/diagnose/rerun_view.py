@@ -60,7 +60,7 @@ def save_rrd(dx, path: Path) -> Path:
             base = f"{ROOT}/{case.name}"
             axes = case.recording.streams["axes"]
             cols = [c for c in position_columns(dx.profile) if c in axes.columns][:3]
-            t = (axes["t_ns"].to_numpy(np.int64) - case.t0_ns) / 1e9
+            t = case.compared_s((axes["t_ns"].to_numpy(np.int64) - case.t0_ns) / 1e9)  # feed holds out
             xyz = axes[cols].to_numpy(np.float64)
             step = max(1, len(t) // MAX_POINTS)
             if seg is not None and len(seg):
@@ -74,7 +74,7 @@ def save_rrd(dx, path: Path) -> Path:
             curves = dx.where.get("curves", {}).get(case.name)
             feed = case.recording.streams.get("feed")
             if feed is not None and "feed_mm_min" in feed.columns:
-                ft = (feed["t_ns"].to_numpy(np.int64) - case.t0_ns) / 1e9
+                ft = case.compared_s((feed["t_ns"].to_numpy(np.int64) - case.t0_ns) / 1e9)
                 _send(stream, f"{base}/speed/measured", ft, feed["feed_mm_min"].to_numpy(np.float64), label="measured")
             elif curves is not None:
                 _send(stream, f"{base}/speed/measured", curves["t_measured_s"].to_numpy(),

@@ -51,7 +51,8 @@ class Segments:
     anchors: np.ndarray      # (m,) block ids; the last is -1 (motion end)
     measured_s: np.ndarray   # (m,) measured durations
     end_s: np.ndarray        # (m,) measured time at each segment's end, from motion start
-    weight: np.ndarray       # (m,) 1 where a segment counts in the loss, 0 where it does not
+    weight: np.ndarray       # (m,) 1 where a segment counts in the loss, 0 where it does not (sparse data's
+                             # model-placed first and last; a segment holding a feed hold)
 
     def __len__(self) -> int:
         return len(self.anchors)
@@ -108,6 +109,11 @@ def make_segments(case: Case, sim, *, min_segment_s: float | None = None) -> Seg
     end = np.asarray(times)
     weight = np.ones(len(end))
     measured_s = np.diff(end, prepend=0.0)
+    for a, _ in case.removed_s:
+        # a feed hold is out of the measured time; the slowing down into it and the start after it (motion
+        # the program does not ask for) are not: the segment holding it carries no weight
+        at = case.compared_s(np.array([a]))[0]
+        weight[min(int(np.searchsorted(end, at, side="left")), len(end) - 1)] = 0.0
     if case.sparse and len(end) > 2:
         # motion start and end were placed inside their sampling interval by a model of the profile under
         # diagnosis: the first segment starts at the first moving sample and the last ends at the last one

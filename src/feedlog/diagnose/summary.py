@@ -162,5 +162,9 @@ def to_json(dx) -> dict[str, Any]:
         "evidence": dx.evidence.as_dict(), "noise_floor": dx.noise_floor, "rejected": rejected,
         "where": {k: v for k, v in dx.where.items() if k in ("before", "after", "classes_before", "top_segments")},
         "notes": {c.name: c.notes for c in dx.cases if c.notes},
+        "holds": {c.name: [{"kind": h["kind"], "line": h["line"], "block": h["block"],
+                            "t_s": (h["t_start_ns"] - c.t0_ns) / 1e9, "duration_s": h["duration_s"],
+                            "removed": bool(h["removed"])} for h in c.holds.to_dict("records")]
+                  for c in dx.cases if c.holds is not None and len(c.holds)},
         "summary": summary_lines(dx), "timings_s": dx.timings_s,
         **({"calibration": dx.calibration.as_dict()} if dx.calibration is not None else {})})

@@ -70,7 +70,8 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
                     priority: str = "normal", level: int | None = None,
                     stop_event: threading.Event | None = None, feed_override: float | None = None,
                     subroutine_path: tuple[str | Path, ...] = (),
-                    feed_override_at: tuple[tuple[float, float], ...] = ()) -> dict[str, Any]:
+                    feed_override_at: tuple[tuple[float, float], ...] = (),
+                    pause_at: tuple[tuple[float, float], ...] = ()) -> dict[str, Any]:
     """Run `program` on the LinuxCNC machine `ini`, write the recording to `out`, return a summary.
 
     Setting `stop_event` (the CLI does on SIGINT/SIGTERM) stops the machine where it is and writes
@@ -82,7 +83,9 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
     `feed_override` (0 < x <= the INI's MAX_FEED_OVERRIDE) turns the feed override dial before the program
     starts; the recording's metadata says so (`feed_override`). `feed_override_at` ((seconds after the start,
     dial), ...) turns the dial while the program runs (metadata `feed_override_turns`: seconds of motion
-    time after the start, and dial). `subroutine_path`: folders where LinuxCNC
+    time after the start, and dial). `pause_at` ((seconds after the start, seconds), ...) pauses the program
+    and resumes it, an operator's feed hold (metadata `feed_holds`: seconds of motion time after the start
+    when paused and when resumed). `subroutine_path`: folders where LinuxCNC
     finds `o<name> call` files, before the INI's SUBROUTINE_PATH; the files the program calls are
     attached as `subroutines/<name>.ngc` (feedlog.ingest.subroutine_files).
 
@@ -111,7 +114,7 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
     subroutines = subroutine_attachments(program.read_bytes(), [*subroutine_path, *ini_cfg.subroutine_dirs()])
     session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s, stop_event=stop_event,
                           priority=priority, feed_override=feed_override, subroutine_path=subroutine_path,
-                          feed_override_at=tuple(feed_override_at))
+                          feed_override_at=tuple(feed_override_at), pause_at=tuple(pause_at))
     sampled = has_samples(session.sample_files)
     error = session_error(session.report, program, sampled=sampled)
     if error is not None and not sampled:
@@ -209,6 +212,10 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
         start = float(report.get("motion_time_start_s", 0.0))
         metadata["feed_override_turns"] = " ".join(f"{t['motion_time_s'] - start:.3f}:{t['scale']:g}"
                                                    for t in report["feed_override_turns"])
+    if report.get("feed_holds"):  # paused mid-program: "s after the start:s when resumed" each
+        start = float(report.get("motion_time_start_s", 0.0))
+        metadata["feed_holds"] = " ".join(f"{h['motion_time_s'] - start:.3f}:{h['resumed_motion_time_s'] - start:.3f}"
+                                          for h in report["feed_holds"] if "resumed_motion_time_s" in h)
     attachments = {INI_ATTACHMENT: ini.text.encode(), PROFILE_ATTACHMENT: profile_toml}
     for hal_file in ini.hal_files():  # e.g. trt.hal with the trunnion kinematics' offsets
         attachments.setdefault(f"hal/{hal_file.name}", hal_file.read_bytes())
@@ -247,6 +254,17 @@ def dial_turn(text: str) -> tuple[float, float]:
     return at, scale
 
 
+def feed_hold(text: str) -> tuple[float, float]:
+    """`S:D` (seconds after the start, seconds paused) of --pause-at."""
+    try:
+        at, duration = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected S:D (seconds:seconds, e.g. 3:4), got {text!r}") from None
+    if not (0 <= at < float("inf") and 0 < duration < float("inf")):
+        raise argparse.ArgumentTypeError(f"need S >= 0 and D > 0, got {text!r}")
+    return at, duration
+
+
 def add_arguments(group: argparse._ArgumentGroup) -> None:
     group.add_argument("--ini", type=Path, help="LinuxCNC machine INI (e.g. configs/xyz.ini)")
     group.add_argument("--isolate", action="store_true",
@@ -263,6 +281,9 @@ def add_arguments(group: argparse._ArgumentGroup) -> None:
                        help="turn the feed override dial to SCALE (1.0 = 100 %%) before the program starts")
     group.add_argument("--feed-override-at", action="append", default=[], type=dial_turn, metavar="S:SCALE",
                        help="turn the feed override dial to SCALE S seconds after the program starts (repeatable)")
+    group.add_argument("--pause-at", action="append", default=[], type=feed_hold, metavar="S:D",
+                       help="pause the program S seconds after it starts and resume it D seconds later (a feed "
+                            "hold; repeatable)")
     group.add_argument("--subroutine-path", action="append", default=[], type=Path, metavar="DIR",
                        help="folder where LinuxCNC finds o<name> call files (before the INI's SUBROUTINE_PATH; "
                             "repeatable); the files called are attached to the recording")
@@ -294,4 +315,5 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
                            stop_event=getattr(args, "stop_event", None),
                            feed_override=getattr(args, "feed_override", None),
                            subroutine_path=tuple(getattr(args, "subroutine_path", None) or ()),
-                           feed_override_at=tuple(sorted(getattr(args, "feed_override_at", None) or ())))
+                           feed_override_at=tuple(sorted(getattr(args, "feed_override_at", None) or ())),
+                           pause_at=tuple(sorted(getattr(args, "pause_at", None) or ())))

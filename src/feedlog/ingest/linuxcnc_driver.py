@@ -11,7 +11,8 @@ timeout_s, attach (bool: don't home or run, record until the program ends or SIG
 until_program_end (attach: stop when the program ends; else only on a signal), start_when_signal
 and start_delay_s (wait for a HAL signal to come on, then this long, before AUTO_RUN; with no channels
 the driver is a plain headless operator, used in tests), feed_override (set the feed dial before
-AUTO_RUN), feed_override_at ([[seconds after AUTO_RUN, dial], ...]: turn the dial while the program runs).
+AUTO_RUN), feed_override_at ([[seconds after AUTO_RUN, dial], ...]: turn the dial while the program runs),
+pause_at ([[seconds after AUTO_RUN, seconds], ...]: pause the program (a feed hold) and resume it).
 Result (JSON): ok, errors [{kind, text}], motion_time_s, overruns, ... written on every exit path.
 """
 
@@ -219,10 +220,27 @@ class Driver:
             self.cmd.feedrate(scale)
             turns.append({"after_s": float(plan[len(turns)][0]), "scale": scale, "motion_time_s": self.motion_time()})
 
+    def hold_feed(self):
+        """The operator pausing the program mid-run (a feed hold): each [after_s, duration_s] of `pause_at`
+        pauses it once its time since AUTO_RUN has come and resumes it duration_s later."""
+        holds = self.result.setdefault("feed_holds", [])
+        plan = self.job.get("pause_at") or []
+        now = time.time() - self.result["run_wall_start"]
+        if holds and "resumed_motion_time_s" not in holds[-1]:
+            if now >= holds[-1]["after_s"] + holds[-1]["duration_s"]:
+                self.cmd.auto(linuxcnc.AUTO_RESUME)
+                holds[-1]["resumed_motion_time_s"] = self.motion_time()
+        elif len(holds) < len(plan) and now >= float(plan[len(holds)][0]):
+            self.cmd.auto(linuxcnc.AUTO_PAUSE)
+            holds.append({"after_s": float(plan[len(holds)][0]), "duration_s": float(plan[len(holds)][1]),
+                          "motion_time_s": self.motion_time()})
+
     def wait_done(self):
         def done(s):
             if self.job.get("feed_override_at"):
                 self.turn_dial()
+            if self.job.get("pause_at"):
+                self.hold_feed()
             return (s.interp_state == linuxcnc.INTERP_IDLE and s.queue == 0 and s.inpos
                     and s.exec_state == linuxcnc.EXEC_DONE)
         try:

@@ -4,7 +4,7 @@ A mapping is `target -> source field`, given on the command line (`--map t=time,
 or by a named preset (`ingest/presets/<name>.toml`). Targets are short names of standard columns
 (`t`, `x` .. `c`, `feed`, `requested_feed`, `vx`/`vy`/`vz` (axis velocities, mm/s), `line`, `block_number`, `jN`,
 `jN_fb`, `in_position`,
-`motion_type`, `spindle`) or an explicit `stream.column` kept as is. Units are declared, never guessed:
+`motion_type`, `spindle`, `feed_override`/`rapid_override` (percent in, a fraction out), `tool`) or an explicit `stream.column` kept as is. Units are declared, never guessed:
 lengths, angles, feeds and times are converted here to mm, deg, mm/min and int64 ns.
 
 A preset may list several source names for a target (`x = ["Xact", "Xabs"]`, controllers and adapters
@@ -40,6 +40,11 @@ TARGETS: dict[str, tuple[str, str, str]] = {
     "in_position": ("status", "in_position", "bool"),
     "motion_type": ("status", "motion_type", "int8"),
     "spindle": ("spindle", "spindle_rpm", "float"),
+    # override dials (MTConnect PATH_FEEDRATE_OVERRIDE, PERCENT): the fraction, 1.0 = 100 %, as the
+    # simulation's `sim.feed_override.override` / `sim.rapid_override.override` spell it
+    "feed_override": ("override", "feed_override", "percent"),
+    "rapid_override": ("override", "rapid_override", "percent"),
+    "tool": ("tool", "tool", "int"),   # the tool in the spindle (an event: it changes at a tool change)
 }
 _JOINT = re.compile(r"^j(\d+)(_fb)?$")
 _EXPLICIT = re.compile(r"^([a-z][a-z0-9_]*)\.([a-z][a-z0-9_]*)$")
@@ -208,6 +213,8 @@ def convert(values: np.ndarray, kind: str, cmap: ColumnMap) -> np.ndarray:
         return np.rint(values).astype(np.int8)
     if kind == "bool":
         return values.astype(np.float64) != 0
+    if kind == "percent":
+        return values.astype(np.float64) / 100.0
     return values.astype(np.float64)
 
 

@@ -36,6 +36,7 @@ from feedlog.recording import Recording
 DEFAULT_SHDR_PRESET = "mtconnect-shdr"
 STANDARD_UNITS = {"length_unit": "mm", "angle_unit": "deg", "feed_unit": "mm/s"}
 _INDEXED = re.compile(r"^(.*)\[(\d)\]$")
+OWN_TIMES = ("override", "tool")   # streams on their own observation times, not the motion's grid
 _LINEAR = re.compile(r"^([XYZ])\d*$", re.IGNORECASE)
 _ROTARY = re.compile(r"^([ABC])\d*$", re.IGNORECASE)
 _SUBTYPE_RANK = {"ACTUAL": 0, "": 1, "COMMANDED": 2, "PROGRAMMED": 3}
@@ -152,23 +153,30 @@ def pivot(obs: Observations, cmap: ColumnMap, *, strict: bool, file: str) -> tup
     if len(obs.bad) and strict:
         raise IngestError(f"{obs.bad.describe()} (lenient import skips them: --lenient)", file=file,
                           line=obs.bad.lines[0])
-    grid = np.unique(np.concatenate([t for t, _, _ in found.values()]))
-    filled = {}
-    for target, (t, values, _) in found.items():
-        at = np.searchsorted(t, grid, side="right") - 1     # the last observation at or before each time
-        filled[target] = np.where(at >= 0, values[np.maximum(at, 0)], np.nan)
+    by_stream: dict[str, list[str]] = {}
+    for target in found:
+        by_stream.setdefault(resolve_target(target)[0], []).append(target)
+    # the motion streams share one grid (every observation time of theirs); a stream of its own (the dials,
+    # the tool: events set by hand) keeps its own times and adds none to the others
+    shared = [t for t in found if resolve_target(t)[0] not in OWN_TIMES] or list(found)
+    grid = np.unique(np.concatenate([found[t][0] for t in shared]))
+    filled, grids = {}, {}
+    for stream, members in by_stream.items():
+        grids[stream] = (np.unique(np.concatenate([found[m][0] for m in members]))
+                         if stream in OWN_TIMES and len(shared) < len(found) else grid)
+        for target in members:
+            t, values, _ = found[target]
+            at = np.searchsorted(t, grids[stream], side="right") - 1   # the last observation at or before each time
+            filled[target] = np.where(at >= 0, values[np.maximum(at, 0)], np.nan)
     streams: dict[str, pd.DataFrame] = {}
     gaps: dict[str, int] = {}
-    by_stream: dict[str, list[str]] = {}
-    for target in filled:
-        by_stream.setdefault(resolve_target(target)[0], []).append(target)
     for stream, members in by_stream.items():
         ok = np.logical_and.reduce([np.isfinite(filled[m]) for m in members])
-        if (~ok).any():
+        if (~ok).any() and grids[stream] is grid:
             gaps[stream] = int((~ok).sum())
         if not ok.any():
             continue
-        cols = {"t_ns": grid[ok]}
+        cols = {"t_ns": grids[stream][ok]}
         for m in members:
             _, column, kind = resolve_target(m)
             cols[column] = convert(filled[m][ok], kind, cmap)
