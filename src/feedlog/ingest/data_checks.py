@@ -81,7 +81,9 @@ def position_jumps(recording: Recording, *, steps: PositionSteps | None = None) 
     t, dt, step = steps.t_ns, steps.dt_s, steps.step_mm
     limit, why = speed_limit_mm_s(recording)
     with np.errstate(divide="ignore", invalid="ignore"):
-        fast = (dt > 0) & (step > limit * dt) & np.isfinite(step)
+        fast = step > limit * dt                  # False where a step is NaN
+        if not (dt.min() > 0 and np.isfinite(step.max())):   # a zero or negative interval, an infinite step
+            fast &= (dt > 0) & np.isfinite(step)
     if not fast.any():
         return None
     rows = np.flatnonzero(fast) + 1           # the sample a jump arrives at

@@ -157,7 +157,7 @@ def feed_unit_check(recording: Recording, *, positions: str = "axes", feed: str 
     # moving on both witnesses, away from the starts and stops where averages over a sample lag; the
     # positions' own scale is their median speed where the feed says the tool moves (a high percentile
     # would be set by glitches: real logs jump to a home position and back within a row)
-    feeding = feed_mid > 0.2 * np.percentile(np.abs(fv), 95)
+    feeding = feed_mid > 0.2 * np.percentile(np.abs(fv), 95, overwrite_input=True)   # on a copy: abs
     if feeding.sum() < MIN_SAMPLES:
         return None
     moving = feeding & (speed > 0.2 * np.median(speed[feeding]))
