@@ -158,10 +158,11 @@ def _reference_jumps(t: np.ndarray, p: np.ndarray, limit: float) -> np.ndarray:
 
 @settings(max_examples=60, derandomize=True, deadline=None, suppress_health_check=list(HealthCheck))
 @given(n=st.integers(2, 400), seed=st.integers(0, 2**31), zero_intervals=st.booleans(),
-       axes=st.integers(1, 3), glitches=st.integers(0, 6))
-def test_position_jumps_match_their_definition(n, seed, zero_intervals, axes, glitches):
+       axes=st.integers(1, 3), glitches=st.integers(0, 6), epoch=st.booleans())
+def test_position_jumps_match_their_definition(n, seed, zero_intervals, axes, glitches, epoch):
     rng = np.random.default_rng(seed)
     t = np.cumsum(rng.integers(0 if zero_intervals else 1, 2_000_000, n)).astype(np.int64)
+    t += 1_700_000_000_000_000_000 if epoch else 0      # epoch times: the differences are taken in int64
     p = np.cumsum(rng.normal(0, 0.01, (n, axes)), axis=0)
     p[rng.integers(0, n, glitches), rng.integers(0, axes, glitches)] += rng.uniform(-500, 500, glitches)
     cols = ("x_mm", "y_mm", "z_mm")[:axes]

@@ -49,19 +49,24 @@ class PositionSteps:
 
     @cached_property
     def dt_s(self) -> np.ndarray:
-        """Seconds from each sample to the next (n - 1 values)."""
-        return np.diff(self.t_ns) / 1e9
+        """Seconds from each sample to the next (n - 1 values): the int64 difference, then / 1e9, as
+        `np.diff(t) / 1e9` computes it, in one array."""
+        t = self.t_ns
+        dt = np.subtract(t[1:], t[:-1], out=np.empty(len(t) - 1, dtype=np.float64))
+        return np.divide(dt, 1e9, out=dt)
 
     @cached_property
     def step_mm(self) -> np.ndarray:
-        """Length of the step from each sample to the next (n - 1 values; NaN where a position is)."""
-        total = None
+        """Length of the step from each sample to the next (n - 1 values; NaN where a position is), in two
+        arrays whatever the number of axes (large fresh arrays cost page faults)."""
+        total, scratch = None, None
         for values in self.columns.values():
-            d = np.diff(values)
-            np.multiply(d, d, out=d)
             if total is None:
-                total = d
+                d = total = np.subtract(values[1:], values[:-1])
             else:
+                scratch = d = np.subtract(values[1:], values[:-1], out=scratch)
+            np.multiply(d, d, out=d)
+            if d is not total:
                 total += d
         return np.sqrt(total, out=total)
 
