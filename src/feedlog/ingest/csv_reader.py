@@ -203,7 +203,8 @@ def _columns(table: pa.Table, used: dict[str, str], cmap: ColumnMap) -> tuple[np
     arrays = {}
     for source in dict.fromkeys(used.values()):
         column = table.column(source)
-        if cmap.time_unit == "datetime" and source == used.get("t"):
+        if not (pa.types.is_floating(column.type) or pa.types.is_integer(column.type)):
+            arrays[source] = column.to_numpy(zero_copy_only=False)    # wall-clock times, as text
             continue
         arrays[source] = _joined(column)
         if pa.types.is_floating(column.type) and not _in_range(arrays[source]):
@@ -211,7 +212,7 @@ def _columns(table: pa.Table, used: dict[str, str], cmap: ColumnMap) -> tuple[np
     if "t" not in used:  # fixed rate: the row index (read_csv turns it into time)
         return np.arange(table.num_rows, dtype=np.int64), {target: arrays[source] for target, source in used.items()}
     if cmap.time_unit == "datetime":
-        t_ns, ok = _parse_datetimes(table.column(used["t"]).to_numpy(zero_copy_only=False), cmap)
+        t_ns, ok = _parse_datetimes(arrays[used["t"]], cmap)
     else:
         t_ns, ok = _times(arrays[used["t"]], cmap)
     if not ok.all():
