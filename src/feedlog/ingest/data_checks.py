@@ -17,7 +17,9 @@ print what they find (`align` the position jumps and the lines past the program)
   (N words) the program does not hold: the program is not what ran (the NIST box op 2 recording reaches
   line 1209 of a published program of 1186 lines).
 
-Each check returns a one-line text or None; `run_checks` gathers them as metadata key -> text.
+Each check returns a one-line text or None; `run_checks` gathers them as metadata key -> text. The
+three that read positions share one `PositionSteps` per `run_checks` call (times between samples, step
+lengths and each axis's resolution, computed once).
 """
 
 from __future__ import annotations
@@ -27,14 +29,14 @@ import re
 import numpy as np
 
 from feedlog.recording import Recording
-from feedlog.ingest.quantum import position_step_mm
+from feedlog.ingest.position_steps import PositionSteps
+from feedlog.ingest.quantum import finite
 from feedlog.ingest.unit_check import feed_unit_checks
 
 JUMP_FACTOR = 2.0                 # a step faster than twice the fastest recorded feed is no motion
 MAX_MACHINE_SPEED_MM_S = 3000.0   # 180 m/min: beyond any machine tool's axes (used without a feed witness)
 MIN_QUANTUM_MM = 0.01             # resolutions finer than this are not worth a word
 SHOWN = 5                         # rows or values named in a message
-POSITION_COLUMNS = ("x_mm", "y_mm", "z_mm")
 CHECK_KEYS = ("unit_check", "unit_check_requested_feed", "position_jumps", "quantised", "program_lines")
 _N_WORD = re.compile(rb"^\s*(?:/\d?\s*)?N(\d+)", re.IGNORECASE | re.MULTILINE)
 
@@ -42,26 +44,17 @@ _N_WORD = re.compile(rb"^\s*(?:/\d?\s*)?N(\d+)", re.IGNORECASE | re.MULTILINE)
 def run_checks(recording: Recording) -> dict[str, str]:
     """metadata key -> warning text, for every check that finds something."""
     found = {}
-    for column, check in feed_unit_checks(recording).items():
+    steps = PositionSteps.of(recording)
+    for column, check in feed_unit_checks(recording, steps=steps).items():
         if check.warning:
             found["unit_check" if column == "feed_mm_min" else f"unit_check_{column.removesuffix('_mm_min')}"] = \
                 check.warning
-    for key, check in (("position_jumps", position_jumps), ("quantised", quantisation),
-                       ("program_lines", program_lines)):
-        text = check(recording)
+    for key, text in (("position_jumps", position_jumps(recording, steps=steps)),
+                      ("quantised", quantisation(recording, steps=steps)),
+                      ("program_lines", program_lines(recording))):
         if text:
             found[key] = text
     return found
-
-
-def _positions(recording: Recording) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
-    axes = recording.streams.get("axes")
-    if axes is None or len(axes) < 2:
-        return None
-    cols = [c for c in POSITION_COLUMNS if c in axes.columns]
-    if not cols:
-        return None
-    return axes["t_ns"].to_numpy(dtype=np.int64), axes[cols].to_numpy(dtype=np.float64), cols
 
 
 def speed_limit_mm_s(recording: Recording) -> tuple[float, str]:
@@ -71,26 +64,26 @@ def speed_limit_mm_s(recording: Recording) -> tuple[float, str]:
     if feed is not None and len(feed):
         for column in ("feed_mm_min", "requested_feed_mm_min"):
             if column in feed.columns:
-                values = np.abs(feed[column].to_numpy(dtype=np.float64))
-                values = values[np.isfinite(values)]
-                if len(values):
-                    fastest = max(fastest, float(values.max()) / 60.0)
+                values = finite(feed[column].to_numpy(dtype=np.float64))
+                if len(values):   # the largest magnitude, from the extremes (no copy of the column)
+                    fastest = max(fastest, max(-float(values.min()), float(values.max())) / 60.0)
     if fastest > 0:
         return JUMP_FACTOR * fastest, f"{JUMP_FACTOR:g} x the fastest recorded feed, {fastest:.4g} mm/s"
     return MAX_MACHINE_SPEED_MM_S, "no machine tool's axes move faster; the recording has no feed to compare"
 
 
-def position_jumps(recording: Recording) -> str | None:
-    """Steps between position samples faster than `speed_limit_mm_s`: count, largest, first rows."""
-    got = _positions(recording)
-    if got is None:
+def position_jumps(recording: Recording, *, steps: PositionSteps | None = None) -> str | None:
+    """Steps between position samples faster than `speed_limit_mm_s`: count, largest, first rows.
+    `steps`: the axes' `PositionSteps` when the caller has them already."""
+    steps = steps if steps is not None else PositionSteps.of(recording)
+    if steps is None:
         return None
-    t, p, _ = got
-    dt = np.diff(t) / 1e9
-    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    t, dt, step = steps.t_ns, steps.dt_s, steps.step_mm
     limit, why = speed_limit_mm_s(recording)
     with np.errstate(divide="ignore", invalid="ignore"):
-        fast = (dt > 0) & (step > limit * dt) & np.isfinite(step)
+        fast = step > limit * dt                  # False where a step is NaN
+        if not (dt.min() > 0 and np.isfinite(step.max())):   # a zero or negative interval, an infinite step
+            fast &= (dt > 0) & np.isfinite(step)
     if not fast.any():
         return None
     rows = np.flatnonzero(fast) + 1           # the sample a jump arrives at
@@ -101,15 +94,15 @@ def position_jumps(recording: Recording) -> str | None:
             "kept as recorded (glitches, not motion: the positions jump, e.g. to a home position and back)")
 
 
-def quantisation(recording: Recording) -> str | None:
-    """Positions held to few significant digits or a coarse resolution, per axis, with the coarsest step."""
-    got = _positions(recording)
-    if got is None:
+def quantisation(recording: Recording, *, steps: PositionSteps | None = None) -> str | None:
+    """Positions held to few significant digits or a coarse resolution, per axis, with the coarsest step.
+    `steps`: the axes' `PositionSteps` when the caller has them already."""
+    steps = steps if steps is not None else PositionSteps.of(recording)
+    if steps is None:
         return None
-    _, p, cols = got
     parts, floors = [], []
-    for k, col in enumerate(cols):
-        step = position_step_mm(p[:, k])
+    for col in steps.columns:
+        step = steps.quantum(col)
         if step is not None and step[0] >= MIN_QUANTUM_MM:
             parts.append(f"{col[0]} to {step[1]}")
             floors.append(step[0])

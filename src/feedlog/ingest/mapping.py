@@ -199,14 +199,21 @@ def preset_description(name: str) -> str:
     return tomllib.loads(path.read_text(encoding="utf-8")).get("description", "")
 
 
+def _scaled(values: np.ndarray, factor: float) -> np.ndarray:
+    """float64 `values` x `factor`; `values` itself (float64 already) for a factor of 1, which changes no bit."""
+    values = values.astype(np.float64, copy=False)
+    return values if factor == 1.0 else values * factor
+
+
 def convert(values: np.ndarray, kind: str, cmap: ColumnMap) -> np.ndarray:
-    """Source values (float64 or int64) -> the target column in feedlog units and dtype."""
+    """Source values (float64 or int64) -> the target column in feedlog units and dtype (may be `values`
+    itself when nothing changes)."""
     if kind == "length":
-        return values.astype(np.float64) * length_factor(cmap.length_unit)
+        return _scaled(values, length_factor(cmap.length_unit))
     if kind == "angle":
-        return values.astype(np.float64) * angle_factor(cmap.angle_unit)
+        return _scaled(values, angle_factor(cmap.angle_unit))
     if kind == "velocity":
-        return values.astype(np.float64) * velocity_factor(cmap.feed_unit)
+        return _scaled(values, velocity_factor(cmap.feed_unit))
     if kind == "int":
         return np.rint(values).astype(np.int64)
     if kind == "int8":
@@ -215,7 +222,7 @@ def convert(values: np.ndarray, kind: str, cmap: ColumnMap) -> np.ndarray:
         return values.astype(np.float64) != 0
     if kind == "percent":
         return values.astype(np.float64) / 100.0
-    return values.astype(np.float64)
+    return values.astype(np.float64, copy=False)
 
 
 def time_to_ns(values: np.ndarray, cmap: ColumnMap) -> np.ndarray:
@@ -224,13 +231,27 @@ def time_to_ns(values: np.ndarray, cmap: ColumnMap) -> np.ndarray:
         return values.astype("datetime64[ns]").astype(np.int64)
     if cmap.time_unit == "ns" and values.dtype.kind in "iu":
         return values.astype(np.int64)
-    return np.rint(values.astype(np.float64) * (time_factor(cmap.time_unit) * 1e9)).astype(np.int64)
+    ns = values.astype(np.float64, copy=False) * (time_factor(cmap.time_unit) * 1e9)
+    return np.rint(ns, out=ns).astype(np.int64)
 
 
-def build_streams(t_ns: np.ndarray, values: dict[str, np.ndarray], cmap: ColumnMap) -> dict[str, pd.DataFrame]:
-    """Group converted target columns into their streams, each with the shared `t_ns`."""
+def build_streams(t_ns: np.ndarray, values: dict[str, np.ndarray], cmap: ColumnMap, *,
+                  owned: bool = False) -> dict[str, pd.DataFrame]:
+    """Group converted target columns into their streams, each with the shared `t_ns`. `owned`: the
+    arrays are the caller's to give away (fresh columns nobody else holds): the streams take them without
+    a copy, except an array that is read-only or shares memory with one already taken (`t_ns` in a second
+    stream, a column mapped twice), which is copied, so no two columns alias and every column can be
+    written. Otherwise pandas copies every column (its default for a dict)."""
     grouped: dict[str, dict[str, np.ndarray]] = {}
     for target, raw in values.items():
         stream, column, kind = resolve_target(target)
         grouped.setdefault(stream, {"t_ns": t_ns})[column] = convert(raw, kind, cmap)
-    return {stream: pd.DataFrame(cols) for stream, cols in grouped.items()}
+    if not owned:
+        return {stream: pd.DataFrame(cols) for stream, cols in grouped.items()}
+    taken: list[np.ndarray] = []
+    for cols in grouped.values():
+        for name, array in cols.items():
+            if not array.flags.writeable or any(np.may_share_memory(array, other) for other in taken):
+                array = cols[name] = array.copy()
+            taken.append(array)
+    return {stream: pd.DataFrame(cols, copy=False) for stream, cols in grouped.items()}

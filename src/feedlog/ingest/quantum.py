@@ -38,10 +38,18 @@ def decimals(values: np.ndarray, most: int = 6) -> int | None:
     return None
 
 
+def finite(values: np.ndarray) -> np.ndarray:
+    """`values` without NaN and infinities: the array itself when it holds none (found by its minimum and
+    maximum, two passes without a copy), else a filtered copy."""
+    if len(values) and np.isfinite(values.min()) and np.isfinite(values.max()):
+        return values
+    return values[np.isfinite(values)]
+
+
 def position_step_mm(values: np.ndarray) -> tuple[float, str] | None:
     """The coarsest step between representable values of a column and how it arises (`3 significant
     digits` or `2 decimals`), or None for a constant, empty or finely resolved column."""
-    v = values[np.isfinite(values)]
+    v = finite(values)
     if len(v) > SAMPLE:
         v = v[np.linspace(0, len(v) - 1, SAMPLE).astype(np.int64)]
     if not len(v) or np.ptp(v) == 0:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from feedlog.ingest.quantum import position_step_mm
+from feedlog.ingest.position_steps import PositionSteps
 from feedlog.recording import Recording
 
 TOLERANCE = 1.25     # median ratio within 1/1.25 .. 1.25: the units agree
@@ -61,11 +61,13 @@ VELOCITY_COLUMNS = ("x_mm_s", "y_mm_s", "z_mm_s")
 FEED_COLUMNS = {"feed_mm_min": "the feed column", "requested_feed_mm_min": "the requested-feed column"}
 
 
-def feed_unit_checks(recording: Recording, *, positions: str = "axes", feed: str = "feed") -> dict[str, UnitCheck]:
-    """`feed_unit_check` for each feed-like column the recording has: column -> check."""
+def feed_unit_checks(recording: Recording, *, positions: str = "axes", feed: str = "feed",
+                     steps: PositionSteps | None = None) -> dict[str, UnitCheck]:
+    """`feed_unit_check` for each feed-like column the recording has: column -> check. `steps`: the
+    `positions` stream's `PositionSteps` when the caller has them already (`data_checks.run_checks`)."""
     out = {}
     for column in FEED_COLUMNS:
-        check = feed_unit_check(recording, positions=positions, feed=feed, column=column)
+        check = feed_unit_check(recording, positions=positions, feed=feed, column=column, steps=steps)
         if check is not None:
             out[column] = check
     return out
@@ -75,7 +77,10 @@ def _spread(n: int) -> np.ndarray:
     """Indices 0..n-1, or `MAX_PAIRS` of them evenly spread: a median needs no more (import stays fast)."""
     if n <= MAX_PAIRS:
         return np.arange(max(n, 0), dtype=np.int64)
-    return np.unique(np.linspace(0, n - 1, MAX_PAIRS).astype(np.int64))
+    rows = np.linspace(0, n - 1, MAX_PAIRS).astype(np.int64)
+    # more rows than picks: the picks are more than one apart, so already sorted and distinct (np.unique,
+    # a hash of 200 000 values, was most of this check's time on long recordings); kept for safety
+    return rows if (rows[1:] > rows[:-1]).all() else np.unique(rows)
 
 
 def velocity_check(recording: Recording, *, feed: str = "feed", column: str = "feed_mm_min") -> UnitCheck | None:
@@ -124,27 +129,27 @@ def _verdict(ratio: float, n: int, name: str, witness: str, *, unit_factors_only
 
 
 def feed_unit_check(recording: Recording, *, positions: str = "axes", feed: str = "feed",
-                    column: str = "feed_mm_min") -> UnitCheck | None:
+                    column: str = "feed_mm_min", steps: PositionSteps | None = None) -> UnitCheck | None:
     """Compare a recorded feed column with the axis velocities when the recording has them, else with
-    the positions' speed; None when the recording lacks either."""
+    the positions' speed; None when the recording lacks either. `steps`: the `positions` stream's
+    `PositionSteps` when the caller has them already."""
     by_velocity = velocity_check(recording, feed=feed, column=column)
     if by_velocity is not None:
         return by_velocity
-    axes, stream = recording.streams.get(positions), recording.streams.get(feed)
-    if axes is None or stream is None or column not in stream.columns or len(axes) < 3 or len(stream) < 2:
+    stream = recording.streams.get(feed)
+    if stream is None or column not in stream.columns or len(stream) < 2:
         return None
-    cols = [c for c in ("x_mm", "y_mm", "z_mm") if c in axes.columns]
-    if not cols:
+    steps = steps if steps is not None else PositionSteps.of(recording, positions)
+    if steps is None or len(steps) < 3:
         return None
-    t = axes["t_ns"].to_numpy(dtype=np.int64)
-    p = axes[cols].to_numpy(dtype=np.float64)
+    t = steps.t_ns
     first = _spread(len(t) - 1)                          # pairs of consecutive samples (first of each)
-    dt = (t[first + 1] - t[first]) / 1e9
+    dt = steps.dt_s[first]
     ok = dt > 0
     if ok.sum() < MIN_SAMPLES:
         return None
     first = first[ok]
-    speed = np.linalg.norm(p[first + 1] - p[first], axis=1) / dt[ok] * 60.0   # mm/min between samples
+    speed = steps.step_mm[first] / dt[ok] * 60.0         # mm/min between samples
     mid = (t[first] + t[first + 1]) // 2
     ft = stream["t_ns"].to_numpy(dtype=np.int64)
     fv = stream[column].to_numpy(dtype=np.float64)
@@ -152,7 +157,7 @@ def feed_unit_check(recording: Recording, *, positions: str = "axes", feed: str 
     # moving on both witnesses, away from the starts and stops where averages over a sample lag; the
     # positions' own scale is their median speed where the feed says the tool moves (a high percentile
     # would be set by glitches: real logs jump to a home position and back within a row)
-    feeding = feed_mid > 0.2 * np.percentile(np.abs(fv), 95)
+    feeding = feed_mid > 0.2 * np.percentile(np.abs(fv), 95, overwrite_input=True)   # on a copy: abs
     if feeding.sum() < MIN_SAMPLES:
         return None
     moving = feeding & (speed > 0.2 * np.median(speed[feeding]))
@@ -166,7 +171,7 @@ def feed_unit_check(recording: Recording, *, positions: str = "axes", feed: str 
         return UnitCheck(ratio, n, f"{name}'s unit not checked: the positions are {spacing:.3g} s apart while "
                                    f"moving (median over {n} samples), too sparse for their speed to be a witness "
                                    f"(it reads {ratio:.3g} x)")
-    step = max((q[0] for q in (position_step_mm(p[:, k]) for k in range(p.shape[1])) if q), default=0.0)
+    step = max((q[0] for q in map(steps.quantum, steps.columns) if q), default=0.0)
     resolved = step / spacing * 60.0                     # mm/min one position step per sample interval
     typical = float(np.median(feed_mid[moving]))
     if resolved > COARSE_SHARE * typical:
