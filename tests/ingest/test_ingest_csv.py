@@ -184,3 +184,14 @@ def test_large_but_real_values_still_import(tmp_path):
     path.write_text("t,x\n0,0\n0.001,999999999.5\n")  # a kilometre-long axis in um: unusual, not corrupt
     rec = read_csv(path, ColumnMap(mapping=parse_map("t=t,x=x"), time_unit="s", length_unit="um"))
     np.testing.assert_allclose(rec.streams["axes"]["x_mm"], [0, 999999.9995])
+
+
+def test_the_wall_clock_time_column_mapped_to_a_position_too_is_a_clear_error(tmp_path):
+    """The time column read as datetimes, mapped to an axis as well, was a numpy ValueError traceback."""
+    from feedlog.ingest.csv_reader import read_csv
+    from feedlog.ingest.mapping import ColumnMap
+    path = tmp_path / "stamps.csv"
+    path.write_text("t,y,z\n" + "".join(f"2024-01-01T00:00:00.00{i},{i},0\n" for i in range(5)))
+    cmap = ColumnMap(mapping={"t": "t", "x": "t", "y": "y", "z": "z"}, name="--map", time_unit="datetime")
+    with pytest.raises(IngestError, match=r"x=t: the column does not hold numbers"):
+        read_csv(path, cmap)

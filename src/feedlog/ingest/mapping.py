@@ -245,7 +245,13 @@ def build_streams(t_ns: np.ndarray, values: dict[str, np.ndarray], cmap: ColumnM
     grouped: dict[str, dict[str, np.ndarray]] = {}
     for target, raw in values.items():
         stream, column, kind = resolve_target(target)
-        grouped.setdefault(stream, {"t_ns": t_ns})[column] = convert(raw, kind, cmap)
+        try:
+            converted = convert(raw, kind, cmap)
+        except (TypeError, ValueError) as exc:   # a text column (e.g. the wall-clock time) mapped to a number
+            source = cmap.mapping.get(target, target)
+            raise IngestError(f"{cmap.name}: {target}={source}: the column does not hold numbers "
+                              f"({str(exc).splitlines()[0]})") from None
+        grouped.setdefault(stream, {"t_ns": t_ns})[column] = converted
     if not owned:
         return {stream: pd.DataFrame(cols) for stream, cols in grouped.items()}
     taken: list[np.ndarray] = []
