@@ -31,13 +31,14 @@ def slower_after_arcs(text: str) -> str:
 
 
 def make_hidden(name: str, *, values=None, mechanisms=None, programs=PAIR, rate_hz: float = 1000.0,
-                base: str = "linuxcnc-xyz", edit=None, seed: int = 0, program_edit=None):
+                base: str = "linuxcnc-xyz", edit=None, seed: int = 0, program_edit=None, texts=None):
     """`edit` changes what the machine ran in the last program only (the attached program stays as
-    written); `program_edit` changes every program, run and attached alike."""
+    written); `program_edit` changes every program, run and attached alike; `texts` (name -> G-code)
+    gives programs that are not bundled."""
     truth = with_values(load_profile(base), values) if values else load_profile(base)
     recordings = []
     for i, program in enumerate(programs):
-        text = (PROGRAMS / f"{program}.ngc").read_text()
+        text = texts[program] if texts and program in texts else (PROGRAMS / f"{program}.ngc").read_text()
         text = program_edit(text) if program_edit is not None else text
         run = edit(text) if edit is not None and i == len(programs) - 1 else text
         result = simulate(parse_program(run, name=program), truth, mechanisms=mechanisms)

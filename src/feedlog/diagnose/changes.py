@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from feedlog.diagnose.drift import Drift, Interpolated, drift_residuals, fit_drift, inside
 from feedlog.diagnose.fit import Scorer, _grid, refine
 from feedlog.diagnose.hypothesis import Hypothesis
 
@@ -32,6 +33,7 @@ CHANGING = ("sim.feed_override.override", "sim.rapid_override.override")
 MIN_SIDE = 2          # segments on each side of the segment a change happened in, at least (that its values move)
 SENSITIVE = 3.0       # a segment a value moves: the two values' residuals differ by this many timing sigmas
 REFINE_ITER = 12
+DRIFT_SCREEN = 0.5    # a drift is tried where a step removes at least this share of min_gain (held out)
 
 
 @dataclass
@@ -49,16 +51,31 @@ class Change:
     error_change_pct: float      # ... with the change
     held_out_gain: float         # share of the held-out loss (odd segments) removed against one value
     single_value: float          # the one value the whole session would be averaged into
+    shape: str = "step"          # "step": a dial turned at at_s; "drift": linear from at_s to until_s
+    until_s: float | None = None  # a drift's end (measured time from motion start)
+
+    @property
+    def rate_per_min(self) -> float | None:
+        """A drift's rate of change per minute (None for a step)."""
+        if self.shape != "drift" or self.until_s is None or self.until_s <= self.at_s:
+            return None
+        return 60.0 * (self.after - self.before) / (self.until_s - self.at_s)
 
     def as_dict(self) -> dict[str, Any]:
-        return {"recording": self.recording, "parameter": self.parameter, "unit": self.unit,
-                "before": self.before, "after": self.after, "at_s": self.at_s, "between_s": list(self.between_s),
+        return {"recording": self.recording, "parameter": self.parameter, "unit": self.unit, "shape": self.shape,
+                "before": self.before, "after": self.after, "at_s": self.at_s, "until_s": self.until_s,
+                "rate_per_min": self.rate_per_min, "between_s": list(self.between_s),
                 "line": self.line, "segment": self.segment, "error_single_pct": self.error_single_pct,
                 "error_change_pct": self.error_change_pct, "held_out_gain": self.held_out_gain,
                 "single_value": self.single_value}
 
     def text(self) -> str:
         where = f" (program line {self.line})" if self.line is not None else ""
+        if self.shape == "drift":
+            return (f"drift during {self.recording}: {self.parameter} drifts from {self.before:.4g} at "
+                    f"{self.at_s:.2f} s{where} to {self.after:.4g} at {self.until_s:.2f} s "
+                    f"({self.rate_per_min:+.4g} {self.unit} per minute), not one value ({self.single_value:.4g}): "
+                    f"timing error {self.error_single_pct:.2f} % -> {self.error_change_pct:.2f} %").replace("  ", " ")
         return (f"change during {self.recording}: {self.parameter} {self.before:.4g} -> {self.after:.4g} "
                 f"{self.unit} at {self.at_s:.2f} s{where}, not one value ({self.single_value:.4g}): "
                 f"timing error {self.error_single_pct:.2f} % -> {self.error_change_pct:.2f} %").replace("  ", " ")
@@ -88,13 +105,17 @@ class _OneRecording:
         self.scorer, self.base, self.hyp, self.case = scorer, dict(base), hyp, case
         self._cache: dict[float, np.ndarray] = {}
 
-    def sq(self, v: float) -> np.ndarray:
+    def residual(self, v: float) -> np.ndarray:
+        """Signed residuals times the square root of the weights (inf where `v` does not simulate)."""
         key = float(f"{v:.12g}")
         if key not in self._cache:
             r = self.scorer.case_residual(self.case, {**self.base, **self.hyp.values(key)})
             w = self.scorer.weights[self.case]
-            self._cache[key] = np.full(len(w), np.inf) if r is None else w * np.square(r)
+            self._cache[key] = np.full(len(w), np.inf) if r is None else np.sqrt(w) * r
         return self._cache[key]
+
+    def sq(self, v: float) -> np.ndarray:
+        return np.square(self.residual(v))
 
     def best(self, rows: np.ndarray, grid: list[float], sq: np.ndarray) -> tuple[float, float]:
         """The value with the least loss over the segments `rows` (grid, then Brent between neighbours)."""
@@ -186,6 +207,15 @@ def _judge(one: _OneRecording, grid: list[float], sq: np.ndarray, *, min_gain: f
     floor_odd = float(scorer.weights[i][scored].sum()) * 2.0 * case.segment_sigma_s ** 2
     excess = single_odd - floor_odd
     gain = (single_odd - change_odd) / excess if excess > 0 else 0.0
+    if gain >= DRIFT_SCREEN * min_gain:
+        found = _gradual(one, grid, (a_e, b_e), scored, even, change_odd, floor_odd, min_gain=min_gain)
+        change = None
+        if found is not None and excess > 0:
+            model, drift, drift_odd = found
+            change = _drift_change(one, grid, sq, (model, drift), (single_odd - drift_odd) / excess,
+                                   min_effect_pct=min_effect_pct)
+        if change is not None:
+            return change
     if gain < min_gain:
         return None
     # all segments: where, from what, to what
@@ -215,6 +245,63 @@ def _judge(one: _OneRecording, grid: list[float], sq: np.ndarray, *, min_gain: f
                   line=_line_of(case, int(seg.anchors[k])), segment=k,
                   error_single_pct=err_single, error_change_pct=err_change, held_out_gain=float(gain),
                   single_value=v0)
+
+
+def _gradual(one: _OneRecording, grid: list[float], step: tuple[float, float], scored: np.ndarray,
+             even: np.ndarray, step_odd: float, floor_odd: float, *,
+             min_gain: float) -> tuple[Interpolated, Drift, float] | None:
+    """A drift fitted on the even segments that spans at least MIN_SIDE whole segments and removes at
+    least `min_gain` of what the step (fitted on the same segments) leaves above the noise floor on the
+    held-out ones `scored`: the penalty a drift's fourth parameter pays. None: the step stands."""
+    seg = one.scorer.segments[one.case]
+    start_s, end_s = seg.end_s - seg.measured_s, seg.end_s
+    model = Interpolated(one.residual, one.hyp.scale, one.hyp.lower, one.hyp.upper)
+    model.add(grid)
+    model.densify(*step)
+    drift = fit_drift(model, start_s, end_s, even, step)
+    if drift is None or inside(drift, start_s, end_s) < MIN_SIDE:
+        return None
+    e = drift_residuals(model, drift, start_s, end_s)
+    drift_odd = float(np.square(e)[scored].sum())
+    left = step_odd - floor_odd
+    if left <= 0 or step_odd - drift_odd < min_gain * left:
+        return None
+    return model, drift, drift_odd
+
+
+def _drift_change(one: _OneRecording, grid: list[float], sq: np.ndarray, found: tuple[Interpolated, Drift],
+                  gain: float, *, min_effect_pct: float) -> Change | None:
+    """The drift refitted on all segments, reported if it takes the recording's timing error down by
+    `min_effect_pct` points and both of its values rest on MIN_SIDE segments they move."""
+    scorer, hyp, i = one.scorer, one.hyp, one.case
+    model, held = found
+    case, seg = scorer.cases[i], scorer.segments[i]
+    n = len(seg)
+    rows = np.arange(n)
+    start_s, end_s = seg.end_s - seg.measured_s, seg.end_s
+    model.densify(held.before, held.after)
+    drift = fit_drift(model, start_s, end_s, np.ones(n, bool), (held.before, held.after))
+    if drift is None:
+        return None
+    v0, l0 = one.best(rows, grid, sq)
+    e = drift_residuals(model, drift, start_s, end_s)
+    err_single, err_change = _error_pct(scorer, i, l0), _error_pct(scorer, i, float(np.square(e).sum()))
+    if err_single - err_change < min_effect_pct:
+        return None
+    r1 = scorer.case_residual(i, {**one.base, **hyp.values(drift.before)})
+    r2 = scorer.case_residual(i, {**one.base, **hyp.values(drift.after)})
+    if r1 is None or r2 is None:
+        return None
+    moved = np.abs(r1 - r2) * scorer.weights[i] > SENSITIVE * case.segment_sigma_s
+    mid = 0.5 * (drift.t0_s + drift.t1_s)
+    if moved[end_s <= mid].sum() < MIN_SIDE or moved[start_s >= mid].sum() < MIN_SIDE:
+        return None
+    k = int(min(np.searchsorted(end_s, drift.t0_s, side="right"), n - 1))   # the segment the drift starts in
+    return Change(recording=case.name, parameter=hyp.key, unit=hyp.unit, before=drift.before, after=drift.after,
+                  at_s=drift.t0_s, between_s=(drift.t0_s, drift.t1_s), line=_line_of(case, int(seg.anchors[k])),
+                  segment=k, error_single_pct=err_single, error_change_pct=err_change,
+                  held_out_gain=float(gain),
+                  single_value=v0, shape="drift", until_s=drift.t1_s)
 
 
 def _line_of(case: Any, block: int) -> int | None:
