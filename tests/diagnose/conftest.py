@@ -52,6 +52,15 @@ def make_hidden(name: str, *, values=None, mechanisms=None, programs=PAIR, rate_
     return recordings
 
 
+def drilling(holes: int) -> str:
+    """A drilling pattern of `holes` holes, four to a row 30 mm apart: XY rapids between the holes, Z
+    rapids in and out, each hole at F600 (a program of many rapids: the rapid dial acts on most of it)."""
+    lines = ["G21 G90 G64 P0.01", "G0 X0 Y0 Z20"]
+    for i in range(holes):
+        lines += [f"G0 X{30 * (i % 4)} Y{30 * (i // 4)}", "G0 Z2", "G1 Z-3 F600", "G0 Z20"]
+    return "\n".join(lines + ["M2"]) + "\n"
+
+
 _CACHE: dict = {}
 
 

@@ -115,6 +115,17 @@ def test_the_dial_turn_option_says_what_it_needs():
             dial_turn(bad)
 
 
+def test_the_rapid_dial_turn_option_stops_at_100_percent():
+    import argparse
+
+    from feedlog.ingest.linuxcnc import rapid_dial_turn
+
+    assert rapid_dial_turn("5:0.5") == (5.0, 0.5) and rapid_dial_turn("0:1") == (0.0, 1.0)
+    for bad in ("5:1.5", "5:0", "5", "-1:0.5"):
+        with pytest.raises(argparse.ArgumentTypeError, match="S:SCALE|SCALE <= 1,"):
+            rapid_dial_turn(bad)
+
+
 @settings(max_examples=200, derandomize=True, deadline=None)
 @given(st.one_of(st.text(max_size=20), st.tuples(st.floats(allow_nan=True), st.floats(allow_nan=True)).map(
     lambda p: f"{p[0]}:{p[1]}")))
@@ -125,12 +136,15 @@ def test_any_dial_turn_text_parses_to_a_valid_turn_or_says_what_it_needs(text):
 
     from feedlog.ingest.linuxcnc import dial_turn
 
-    try:
-        at, scale = dial_turn(text)
-    except argparse.ArgumentTypeError as exc:
-        assert "S:SCALE" in str(exc) or "SCALE <= 10" in str(exc)
-    else:
-        assert at >= 0 and 0 < scale <= 10 and np.isfinite(at)
+    from feedlog.ingest.linuxcnc import rapid_dial_turn
+
+    for parse, top in ((dial_turn, 10), (rapid_dial_turn, 1)):
+        try:
+            at, scale = parse(text)
+        except argparse.ArgumentTypeError as exc:
+            assert "S:SCALE" in str(exc) or f"SCALE <= {top}," in str(exc)
+        else:
+            assert at >= 0 and 0 < scale <= top and np.isfinite(at)
 
 
 def test_a_dial_that_moves_one_segment_either_side_is_not_a_change():

@@ -24,7 +24,7 @@ from feedlog.sim.feed_override import FeedOverride
 from feedlog.sim.rapid_override import RapidOverride
 from feedlog.toolpath import parse_program
 
-from tests.diagnose.conftest import PROGRAMS, make_hidden
+from tests.diagnose.conftest import PROGRAMS, drilling, make_hidden
 
 FAST = DiagnoseConfig(learned=False)
 DRIFT = (2.0, 6.0, 1.0, 0.8)     # the feed dial drifts from 1.0 at 2 s to 0.8 at 6 s of motion time
@@ -101,19 +101,11 @@ def test_a_drift_too_short_to_span_segments_is_a_step():
     assert change.at_s == pytest.approx(3.0, abs=0.3)
 
 
-def _drilling(holes: int = 16) -> str:
-    """A drilling pattern: XY rapids between holes, Z rapids in and out, the holes at F600."""
-    lines = ["G21 G90 G64 P0.01", "G0 X0 Y0 Z20"]
-    for i in range(holes):
-        lines += [f"G0 X{30 * (i % 4)} Y{30 * (i // 4)}", "G0 Z2", "G1 Z-3 F600", "G0 Z20"]
-    return "\n".join(lines + ["M2"]) + "\n"
-
-
-RAPID_TURN_LINE = 35   # the rapid dial goes to 50 % before this line (hole 9's XY rapid)
+RAPID_TURN_LINE = 19   # the rapid dial goes to 50 % before this line (hole 5's XY rapid of 8)
 
 
 def test_the_rapid_dial_turned_mid_program_is_a_change_of_the_rapid_dial():
-    text = _drilling()
+    text = drilling(8)
 
     def scale(lines):
         return np.where(np.asarray(lines) >= RAPID_TURN_LINE, 0.5, 1.0)

@@ -293,7 +293,8 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
                 keep_workdir: bool = False, stop_event: threading.Event | None = None,
                 priority: str = "normal", feed_override: float | None = None,
                 subroutine_path: tuple[Path, ...] = (),
-                feed_override_at: tuple[tuple[float, float], ...] = ()) -> SessionResult:
+                feed_override_at: tuple[tuple[float, float], ...] = (),
+                rapid_override_at: tuple[tuple[float, float], ...] = ()) -> SessionResult:
     """Run `program` on the machine `ini` from homing to program end; return the capture.
 
     Errors of the run itself (G-code errors, aborts) are in the report: see session_error(). Call
@@ -303,7 +304,8 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
     nice -10, 'realtime': SCHED_FIFO 20; root only) schedules the whole LinuxCNC process tree above other
     work on the host, so that a program whose block rate LinuxCNC's task limits runs as on a quiet host.
     `feed_override` sets the feed override dial (1.0 = 100 %) before the program starts;
-    `feed_override_at` ((seconds after the start, dial), ...) turns it while the program runs.
+    `feed_override_at` ((seconds after the start, dial), ...) turns it while the program runs;
+    `rapid_override_at` turns the rapid override dial alike.
     `subroutine_path`: folders where LinuxCNC finds `o<name> call` files, before the INI's SUBROUTINE_PATH
     (the program runs from a copy, so its own folder is not searched).
     """
@@ -335,7 +337,8 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
                "sample_files": [str(p) for p in sample_files], "result": str(workdir / "result.json"),
                "enable_signal": ENABLE_SIGNAL, "motion_time_pin": f"{MOTION_TIME_COMPONENT}.out",
                "timeout_s": timeout_s, "stop_file": str(workdir / "stop"), "feed_override": feed_override,
-               "feed_override_at": [list(map(float, turn)) for turn in feed_override_at]}
+               "feed_override_at": [list(map(float, turn)) for turn in feed_override_at],
+               "rapid_override_at": [list(map(float, turn)) for turn in rapid_override_at]}
         job_path.write_text(json.dumps(job))
         ini_path = workdir / "machine.ini"
         ini_path.write_text(ini.rewritten(display=f"{driver} {job_path}", recorder=recorder,
