@@ -47,16 +47,21 @@ def dial_by_line(cls, scale_of_lines):
         yield
 
 
-def drifted(name: str, program: str, drift=DRIFT, **kwargs):
-    """`program` recorded on a machine whose feed dial drifts linearly in time by `drift` (t0, t1, a, b)."""
-    t0, t1, a, b = drift
+def linear(t0: float, t1: float, a: float, b: float):
+    """The dial at time t (s): a until t0, linear to b at t1, b after it."""
+    return lambda t: a + (b - a) * np.clip((t - t0) / (t1 - t0), 0.0, 1.0)
+
+
+def drifted(name: str, program: str, drift=DRIFT, *, dial=None, **kwargs):
+    """`program` recorded on a machine whose feed dial drifts linearly in time by `drift` (t0, t1, a, b),
+    or follows `dial(t)` (t: seconds of motion) when given."""
+    dial = dial or linear(*drift)
     text = (PROGRAMS / f"{program}.ngc").read_text()
     parsed, profile = parse_program(text, name=program), load_profile("linuxcnc-xyz")
     mid: dict[int, float] = {}
 
     def scale(lines):
-        t = np.array([mid.get(int(line), 0.0) for line in lines])
-        return a + (b - a) * np.clip((t - t0) / (t1 - t0), 0.0, 1.0)
+        return dial(np.array([mid.get(int(line), 0.0) for line in lines]))
 
     on = {"feed_override": {"override": 1.0}}
     with dial_by_line(FeedOverride, scale):
@@ -75,7 +80,9 @@ def cached(name, make):
     return _CACHE[name]
 
 
-def test_a_machine_that_warms_up_is_a_drift_not_a_step_nor_one_value():
+def test_a_machine_that_warms_up_is_a_drift_not_a_step_nor_one_value(tmp_path):
+    from feedlog.diagnose.write import write_outputs
+
     recs = cached("drift", lambda: drifted("drift", PROGRAM))
     dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
     (change,) = dx.changes
@@ -90,6 +97,8 @@ def test_a_machine_that_warms_up_is_a_drift_not_a_step_nor_one_value():
     assert dx.unexplained == []
     assert any(line.startswith("drift during") and "per minute" in line for line in summary_lines(dx))
     assert to_json(dx)["changes"][0]["shape"] == "drift"
+    write_outputs(dx, tmp_path / "dx")
+    assert "| drift 2." in (tmp_path / "dx" / "report.md").read_text()
 
 
 def test_a_drift_too_short_to_span_segments_is_a_step():
