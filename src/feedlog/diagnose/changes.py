@@ -15,6 +15,12 @@ segments that the two values tell apart (by `SENSITIVE` timing sigmas: on a fami
 LinuxCNC recordings a rapid dial of 0.36 "before" rested on the one approach rapid it touched). It says when (the measured time of the boundary, from motion start, the segment it ends and
 the program line), from what, to what, and what one value would have been. The averaged finding of the
 same parameter is not reported, and the extended profile keeps the profile's value for it.
+
+A gradual change (a machine that warms up) is tried beside the step where the step's held-out gain
+reaches `DRIFT_SCREEN` of `min_gain`: a drift (`drift.py`: one value until t0, linear to another at
+t1) fitted both ways round (even segments -> odd, odd -> even) must span MIN_SIDE whole segments and
+remove `min_gain` of what the step leaves above the noise floor over both folds; it is then reported
+as a drift (`shape`, `until_s`, `rate_per_min`) under the same effect and two-segment rules.
 """
 
 from __future__ import annotations
@@ -208,12 +214,11 @@ def _judge(one: _OneRecording, grid: list[float], sq: np.ndarray, *, min_gain: f
     excess = single_odd - floor_odd
     gain = (single_odd - change_odd) / excess if excess > 0 else 0.0
     if gain >= DRIFT_SCREEN * min_gain:
-        found = _gradual(one, grid, (a_e, b_e), scored, even, change_odd, floor_odd, min_gain=min_gain)
+        found = _gradual(one, grid, sq, (k_e, (a_e, b_e), change_odd, single_odd, floor_odd), min_gain=min_gain)
         change = None
-        if found is not None and excess > 0:
-            model, drift, drift_odd = found
-            change = _drift_change(one, grid, sq, (model, drift), (single_odd - drift_odd) / excess,
-                                   min_effect_pct=min_effect_pct)
+        if found is not None:
+            model, drift, drift_gain = found
+            change = _drift_change(one, grid, sq, (model, drift), drift_gain, min_effect_pct=min_effect_pct)
         if change is not None:
             return change
     if gain < min_gain:
@@ -247,26 +252,57 @@ def _judge(one: _OneRecording, grid: list[float], sq: np.ndarray, *, min_gain: f
                   single_value=v0)
 
 
-def _gradual(one: _OneRecording, grid: list[float], step: tuple[float, float], scored: np.ndarray,
-             even: np.ndarray, step_odd: float, floor_odd: float, *,
+Fold = tuple[int, tuple[float, float], float, float, float]   # boundary, (before, after), step, single, floor
+
+
+def _fold(one: _OneRecording, grid: list[float], sq: np.ndarray, fit: np.ndarray) -> Fold | None:
+    """One held-out fold: a step (its boundary one of the other segments) and one value fitted on the
+    segments `fit`, scored on the others but the boundary: (boundary, (before, after), step loss,
+    single-value loss, noise floor), or None where no step fits."""
+    n = sq.shape[1]
+    rows = np.arange(n)
+    inner = (rows >= MIN_SIDE) & (rows < n - MIN_SIDE)
+    k, a, b = _split(one, fit, inner & ~fit, grid, sq)
+    if k < 0:
+        return None
+    scored = ~fit & (rows != k)
+    single, _ = one.best(rows[fit], grid, sq)
+    step_loss = float(one.sq(a)[scored & (rows < k)].sum() + one.sq(b)[scored & (rows > k)].sum())
+    floor = float(one.scorer.weights[one.case][scored].sum()) * 2.0 * one.scorer.cases[one.case].segment_sigma_s ** 2
+    return k, (a, b), step_loss, float(one.sq(single)[scored].sum()), floor
+
+
+def _gradual(one: _OneRecording, grid: list[float], sq: np.ndarray, even_fold: Fold, *,
              min_gain: float) -> tuple[Interpolated, Drift, float] | None:
-    """A drift fitted on the even segments that spans at least MIN_SIDE whole segments and removes at
-    least `min_gain` of what the step (fitted on the same segments) leaves above the noise floor on the
-    held-out ones `scored`: the penalty a drift's fourth parameter pays. None: the step stands."""
+    """A drift judged on both folds (fitted on the even segments and scored on the odd ones, and the
+    other way round; each fold's step boundary left out of both scores): it must span at least MIN_SIDE
+    whole segments and remove at least `min_gain` of what the step leaves above the noise floor over
+    both folds (the penalty its fourth parameter pays). Returns (the model, the drift fitted on the even
+    segments, its held-out gain against one value over both folds), or None: the step stands."""
     seg = one.scorer.segments[one.case]
+    rows = np.arange(len(seg))
     start_s, end_s = seg.end_s - seg.measured_s, seg.end_s
+    even = rows % 2 == 0
+    odd_fold = _fold(one, grid, sq, ~even)
+    if odd_fold is None:
+        return None
     model = Interpolated(one.residual, one.hyp.scale, one.hyp.lower, one.hyp.upper)
     model.add(grid)
-    model.densify(*step)
-    drift = fit_drift(model, start_s, end_s, even, step)
-    if drift is None or inside(drift, start_s, end_s) < MIN_SIDE:
+    step_total = single_total = drift_total = floor_total = 0.0
+    kept = None
+    for fit, (k, first, step_loss, single_loss, floor) in ((even, even_fold), (~even, odd_fold)):
+        model.densify(*first)
+        drift = fit_drift(model, start_s, end_s, fit, first)
+        if drift is None or inside(drift, start_s, end_s) < MIN_SIDE:
+            return None
+        e = drift_residuals(model, drift, start_s, end_s)
+        drift_total += float(np.square(e)[~fit & (rows != k)].sum())
+        step_total, single_total, floor_total = step_total + step_loss, single_total + single_loss, floor_total + floor
+        kept = kept or drift
+    left = step_total - floor_total
+    if left <= 0 or step_total - drift_total < min_gain * left or single_total <= floor_total:
         return None
-    e = drift_residuals(model, drift, start_s, end_s)
-    drift_odd = float(np.square(e)[scored].sum())
-    left = step_odd - floor_odd
-    if left <= 0 or step_odd - drift_odd < min_gain * left:
-        return None
-    return model, drift, drift_odd
+    return model, kept, (single_total - drift_total) / (single_total - floor_total)
 
 
 def _drift_change(one: _OneRecording, grid: list[float], sq: np.ndarray, found: tuple[Interpolated, Drift],
