@@ -27,6 +27,7 @@ MAX_DENSE = 40         # at most this many dense values per range (the lattice c
 MAX_TIMES = 24         # candidate drift starts and ends per recording (the segments' ends, thinned)
 SUBSAMPLES = 9         # points per segment at which the drift's value is averaged
 GN_ITER = 10
+REFINE_FROM = 3      # Nelder-Mead refines the best this many pairs
 
 
 @dataclass(frozen=True)
@@ -119,19 +120,16 @@ def fit_drift(model: Interpolated, start_s: np.ndarray, end_s: np.ndarray, use: 
     share = ramp_share(start_s, end_s, t0, t1)                                           # (P, n)
     w = use.astype(float)
     vmin, vmax = float(model.from_x(X[0])), float(model.from_x(X[-1]))
-    a, b = np.full(len(t0), float(first[0])), np.full(len(t0), float(first[1]))
-    for _ in range(GN_ITER):   # Gauss-Newton on (a, b) for every pair at once
-        e, s = model.at(a[:, None] + (b - a)[:, None] * share, X, E)
-        ja, jb = s * (1 - share) * w, s * share * w
-        g = np.stack([(ja * e).sum(1), (jb * e).sum(1)], 1)
-        h = np.stack([np.stack([(ja * ja).sum(1), (ja * jb).sum(1)], 1),
-                      np.stack([(ja * jb).sum(1), (jb * jb).sum(1)], 1)], 1)
-        h = h + 1e-12 * np.eye(2) + 1e-6 * np.trace(h, axis1=1, axis2=2)[:, None, None] * np.eye(2)
-        d = np.linalg.solve(h, -g[..., None])[..., 0]
-        a, b = np.clip(a + d[:, 0], vmin, vmax), np.clip(b + d[:, 1], vmin, vmax)
-    e, _ = model.at(a[:, None] + (b - a)[:, None] * share, X, E)
-    loss = (e * e * w).sum(1)
-    best = int(np.argmin(loss))
+    a0, b0 = float(first[0]), float(first[1])
+    found = []
+    for start in ((a0, b0), (a0 + 0.25 * (a0 - b0), b0 - 0.5 * (a0 - b0))):   # the step's values, and beyond them
+        a, b = _gauss_newton(model, X, E, share, w, np.full(len(t0), start[0]), np.full(len(t0), start[1]))
+        e, _ = model.at(a[:, None] + (b - a)[:, None] * share, X, E)
+        found.append((a, b, (e * e * w).sum(1)))
+    a = np.concatenate([f[0] for f in found])
+    b = np.concatenate([f[1] for f in found])
+    loss = np.concatenate([f[2] for f in found])
+    t0, t1 = np.tile(t0, len(found)), np.tile(t1, len(found))
     end = float(end_s[-1])
 
     def objective(p: np.ndarray) -> float:
@@ -141,12 +139,33 @@ def fit_drift(model: Interpolated, start_s: np.ndarray, end_s: np.ndarray, use: 
         ee, _ = model.at(p[0] + (p[1] - p[0]) * sh, X, E)
         return float((ee * ee * w).sum())
 
-    res = minimize(objective, np.array([a[best], b[best], t0[best], t1[best]]), method="Nelder-Mead",
-                   options={"xatol": 1e-4, "fatol": 1e-12, "maxiter": 600})
-    p = res.x if res.fun < loss[best] else np.array([a[best], b[best], t0[best], t1[best]])
-    p2, p3 = sorted((float(np.clip(p[2], 0.0, end)), float(np.clip(p[3], 0.0, end))))
-    return Drift(before=float(np.clip(p[0], vmin, vmax)), after=float(np.clip(p[1], vmin, vmax)), t0_s=p2, t1_s=p3,
-                 loss=min(float(res.fun), float(loss[best])))
+    best_p, best_loss = None, np.inf
+    for i in np.argsort(loss)[:REFINE_FROM]:   # Nelder-Mead from the best few pairs
+        p0 = np.array([a[i], b[i], t0[i], t1[i]])
+        res = minimize(objective, p0, method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-12, "maxiter": 600})
+        p, f = (res.x, float(res.fun)) if res.fun < loss[i] else (p0, float(loss[i]))
+        if f < best_loss:
+            best_p, best_loss = p, f
+    p2, p3 = sorted((float(np.clip(best_p[2], 0.0, end)), float(np.clip(best_p[3], 0.0, end))))
+    return Drift(before=float(np.clip(best_p[0], vmin, vmax)), after=float(np.clip(best_p[1], vmin, vmax)),
+                 t0_s=p2, t1_s=p3, loss=best_loss)
+
+
+def _gauss_newton(model: Interpolated, X: np.ndarray, E: np.ndarray, share: np.ndarray, w: np.ndarray,
+                  a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The two values (a before, b after) of every pair of drift times (`share`: (pairs, segments)) by
+    damped Gauss-Newton on all pairs at once, within the table's values."""
+    vmin, vmax = float(model.from_x(X[0])), float(model.from_x(X[-1]))
+    for _ in range(GN_ITER):
+        e, s = model.at(a[:, None] + (b - a)[:, None] * share, X, E)
+        ja, jb = s * (1 - share) * w, s * share * w
+        g = np.stack([(ja * e).sum(1), (jb * e).sum(1)], 1)
+        h = np.stack([np.stack([(ja * ja).sum(1), (ja * jb).sum(1)], 1),
+                      np.stack([(ja * jb).sum(1), (jb * jb).sum(1)], 1)], 1)
+        h = h + 1e-12 * np.eye(2) + 1e-6 * np.trace(h, axis1=1, axis2=2)[:, None, None] * np.eye(2)
+        d = np.linalg.solve(h, -g[..., None])[..., 0]
+        a, b = np.clip(a + d[:, 0], vmin, vmax), np.clip(b + d[:, 1], vmin, vmax)
+    return a, b
 
 
 def drift_residuals(model: Interpolated, drift: Drift, start_s: np.ndarray, end_s: np.ndarray) -> np.ndarray:
