@@ -19,7 +19,8 @@ same parameter is not reported, and the extended profile keeps the profile's val
 A gradual change (a machine that warms up) is tried beside the step where the step's held-out gain
 reaches `DRIFT_SCREEN` of `min_gain`: a drift (`drift.py`: one value until t0, linear to another at
 t1) fitted both ways round (even segments -> odd, odd -> even) must span MIN_SIDE whole segments and
-remove `min_gain` of what the step leaves above the noise floor over both folds; it is then reported
+remove `min_gain` of what the step leaves above the noise floor over both folds (and `min_gain` of what
+one value leaves); it is then reported
 as a drift (`shape`, `until_s`, `rate_per_min`) under the same effect and two-segment rules.
 """
 
@@ -302,7 +303,8 @@ def _gradual(one: _OneRecording, grid: list[float], sq: np.ndarray, even_fold: F
     left = step_total - floor_total
     if left <= 0 or step_total - drift_total < min_gain * left or single_total <= floor_total:
         return None
-    return model, kept, (single_total - drift_total) / (single_total - floor_total)
+    gain = (single_total - drift_total) / (single_total - floor_total)
+    return (model, kept, gain) if gain >= min_gain else None
 
 
 def _drift_change(one: _OneRecording, grid: list[float], sq: np.ndarray, found: tuple[Interpolated, Drift],
