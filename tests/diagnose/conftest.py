@@ -31,14 +31,17 @@ def slower_after_arcs(text: str) -> str:
 
 
 def make_hidden(name: str, *, values=None, mechanisms=None, programs=PAIR, rate_hz: float = 1000.0,
-                base: str = "linuxcnc-xyz", edit=None, seed: int = 0, program_edit=None):
+                base: str = "linuxcnc-xyz", edit=None, seed: int = 0, program_edit=None, texts=None):
     """`edit` changes what the machine ran in the last program only (the attached program stays as
-    written); `program_edit` changes every program, run and attached alike."""
+    written); `program_edit` changes every program, run and attached alike; `texts` (name -> G-code)
+    gives programs that are not bundled."""
     truth = with_values(load_profile(base), values) if values else load_profile(base)
     recordings = []
     for i, program in enumerate(programs):
-        # a bundled program's name, or (name, G-code text) for a program made by the test
-        program, text = program if isinstance(program, tuple) else (program, (PROGRAMS / f"{program}.ngc").read_text())
+        if isinstance(program, tuple):   # (name, G-code text) for a program made by the test
+            program, text = program
+        else:                            # a bundled program's name, or one `texts` gives
+            text = texts[program] if texts and program in texts else (PROGRAMS / f"{program}.ngc").read_text()
         text = program_edit(text) if program_edit is not None else text
         run = edit(text) if edit is not None and i == len(programs) - 1 else text
         result = simulate(parse_program(run, name=program), truth, mechanisms=mechanisms)
@@ -50,6 +53,15 @@ def make_hidden(name: str, *, values=None, mechanisms=None, programs=PAIR, rate_
         rec.source = f"{name}_{program}.mcap"
         recordings.append(rec)
     return recordings
+
+
+def drilling(holes: int) -> str:
+    """A drilling pattern of `holes` holes, four to a row 30 mm apart: XY rapids between the holes, Z
+    rapids in and out, each hole at F600 (a program of many rapids: the rapid dial acts on most of it)."""
+    lines = ["G21 G90 G64 P0.01", "G0 X0 Y0 Z20"]
+    for i in range(holes):
+        lines += [f"G0 X{30 * (i % 4)} Y{30 * (i // 4)}", "G0 Z2", "G1 Z-3 F600", "G0 Z20"]
+    return "\n".join(lines + ["M2"]) + "\n"
 
 
 _CACHE: dict = {}

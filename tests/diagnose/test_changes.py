@@ -31,7 +31,7 @@ def test_a_dial_turned_mid_program_is_a_change_not_one_value(hidden, tmp_path):
     recs = hidden("turned", edit=dial_turned, programs=PROGRAMS)
     dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
     (change,) = dx.changes
-    assert change.parameter == "sim.feed_override.override"
+    assert change.parameter == "sim.feed_override.override" and change.shape == "step"
     assert change.recording == recs[-1].source.split(".")[0]
     assert change.before == pytest.approx(1.0, rel=0.05) and change.after == pytest.approx(0.7, rel=0.05)
     assert abs(change.line - TURN_LINE) <= 1                 # the block where the feed changed
@@ -44,6 +44,39 @@ def test_a_dial_turned_mid_program_is_a_change_not_one_value(hidden, tmp_path):
     assert to_json(dx)["changes"][0]["after"] == pytest.approx(0.7, rel=0.05)
     write_outputs(dx, tmp_path / "dx")
     assert "## Changes during a session" in (tmp_path / "dx" / "report.md").read_text()
+
+
+SPARSE_PROGRAM, SPARSE_LINE = "corners_f1000_p01", 15   # 16.4 s: ten segments of at least 1 s at 5 Hz
+
+
+def test_a_dial_turned_mid_program_in_a_5_hz_recording_is_a_change(hidden):
+    """At 5 Hz a segment lasts at least five sampling periods (1 s), so a step needs a program of ten
+    seconds or more (six segments); the 16 s corner program, dial to 70 % from line 15 on. Tolerances:
+    both values within 5 % (as at 1 kHz: the step's values rest on whole segments, whose ends the sim
+    mirrors at the recording's sample instants) and the time within one sampling period (0.2 s) of the
+    turn: the turn's segment spans 2 s here, and where in it the dial turned is read from the two speeds."""
+    from feedlog.profile import load_profile
+    from feedlog.sim import simulate
+    from feedlog.toolpath import parse_program
+    from tests.diagnose.conftest import PROGRAMS as BUNDLED
+
+    def turned(text: str) -> str:
+        lines = text.splitlines()
+        lines[SPARSE_LINE - 1] += " F700"
+        return "\n".join(lines) + "\n"
+
+    text = (BUNDLED / f"{SPARSE_PROGRAM}.ngc").read_text()
+    blocks = simulate(parse_program(text), load_profile("linuxcnc-xyz")).blocks
+    turn_s = float(blocks.loc[blocks["line"] == SPARSE_LINE, "t_start_ns"].iloc[0]) / 1e9   # 6.487 s
+    recs = hidden("turned_5hz", edit=turned, programs=(SPARSE_PROGRAM,), rate_hz=5.0)
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    (change,) = dx.changes
+    assert change.parameter == "sim.feed_override.override" and change.shape == "step"
+    assert change.before == pytest.approx(1.0, rel=0.05) and change.after == pytest.approx(0.7, rel=0.05)
+    assert change.at_s == pytest.approx(turn_s, abs=0.2)
+    assert change.between_s[0] - 0.2 <= turn_s <= change.between_s[1] + 0.2   # segment ends are sample instants
+    assert change.error_change_pct < 0.25 * change.error_single_pct
+    assert dx.findings == [] and dx.unexplained == []
 
 
 def test_an_unchanged_machine_gives_no_change(hidden):
@@ -82,6 +115,17 @@ def test_the_dial_turn_option_says_what_it_needs():
             dial_turn(bad)
 
 
+def test_the_rapid_dial_turn_option_stops_at_100_percent():
+    import argparse
+
+    from feedlog.ingest.linuxcnc import rapid_dial_turn
+
+    assert rapid_dial_turn("5:0.5") == (5.0, 0.5) and rapid_dial_turn("0:1") == (0.0, 1.0)
+    for bad in ("5:1.5", "5:0", "5", "-1:0.5"):
+        with pytest.raises(argparse.ArgumentTypeError, match="S:SCALE|SCALE <= 1,"):
+            rapid_dial_turn(bad)
+
+
 @settings(max_examples=200, derandomize=True, deadline=None)
 @given(st.one_of(st.text(max_size=20), st.tuples(st.floats(allow_nan=True), st.floats(allow_nan=True)).map(
     lambda p: f"{p[0]}:{p[1]}")))
@@ -92,12 +136,15 @@ def test_any_dial_turn_text_parses_to_a_valid_turn_or_says_what_it_needs(text):
 
     from feedlog.ingest.linuxcnc import dial_turn
 
-    try:
-        at, scale = dial_turn(text)
-    except argparse.ArgumentTypeError as exc:
-        assert "S:SCALE" in str(exc) or "SCALE <= 10" in str(exc)
-    else:
-        assert at >= 0 and 0 < scale <= 10 and np.isfinite(at)
+    from feedlog.ingest.linuxcnc import rapid_dial_turn
+
+    for parse, top in ((dial_turn, 10), (rapid_dial_turn, 1)):
+        try:
+            at, scale = parse(text)
+        except argparse.ArgumentTypeError as exc:
+            assert "S:SCALE" in str(exc) or f"SCALE <= {top}," in str(exc)
+        else:
+            assert at >= 0 and 0 < scale <= top and np.isfinite(at)
 
 
 def test_a_dial_that_moves_one_segment_either_side_is_not_a_change():

@@ -2,7 +2,9 @@
 LinuxCNC runs the pocket program (the driver turns it 3.5 s after the start), the corner program
 recorded at 100 %. Diagnose with the shipped profile must report a change in the pocket recording
 (when, from what, to what) within 5 % of both dial values and at the segment where the dial turned,
-not one averaged override, and nothing left unexplained; the corner recording gives no change."""
+not one averaged override, and nothing left unexplained; the corner recording gives no change.
+And the rapid dial: turned from 100 % to 50 % 5 s into an eight-hole drilling program (`feedlog record
+--rapid-override-at 5:0.5`), found as a change of the rapid override, not of the feed override."""
 
 from __future__ import annotations
 
@@ -51,3 +53,34 @@ def test_a_dial_turned_mid_program_is_found_as_a_change(recorded):
     assert "sim.feed_override.override" not in {f.parameter for f in dx.findings}
     assert dx.unexplained == []
     assert change.error_change_pct < 1.0 < change.error_single_pct
+
+
+RAPID_TURN = (5.0, 0.5)   # seconds after the start, rapid dial
+
+
+@pytest.fixture(scope="module")
+def drilled(tmp_path_factory) -> Path:
+    from tests.diagnose.conftest import drilling
+
+    root = tmp_path_factory.mktemp("rapid_dial")
+    program = root / "drill.ngc"
+    program.write_text(drilling(8))
+    path = root / "drill.mcap"
+    summary = record_linuxcnc(CONFIGS / "xyz.ini", program, path, timeout_s=120, rapid_override_at=(RAPID_TURN,),
+                              isolate=isolation_available() is None)
+    assert summary["status"] == "complete", summary
+    return path
+
+
+def test_the_rapid_dial_turned_mid_program_is_found_as_a_change_of_the_rapid_dial(drilled):
+    turned_s, dial = (float(x) for x in read_recording(drilled).metadata["rapid_override_turns"].split(":"))
+    assert dial == RAPID_TURN[1] and turned_s == pytest.approx(RAPID_TURN[0], abs=0.1)
+    dx = diagnose([drilled], "linuxcnc-xyz", config=DiagnoseConfig(learned=False))
+    (change,) = dx.changes
+    assert change.parameter == "sim.rapid_override.override" and change.shape == "step"
+    # measured 0.9992 -> 0.5166 at 5.06 s for 1 -> 0.5 at 5.020 s (timing error 17.53 % -> 2.08 %: what is
+    # left is LinuxCNC's rapids at 50 %, which the simulation's dial does not reproduce exactly, docs/diagnose.md)
+    assert change.before == pytest.approx(1.0, rel=0.05) and change.after == pytest.approx(0.5, rel=0.05)
+    assert change.at_s == pytest.approx(turned_s, abs=0.1)
+    assert not {f.parameter for f in dx.findings} & {"sim.rapid_override.override", "sim.feed_override.override"}
+    assert change.error_change_pct < 0.25 * change.error_single_pct

@@ -15,6 +15,13 @@ segments that the two values tell apart (by `SENSITIVE` timing sigmas: on a fami
 LinuxCNC recordings a rapid dial of 0.36 "before" rested on the one approach rapid it touched). It says when (the measured time of the boundary, from motion start, the segment it ends and
 the program line), from what, to what, and what one value would have been. The averaged finding of the
 same parameter is not reported, and the extended profile keeps the profile's value for it.
+
+A gradual change (a machine that warms up) is tried beside the step where the step's held-out gain
+reaches `DRIFT_SCREEN` of `min_gain`: a drift (`drift.py`: one value until t0, linear to another at
+t1) fitted both ways round (even segments -> odd, odd -> even) must span MIN_SIDE whole segments and
+remove `min_gain` of what the step leaves above the noise floor over both folds (and `min_gain` of what
+one value leaves); it is then reported
+as a drift (`shape`, `until_s`, `rate_per_min`) under the same effect and two-segment rules.
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from feedlog.diagnose.drift import Drift, Interpolated, drift_residuals, fit_drift, inside
 from feedlog.diagnose.fit import Scorer, _grid, refine
 from feedlog.diagnose.hypothesis import Hypothesis
 
@@ -32,6 +40,7 @@ CHANGING = ("sim.feed_override.override", "sim.rapid_override.override")
 MIN_SIDE = 2          # segments on each side of the segment a change happened in, at least (that its values move)
 SENSITIVE = 3.0       # a segment a value moves: the two values' residuals differ by this many timing sigmas
 REFINE_ITER = 12
+DRIFT_SCREEN = 0.5    # a drift is tried where a step removes at least this share of min_gain (held out)
 
 
 @dataclass
@@ -49,16 +58,31 @@ class Change:
     error_change_pct: float      # ... with the change
     held_out_gain: float         # share of the held-out loss (odd segments) removed against one value
     single_value: float          # the one value the whole session would be averaged into
+    shape: str = "step"          # "step": a dial turned at at_s; "drift": linear from at_s to until_s
+    until_s: float | None = None  # a drift's end (measured time from motion start)
+
+    @property
+    def rate_per_min(self) -> float | None:
+        """A drift's rate of change per minute (None for a step)."""
+        if self.shape != "drift" or self.until_s is None or self.until_s <= self.at_s:
+            return None
+        return 60.0 * (self.after - self.before) / (self.until_s - self.at_s)
 
     def as_dict(self) -> dict[str, Any]:
-        return {"recording": self.recording, "parameter": self.parameter, "unit": self.unit,
-                "before": self.before, "after": self.after, "at_s": self.at_s, "between_s": list(self.between_s),
+        return {"recording": self.recording, "parameter": self.parameter, "unit": self.unit, "shape": self.shape,
+                "before": self.before, "after": self.after, "at_s": self.at_s, "until_s": self.until_s,
+                "rate_per_min": self.rate_per_min, "between_s": list(self.between_s),
                 "line": self.line, "segment": self.segment, "error_single_pct": self.error_single_pct,
                 "error_change_pct": self.error_change_pct, "held_out_gain": self.held_out_gain,
                 "single_value": self.single_value}
 
     def text(self) -> str:
         where = f" (program line {self.line})" if self.line is not None else ""
+        if self.shape == "drift":
+            return (f"drift during {self.recording}: {self.parameter} drifts from {self.before:.4g} at "
+                    f"{self.at_s:.2f} s{where} to {self.after:.4g} at {self.until_s:.2f} s "
+                    f"({self.rate_per_min:+.4g} {self.unit} per minute), not one value ({self.single_value:.4g}): "
+                    f"timing error {self.error_single_pct:.2f} % -> {self.error_change_pct:.2f} %").replace("  ", " ")
         return (f"change during {self.recording}: {self.parameter} {self.before:.4g} -> {self.after:.4g} "
                 f"{self.unit} at {self.at_s:.2f} s{where}, not one value ({self.single_value:.4g}): "
                 f"timing error {self.error_single_pct:.2f} % -> {self.error_change_pct:.2f} %").replace("  ", " ")
@@ -88,13 +112,17 @@ class _OneRecording:
         self.scorer, self.base, self.hyp, self.case = scorer, dict(base), hyp, case
         self._cache: dict[float, np.ndarray] = {}
 
-    def sq(self, v: float) -> np.ndarray:
+    def residual(self, v: float) -> np.ndarray:
+        """Signed residuals times the square root of the weights (inf where `v` does not simulate)."""
         key = float(f"{v:.12g}")
         if key not in self._cache:
             r = self.scorer.case_residual(self.case, {**self.base, **self.hyp.values(key)})
             w = self.scorer.weights[self.case]
-            self._cache[key] = np.full(len(w), np.inf) if r is None else w * np.square(r)
+            self._cache[key] = np.full(len(w), np.inf) if r is None else np.sqrt(w) * r
         return self._cache[key]
+
+    def sq(self, v: float) -> np.ndarray:
+        return np.square(self.residual(v))
 
     def best(self, rows: np.ndarray, grid: list[float], sq: np.ndarray) -> tuple[float, float]:
         """The value with the least loss over the segments `rows` (grid, then Brent between neighbours)."""
@@ -186,6 +214,14 @@ def _judge(one: _OneRecording, grid: list[float], sq: np.ndarray, *, min_gain: f
     floor_odd = float(scorer.weights[i][scored].sum()) * 2.0 * case.segment_sigma_s ** 2
     excess = single_odd - floor_odd
     gain = (single_odd - change_odd) / excess if excess > 0 else 0.0
+    if gain >= DRIFT_SCREEN * min_gain:
+        found = _gradual(one, grid, sq, (k_e, (a_e, b_e), change_odd, single_odd, floor_odd), min_gain=min_gain)
+        change = None
+        if found is not None:
+            model, drift, drift_gain = found
+            change = _drift_change(one, grid, sq, (model, drift), drift_gain, min_effect_pct=min_effect_pct)
+        if change is not None:
+            return change
     if gain < min_gain:
         return None
     # all segments: where, from what, to what
@@ -215,6 +251,95 @@ def _judge(one: _OneRecording, grid: list[float], sq: np.ndarray, *, min_gain: f
                   line=_line_of(case, int(seg.anchors[k])), segment=k,
                   error_single_pct=err_single, error_change_pct=err_change, held_out_gain=float(gain),
                   single_value=v0)
+
+
+Fold = tuple[int, tuple[float, float], float, float, float]   # boundary, (before, after), step, single, floor
+
+
+def _fold(one: _OneRecording, grid: list[float], sq: np.ndarray, fit: np.ndarray) -> Fold | None:
+    """One held-out fold: a step (its boundary one of the other segments) and one value fitted on the
+    segments `fit`, scored on the others but the boundary: (boundary, (before, after), step loss,
+    single-value loss, noise floor), or None where no step fits."""
+    n = sq.shape[1]
+    rows = np.arange(n)
+    inner = (rows >= MIN_SIDE) & (rows < n - MIN_SIDE)
+    k, a, b = _split(one, fit, inner & ~fit, grid, sq)
+    if k < 0:
+        return None
+    scored = ~fit & (rows != k)
+    single, _ = one.best(rows[fit], grid, sq)
+    step_loss = float(one.sq(a)[scored & (rows < k)].sum() + one.sq(b)[scored & (rows > k)].sum())
+    floor = float(one.scorer.weights[one.case][scored].sum()) * 2.0 * one.scorer.cases[one.case].segment_sigma_s ** 2
+    return k, (a, b), step_loss, float(one.sq(single)[scored].sum()), floor
+
+
+def _gradual(one: _OneRecording, grid: list[float], sq: np.ndarray, even_fold: Fold, *,
+             min_gain: float) -> tuple[Interpolated, Drift, float] | None:
+    """A drift judged on both folds (fitted on the even segments and scored on the odd ones, and the
+    other way round; each fold's step boundary left out of both scores): it must span at least MIN_SIDE
+    whole segments and remove at least `min_gain` of what the step leaves above the noise floor over
+    both folds (the penalty its fourth parameter pays). Returns (the model, the drift fitted on the even
+    segments, its held-out gain against one value over both folds), or None: the step stands."""
+    seg = one.scorer.segments[one.case]
+    rows = np.arange(len(seg))
+    start_s, end_s = seg.end_s - seg.measured_s, seg.end_s
+    even = rows % 2 == 0
+    odd_fold = _fold(one, grid, sq, ~even)
+    if odd_fold is None:
+        return None
+    model = Interpolated(one.residual, one.hyp.scale, one.hyp.lower, one.hyp.upper)
+    model.add(grid)
+    step_total = single_total = drift_total = floor_total = 0.0
+    kept = None
+    for fit, (k, first, step_loss, single_loss, floor) in ((even, even_fold), (~even, odd_fold)):
+        model.densify(*first)
+        drift = fit_drift(model, start_s, end_s, fit, first)
+        if drift is None or inside(drift, start_s, end_s) < MIN_SIDE:
+            return None
+        e = drift_residuals(model, drift, start_s, end_s)
+        drift_total += float(np.square(e)[~fit & (rows != k)].sum())
+        step_total, single_total, floor_total = step_total + step_loss, single_total + single_loss, floor_total + floor
+        kept = kept or drift
+    left = step_total - floor_total
+    if left <= 0 or step_total - drift_total < min_gain * left or single_total <= floor_total:
+        return None
+    gain = (single_total - drift_total) / (single_total - floor_total)
+    return (model, kept, gain) if gain >= min_gain else None
+
+
+def _drift_change(one: _OneRecording, grid: list[float], sq: np.ndarray, found: tuple[Interpolated, Drift],
+                  gain: float, *, min_effect_pct: float) -> Change | None:
+    """The drift refitted on all segments, reported if it takes the recording's timing error down by
+    `min_effect_pct` points and both of its values rest on MIN_SIDE segments they move."""
+    scorer, hyp, i = one.scorer, one.hyp, one.case
+    model, held = found
+    case, seg = scorer.cases[i], scorer.segments[i]
+    n = len(seg)
+    rows = np.arange(n)
+    start_s, end_s = seg.end_s - seg.measured_s, seg.end_s
+    model.densify(held.before, held.after)
+    drift = fit_drift(model, start_s, end_s, np.ones(n, bool), (held.before, held.after))
+    if drift is None:
+        return None
+    v0, l0 = one.best(rows, grid, sq)
+    e = drift_residuals(model, drift, start_s, end_s)
+    err_single, err_change = _error_pct(scorer, i, l0), _error_pct(scorer, i, float(np.square(e).sum()))
+    if err_single - err_change < min_effect_pct:
+        return None
+    r1 = scorer.case_residual(i, {**one.base, **hyp.values(drift.before)})
+    r2 = scorer.case_residual(i, {**one.base, **hyp.values(drift.after)})
+    if r1 is None or r2 is None:
+        return None
+    moved = np.abs(r1 - r2) * scorer.weights[i] > SENSITIVE * case.segment_sigma_s
+    mid = 0.5 * (drift.t0_s + drift.t1_s)
+    if moved[end_s <= mid].sum() < MIN_SIDE or moved[start_s >= mid].sum() < MIN_SIDE:
+        return None
+    k = int(min(np.searchsorted(end_s, drift.t0_s, side="right"), n - 1))   # the segment the drift starts in
+    return Change(recording=case.name, parameter=hyp.key, unit=hyp.unit, before=drift.before, after=drift.after,
+                  at_s=drift.t0_s, between_s=(drift.t0_s, drift.t1_s), line=_line_of(case, int(seg.anchors[k])),
+                  segment=k, error_single_pct=err_single, error_change_pct=err_change,
+                  held_out_gain=float(gain),
+                  single_value=v0, shape="drift", until_s=drift.t1_s)
 
 
 def _line_of(case: Any, block: int) -> int | None:

@@ -179,10 +179,11 @@ def write_report(dx, out: Path) -> Path:
                          ("why", "why not")])
     if dx.changes:
         lines += ["", "## Changes during a session", "",
-                  "A parameter that took one value, then another: not averaged into one value (the extended "
-                  "profile keeps the profile's value for it).", ""]
+                  "A parameter that took one value, then another (a step: a dial turned; a drift: a machine "
+                  "that warms up), not averaged into one value (the extended profile keeps the profile's "
+                  "value for it).", ""]
         lines += _table([{"rec": c.recording, "parameter": f"`{c.parameter}`", "before": _fmt(c.before, c.unit),
-                          "after": _fmt(c.after, c.unit), "at": f"{c.at_s:.2f} s" + (f" (line {c.line})" if c.line else ""),
+                          "after": _fmt(c.after, c.unit), "at": _when(c),
                           "single": _fmt(c.single_value, c.unit),
                           "error": f"{c.error_single_pct:.2f} % -> {c.error_change_pct:.2f} %"} for c in dx.changes],
                         [("rec", "recording"), ("parameter", "parameter"), ("before", "before"), ("after", "after"),
@@ -267,3 +268,12 @@ def write_report(dx, out: Path) -> Path:
     path = out / "report.md"
     path.write_text("\n".join(lines))
     return path
+
+
+def _when(change) -> str:
+    """When a change happened: a step's time, a drift's start and end and its rate."""
+    line = f" (line {change.line})" if change.line else ""
+    if change.shape == "drift":
+        return (f"drift {change.at_s:.2f} s{line} to {change.until_s:.2f} s, "
+                f"{change.rate_per_min:+.4g}{(' ' + change.unit) if change.unit else ''} per minute")
+    return f"{change.at_s:.2f} s{line}"

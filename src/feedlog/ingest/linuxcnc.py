@@ -71,7 +71,8 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
                     stop_event: threading.Event | None = None, feed_override: float | None = None,
                     subroutine_path: tuple[str | Path, ...] = (),
                     feed_override_at: tuple[tuple[float, float], ...] = (),
-                    pause_at: tuple[tuple[float, float], ...] = ()) -> dict[str, Any]:
+                    pause_at: tuple[tuple[float, float], ...] = (),
+                    rapid_override_at: tuple[tuple[float, float], ...] = ()) -> dict[str, Any]:
     """Run `program` on the LinuxCNC machine `ini`, write the recording to `out`, return a summary.
 
     Setting `stop_event` (the CLI does on SIGINT/SIGTERM) stops the machine where it is and writes
@@ -83,7 +84,8 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
     `feed_override` (0 < x <= the INI's MAX_FEED_OVERRIDE) turns the feed override dial before the program
     starts; the recording's metadata says so (`feed_override`). `feed_override_at` ((seconds after the start,
     dial), ...) turns the dial while the program runs (metadata `feed_override_turns`: seconds of motion
-    time after the start, and dial). `pause_at` ((seconds after the start, seconds), ...) pauses the program
+    time after the start, and dial); `rapid_override_at` turns the rapid override dial alike (0 < dial <= 1;
+    metadata `rapid_override_turns`). `pause_at` ((seconds after the start, seconds), ...) pauses the program
     and resumes it, an operator's feed hold (metadata `feed_holds`: seconds of motion time after the start
     when paused and when resumed). `subroutine_path`: folders where LinuxCNC
     finds `o<name> call` files, before the INI's SUBROUTINE_PATH; the files the program calls are
@@ -106,6 +108,9 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
     for dial in [feed_override, *(turn[1] for turn in feed_override_at)]:
         if dial is not None and not (0.0 < dial <= 10.0):
             raise IngestError(f"feed override must be within (0, 10], got {dial}")
+    for _, dial in rapid_override_at:
+        if not 0.0 < dial <= 1.0:
+            raise IngestError(f"rapid override must be within (0, 1], got {dial}")
     profile_name, profile_toml = profile_toml_for(profile, ini_cfg)
     subroutine_path = tuple(Path(d) for d in subroutine_path)
     for folder in subroutine_path:
@@ -114,7 +119,8 @@ def record_linuxcnc(ini: str | Path, program: str | Path, out: str | Path, *, pr
     subroutines = subroutine_attachments(program.read_bytes(), [*subroutine_path, *ini_cfg.subroutine_dirs()])
     session = run_session(ini_cfg, program, isolate=isolate, timeout_s=timeout_s, stop_event=stop_event,
                           priority=priority, feed_override=feed_override, subroutine_path=subroutine_path,
-                          feed_override_at=tuple(feed_override_at), pause_at=tuple(pause_at))
+                          feed_override_at=tuple(feed_override_at), rapid_override_at=tuple(rapid_override_at),
+                          pause_at=tuple(pause_at))
     sampled = has_samples(session.sample_files)
     error = session_error(session.report, program, sampled=sampled)
     if error is not None and not sampled:
@@ -208,10 +214,10 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
         metadata["priority"] = priority
     if report.get("feed_override") is not None:
         metadata["feed_override"] = f"{float(report['feed_override']):g}"
-    if report.get("feed_override_turns"):  # the dial turned mid-program: "s after the start:dial" each
-        start = float(report.get("motion_time_start_s", 0.0))
-        metadata["feed_override_turns"] = " ".join(f"{t['motion_time_s'] - start:.3f}:{t['scale']:g}"
-                                                   for t in report["feed_override_turns"])
+    for key in ("feed_override_turns", "rapid_override_turns"):  # a dial turned mid-program: "s after the start:dial"
+        if report.get(key):
+            start = float(report.get("motion_time_start_s", 0.0))
+            metadata[key] = " ".join(f"{t['motion_time_s'] - start:.3f}:{t['scale']:g}" for t in report[key])
     if report.get("feed_holds"):  # paused mid-program: "s after the start:s when resumed" each
         start = float(report.get("motion_time_start_s", 0.0))
         metadata["feed_holds"] = " ".join(f"{h['motion_time_s'] - start:.3f}:{h['resumed_motion_time_s'] - start:.3f}"
@@ -243,14 +249,14 @@ def write_session(streams: dict[str, pd.DataFrame], missing: int, report: dict, 
 
 # ---- source registry interface (feedlog.ingest.cli_record) ---------------------------------------
 
-def dial_turn(text: str) -> tuple[float, float]:
-    """`S:SCALE` (seconds after the start, dial) of --feed-override-at."""
+def dial_turn(text: str, *, max_scale: float = 10.0) -> tuple[float, float]:
+    """`S:SCALE` (seconds after the start, dial) of --feed-override-at (0 < SCALE <= `max_scale`)."""
     try:
         at, scale = (float(x) for x in text.split(":"))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected S:SCALE (seconds:dial, e.g. 3.5:0.7), got {text!r}") from None
-    if not (0 <= at < float("inf") and 0 < scale <= 10):
-        raise argparse.ArgumentTypeError(f"need S >= 0 and 0 < SCALE <= 10, got {text!r}")
+    if not (0 <= at < float("inf") and 0 < scale <= max_scale):
+        raise argparse.ArgumentTypeError(f"need S >= 0 and 0 < SCALE <= {max_scale:g}, got {text!r}")
     return at, scale
 
 
@@ -263,6 +269,9 @@ def feed_hold(text: str) -> tuple[float, float]:
     if not (0 <= at < float("inf") and 0 < duration < float("inf")):
         raise argparse.ArgumentTypeError(f"need S >= 0 and D > 0, got {text!r}")
     return at, duration
+def rapid_dial_turn(text: str) -> tuple[float, float]:
+    """`S:SCALE` of --rapid-override-at: LinuxCNC's rapid dial goes to 100 % at most."""
+    return dial_turn(text, max_scale=1.0)
 
 
 def add_arguments(group: argparse._ArgumentGroup) -> None:
@@ -284,6 +293,9 @@ def add_arguments(group: argparse._ArgumentGroup) -> None:
     group.add_argument("--pause-at", action="append", default=[], type=feed_hold, metavar="S:D",
                        help="pause the program S seconds after it starts and resume it D seconds later (a feed "
                             "hold; repeatable)")
+    group.add_argument("--rapid-override-at", action="append", default=[], type=rapid_dial_turn, metavar="S:SCALE",
+                       help="turn the rapid override dial to SCALE (at most 1.0) S seconds after the program "
+                            "starts (repeatable)")
     group.add_argument("--subroutine-path", action="append", default=[], type=Path, metavar="DIR",
                        help="folder where LinuxCNC finds o<name> call files (before the INI's SUBROUTINE_PATH; "
                             "repeatable); the files called are attached to the recording")
@@ -316,4 +328,5 @@ def record(args: argparse.Namespace) -> dict[str, Any]:
                            feed_override=getattr(args, "feed_override", None),
                            subroutine_path=tuple(getattr(args, "subroutine_path", None) or ()),
                            feed_override_at=tuple(sorted(getattr(args, "feed_override_at", None) or ())),
+                           rapid_override_at=tuple(sorted(getattr(args, "rapid_override_at", None) or ())),
                            pause_at=tuple(sorted(getattr(args, "pause_at", None) or ())))

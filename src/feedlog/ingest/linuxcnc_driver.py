@@ -11,8 +11,9 @@ timeout_s, attach (bool: don't home or run, record until the program ends or SIG
 until_program_end (attach: stop when the program ends; else only on a signal), start_when_signal
 and start_delay_s (wait for a HAL signal to come on, then this long, before AUTO_RUN; with no channels
 the driver is a plain headless operator, used in tests), feed_override (set the feed dial before
-AUTO_RUN), feed_override_at ([[seconds after AUTO_RUN, dial], ...]: turn the dial while the program runs),
-pause_at ([[seconds after AUTO_RUN, seconds], ...]: pause the program (a feed hold) and resume it).
+AUTO_RUN), feed_override_at and rapid_override_at ([[seconds after AUTO_RUN, dial], ...]: turn the feed or the rapid
+dial while the program runs), pause_at ([[seconds after AUTO_RUN, seconds], ...]: pause the program (a feed hold)
+and resume it).
 Result (JSON): ok, errors [{kind, text}], motion_time_s, overruns, ... written on every exit path.
 """
 
@@ -210,15 +211,19 @@ class Driver:
             self.result["messages"].append({"kind": "text", "text": f"program start not seen: {exc}"})
         self.wait_done()
 
-    def turn_dial(self):
-        """The operator turning the feed dial mid-program: each [after_s, scale] of `feed_override_at`
-        once its time since AUTO_RUN has come (polled with the program's end)."""
-        turns = self.result.setdefault("feed_override_turns", [])
-        plan = self.job.get("feed_override_at") or []
-        if len(turns) < len(plan) and time.time() - self.result["run_wall_start"] >= float(plan[len(turns)][0]):
-            scale = float(plan[len(turns)][1])
-            self.cmd.feedrate(scale)
-            turns.append({"after_s": float(plan[len(turns)][0]), "scale": scale, "motion_time_s": self.motion_time()})
+    def turn_dials(self):
+        """The operator turning a dial mid-program: each [after_s, scale] of `feed_override_at` (the feed
+        dial) and `rapid_override_at` (the rapid dial) once its time since AUTO_RUN has come (polled with
+        the program's end)."""
+        for plan_key, turns_key, turn in (("feed_override_at", "feed_override_turns", self.cmd.feedrate),
+                                          ("rapid_override_at", "rapid_override_turns", self.cmd.rapidrate)):
+            plan = self.job.get(plan_key) or []
+            turns = self.result.setdefault(turns_key, []) if plan else []
+            if len(turns) < len(plan) and time.time() - self.result["run_wall_start"] >= float(plan[len(turns)][0]):
+                scale = float(plan[len(turns)][1])
+                turn(scale)
+                turns.append({"after_s": float(plan[len(turns)][0]), "scale": scale,
+                              "motion_time_s": self.motion_time()})
 
     def hold_feed(self):
         """The operator pausing the program mid-run (a feed hold): each [after_s, duration_s] of `pause_at`
@@ -237,8 +242,8 @@ class Driver:
 
     def wait_done(self):
         def done(s):
-            if self.job.get("feed_override_at"):
-                self.turn_dial()
+            if self.job.get("feed_override_at") or self.job.get("rapid_override_at"):
+                self.turn_dials()
             if self.job.get("pause_at"):
                 self.hold_feed()
             return (s.interp_state == linuxcnc.INTERP_IDLE and s.queue == 0 and s.inpos

@@ -294,6 +294,7 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
                 priority: str = "normal", feed_override: float | None = None,
                 subroutine_path: tuple[Path, ...] = (),
                 feed_override_at: tuple[tuple[float, float], ...] = (),
+                rapid_override_at: tuple[tuple[float, float], ...] = (),
                 pause_at: tuple[tuple[float, float], ...] = ()) -> SessionResult:
     """Run `program` on the machine `ini` from homing to program end; return the capture.
 
@@ -305,6 +306,7 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
     work on the host, so that a program whose block rate LinuxCNC's task limits runs as on a quiet host.
     `feed_override` sets the feed override dial (1.0 = 100 %) before the program starts;
     `feed_override_at` ((seconds after the start, dial), ...) turns it while the program runs;
+    `rapid_override_at` turns the rapid override dial alike;
     `pause_at` ((seconds after the start, seconds), ...) pauses the program (a feed hold) and resumes it.
     `subroutine_path`: folders where LinuxCNC finds `o<name> call` files, before the INI's SUBROUTINE_PATH
     (the program runs from a copy, so its own folder is not searched).
@@ -338,6 +340,7 @@ def run_session(ini: MachineIni, program: Path, *, isolate: bool = False, timeou
                "enable_signal": ENABLE_SIGNAL, "motion_time_pin": f"{MOTION_TIME_COMPONENT}.out",
                "timeout_s": timeout_s, "stop_file": str(workdir / "stop"), "feed_override": feed_override,
                "feed_override_at": [list(map(float, turn)) for turn in feed_override_at],
+               "rapid_override_at": [list(map(float, turn)) for turn in rapid_override_at],
                "pause_at": [list(map(float, hold)) for hold in pause_at]}
         job_path.write_text(json.dumps(job))
         ini_path = workdir / "machine.ini"

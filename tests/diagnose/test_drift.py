@@ -1,0 +1,149 @@
+"""Changes during a session that are not one turn of the feed dial: a machine whose feed drifts as it warms
+up (a gradual change, found as a drift from A at t0 to B at t1, not as a step nor one value), a step in
+a 5 Hz recording, and the rapid dial turned mid-program.
+
+The simulation runs one value per session, so the hidden change is made by scaling the dial's mechanism
+per block while these recordings are simulated (`dial_by_line`): each block runs at the value the dial
+had at its middle, the way a dial that moves slowly acts on a planner that plans a block at a time.
+The drift is linear in the simulated time (the block times are found by iterating the simulation)."""
+
+from __future__ import annotations
+
+import copy
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+
+from feedlog.diagnose.drift import Interpolated, drift_residuals, fit_drift, ramp_share
+from feedlog.diagnose.engine import DiagnoseConfig, diagnose
+from feedlog.diagnose.summary import summary_lines, to_json
+from feedlog.profile import load_profile
+from feedlog.sim import simulate
+from feedlog.sim.feed_override import FeedOverride
+from feedlog.sim.rapid_override import RapidOverride
+from feedlog.toolpath import parse_program
+
+from tests.diagnose.conftest import PROGRAMS, drilling, make_hidden
+
+FAST = DiagnoseConfig(learned=False)
+DRIFT = (2.0, 6.0, 1.0, 0.8)     # the feed dial drifts from 1.0 at 2 s to 0.8 at 6 s of motion time
+PROGRAM = "corners_f3000_p001"   # 6.9 s with the drift, 20 line-to-line segments
+
+
+@contextmanager
+def dial_by_line(cls, scale_of_lines):
+    """Simulations under this run the override mechanism `cls` at its value times scale_of_lines(lines),
+    per block (the hidden change)."""
+    plain = cls.limit
+
+    def limit(self, ctx):
+        dial = copy.copy(self)
+        dial.override = self.override * scale_of_lines(ctx.blocks.line)
+        plain(dial, ctx)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(cls, "limit", limit)
+        yield
+
+
+def linear(t0: float, t1: float, a: float, b: float):
+    """The dial at time t (s): a until t0, linear to b at t1, b after it."""
+    return lambda t: a + (b - a) * np.clip((t - t0) / (t1 - t0), 0.0, 1.0)
+
+
+def drifted(name: str, program: str, drift=DRIFT, *, dial=None, **kwargs):
+    """`program` recorded on a machine whose feed dial drifts linearly in time by `drift` (t0, t1, a, b),
+    or follows `dial(t)` (t: seconds of motion) when given."""
+    dial = dial or linear(*drift)
+    text = (PROGRAMS / f"{program}.ngc").read_text()
+    parsed, profile = parse_program(text, name=program), load_profile("linuxcnc-xyz")
+    mid: dict[int, float] = {}
+
+    def scale(lines):
+        return dial(np.array([mid.get(int(line), 0.0) for line in lines]))
+
+    on = {"feed_override": {"override": 1.0}}
+    with dial_by_line(FeedOverride, scale):
+        for _ in range(4):   # block times under the drift: a fixed point (moves < 1 ms after the fourth)
+            blocks = simulate(parsed, profile, mechanisms=on).blocks
+            mid = {int(r.line): (r.t_start_ns + r.t_end_ns) / 2e9 for r in blocks.itertuples()}
+        return make_hidden(name, mechanisms=on, programs=(program,), **kwargs)
+
+
+_CACHE: dict = {}
+
+
+def cached(name, make):
+    if name not in _CACHE:
+        _CACHE[name] = make()
+    return _CACHE[name]
+
+
+def test_a_machine_that_warms_up_is_a_drift_not_a_step_nor_one_value(tmp_path):
+    from feedlog.diagnose.write import write_outputs
+
+    recs = cached("drift", lambda: drifted("drift", PROGRAM))
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    (change,) = dx.changes
+    t0, t1, a, b = DRIFT
+    assert change.parameter == "sim.feed_override.override" and change.shape == "drift"
+    assert change.before == pytest.approx(a, rel=0.05) and change.after == pytest.approx(b, rel=0.05)
+    assert change.at_s == pytest.approx(t0, abs=0.5) and change.until_s == pytest.approx(t1, abs=0.5)
+    assert change.rate_per_min == pytest.approx(60 * (b - a) / (t1 - t0), rel=0.15)
+    assert change.error_change_pct < 0.1 * change.error_single_pct
+    assert b < change.single_value < a                               # what one value would have said
+    assert "sim.feed_override.override" not in {f.parameter for f in dx.findings}
+    assert dx.unexplained == []
+    assert any(line.startswith("drift during") and "per minute" in line for line in summary_lines(dx))
+    assert to_json(dx)["changes"][0]["shape"] == "drift"
+    write_outputs(dx, tmp_path / "dx")
+    assert "| drift 2." in (tmp_path / "dx" / "report.md").read_text()
+
+
+def test_a_drift_too_short_to_span_segments_is_a_step():
+    """The same machine whose dial moved from 1.0 to 0.8 within 0.05 s (a turn): a step, not a drift."""
+    recs = cached("quick", lambda: drifted("quick", PROGRAM, drift=(3.0, 3.05, 1.0, 0.8)))
+    (change,) = diagnose(recs, "linuxcnc-xyz", config=FAST).changes
+    assert change.shape == "step" and change.until_s is None and change.rate_per_min is None
+    assert change.before == pytest.approx(1.0, rel=0.05) and change.after == pytest.approx(0.8, rel=0.05)
+    assert change.at_s == pytest.approx(3.0, abs=0.3)
+
+
+RAPID_TURN_LINE = 19   # the rapid dial goes to 50 % before this line (hole 5's XY rapid of 8)
+
+
+def test_the_rapid_dial_turned_mid_program_is_a_change_of_the_rapid_dial():
+    text = drilling(8)
+
+    def scale(lines):
+        return np.where(np.asarray(lines) >= RAPID_TURN_LINE, 0.5, 1.0)
+
+    def record():
+        with dial_by_line(RapidOverride, scale):
+            return make_hidden("rapid", mechanisms={"rapid_override": {"override": 1.0}}, programs=("drill",),
+                               texts={"drill": text})
+    recs = cached("rapid", record)
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    (change,) = dx.changes
+    assert change.parameter == "sim.rapid_override.override" and change.shape == "step"
+    assert change.before == pytest.approx(1.0, rel=0.05) and change.after == pytest.approx(0.5, rel=0.05)
+    assert abs(change.line - RAPID_TURN_LINE) <= 1
+    assert {f.parameter for f in dx.findings} & {"sim.rapid_override.override", "sim.feed_override.override"} == set()
+
+
+def test_a_drift_is_fitted_from_residuals_that_hide_it():
+    """The drift fit alone, on residuals made from a known drift: 20 segments of 0.5 s whose duration
+    goes as 1/value, the value 1.0 until 3 s, then linear to 0.7 at 7 s."""
+    start = np.arange(20) * 0.5
+    end = start + 0.5
+    true = 1.0 + (0.7 - 1.0) * ramp_share(start, end, np.array([3.0]), np.array([7.0]))[0]
+    measured = 0.5 / true
+
+    model = Interpolated(lambda v: 0.5 / v - measured, "log", 0.05, 2.0)
+    model.add(np.geomspace(0.05, 2.0, 17))
+    model.densify(0.95, 0.75)
+    drift = fit_drift(model, start, end, np.ones(20, bool), (0.95, 0.75))
+    assert drift.before == pytest.approx(1.0, rel=0.01) and drift.after == pytest.approx(0.7, rel=0.01)
+    assert drift.t0_s == pytest.approx(3.0, abs=0.1) and drift.t1_s == pytest.approx(7.0, abs=0.1)
+    assert np.abs(drift_residuals(model, drift, start, end)).max() < 1e-3
