@@ -145,6 +145,7 @@ def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PL
                 run.data = run.gathered = run.recording = None
                 gc.collect(1)  # matplotlib's figures are young reference cycles: free them now (a full collection takes ~0.5 s)
                 _drop_finished_streams()
+                trim_heap()    # and give the pages back: otherwise each recording's freed tables leave holes that grow the peak
     bars = plot_cycle_times(table, plots_dir / "cycle_times.png") if len(table) else None
     result.timings_s["plots_and_rrd"] = time.perf_counter() - plots_started
     if demo_started is not None:

@@ -209,6 +209,10 @@ def prepare_run(run: RecordingRun) -> RecordingRun:
         for note in run.gathered.notes:
             (run.errors if "failed" in note else run.notes).append(note)
     _cam(run)
+    if run.gathered is not None:
+        # its times are taken (cam_s, sim_s) and its series and blocks stay in `gathered.inputs`: the rest of
+        # the simulation (the planner's trajectory) is neither sent back from a worker nor held (peak memory)
+        run.gathered.sim = None
     return run
 
 
