@@ -46,7 +46,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the cycle-time table as JSON rows only")
     parser.add_argument("--no-train", action="store_true", help="skip training and prediction")
     parser.add_argument("--no-rrd", action="store_true",
-                        help="write no Rerun .rrd (rerun/demo.rrd: about 0.25 MB per recording; plots and report only)")
+                        help="write no Rerun .rrd (rerun/demo.rrd: about 0.27 MB per recording; plots and report only)")
     parser.add_argument("--models", help="comma-separated model names to train (default: the demo set)")
     parser.add_argument("--detail-plots", type=int, default=DETAIL_PLOTS, metavar="N",
                         help=f"recordings that get all four plots, the rest get the feed plot (default {DETAIL_PLOTS})")
