@@ -34,6 +34,7 @@ DEFAULT_RECORDINGS = Path("recordings")
 DEFAULT_OUT = Path("demo-out")
 MARKER = ".feedlog-demo"   # marks a folder the demo wrote, so a rerun may replace it
 DETAIL_PLOTS = 4  # recordings that get all four plots; the others get the feed plot
+TRIM_EVERY = 4    # recordings written between two trims of the heap (each costs time: pages are faulted in again)
 RRD_NAME = "demo.rrd"       # under rerun/: every recording's overlays in one file (`viz.bundle`)
 OUTPUTS = ("report.md", "cycle_times.json", "plots", "rerun", "models", "diagnose", MARKER)
 
@@ -145,7 +146,8 @@ def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PL
                 run.data = run.gathered = run.recording = None
                 gc.collect(1)  # matplotlib's figures are young reference cycles: free them now (a full collection takes ~0.5 s)
                 _drop_finished_streams()
-                trim_heap()    # and give the pages back: otherwise each recording's freed tables leave holes that grow the peak
+                if k % TRIM_EVERY == 0:  # and give the pages back: freed tables leave holes that grow the peak
+                    trim_heap()
     bars = plot_cycle_times(table, plots_dir / "cycle_times.png") if len(table) else None
     result.timings_s["plots_and_rrd"] = time.perf_counter() - plots_started
     if demo_started is not None:
