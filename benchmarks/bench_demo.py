@@ -3,7 +3,7 @@
 Runs the demo as a child process (`python -m feedlog demo -o OUT`, exactly README's first command)
 and prints: wall time, the demo's own run time (the figure its report and console quote), peak
 resident memory of the demo process and of its largest worker (getrusage of the children; Linux
-reports kilobytes), and the bytes written per output (`rerun/*.rrd`, `plots/`, `models/`,
+reports kilobytes), the CPU seconds of both (a figure the other jobs on the machine change less), and the bytes written per output (`rerun/*.rrd`, `plots/`, `models/`,
 `diagnose/`, `report.md`) against the recordings it read. Options pass through (`--no-rrd`, `-j`,
 `--no-train`). Run: .venv/bin/python benchmarks/bench_demo.py [--out DIR] [-- demo options]
 """
@@ -28,9 +28,9 @@ CHILD = """
 import resource, sys
 from feedlog.cli import main
 rc = main(sys.argv[1:])
-me = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-workers = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-print(f"@@rss {me} {workers}", file=sys.stderr)
+self, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+print(f"@@rss {self.ru_maxrss} {kids.ru_maxrss}", file=sys.stderr)
+print(f"@@cpu {self.ru_utime + self.ru_stime} {kids.ru_utime + kids.ru_stime}", file=sys.stderr)
 sys.exit(rc)
 """
 
@@ -64,6 +64,10 @@ def main() -> int:
         print(f"feedlog demo on {args.recordings} ({recordings / 1e6:.1f} MB of .mcap), {os.cpu_count()} cores, "
               f"load average {load}")
         print(f"wall time {wall:.1f} s; the demo's own run time {demo_s.group(1) if demo_s else 'n/a'} s")
+        cpu = re.search(r"@@cpu ([\d.]+) ([\d.]+)", proc.stderr)
+        if cpu:  # what the load does not change much: CPU seconds used (2 cores: wall >= this / 2)
+            print(f"CPU time: demo process {float(cpu.group(1)):.1f} s, its workers and children "
+                  f"{float(cpu.group(2)):.1f} s (user + system)")
         if rss:
             print(f"peak memory: demo process {int(rss.group(1)) / 1024:.0f} MB, largest worker "
                   f"{int(rss.group(2)) / 1024:.0f} MB")

@@ -18,11 +18,37 @@ def strict_rerun():
     yield
 
 
-def rrd_content(path: Path) -> dict[str, dict]:
+def rrd_recordings(path: Path) -> dict[str, object]:
+    """recording name (`send_recording_name`) -> Rerun's store entry, for every recording in the file."""
+    reader = RrdReader(path)
+    names = {}
+    for store in reader.recordings():
+        for chunk in reader.stream(store=store):
+            batch = chunk.to_record_batch()
+            if chunk.entity_path == "/__properties" and "RecordingInfo:name" in batch.schema.names:
+                names[batch.column("RecordingInfo:name").to_pylist()[0][0]] = store
+    return names
+
+
+def rrd_blueprint_labels(path: Path) -> tuple[int, dict[str, list[str]]]:
+    """(number of blueprints in the file, entity path -> the series labels its blueprint overrides give)."""
+    reader = RrdReader(path)
+    labels: dict[str, list[str]] = {}
+    for store in reader.blueprints():
+        for chunk in reader.stream(store=store):
+            batch = chunk.to_record_batch()
+            if "SeriesLines:names" in batch.schema.names and "/overrides/" in chunk.entity_path:
+                entity = chunk.entity_path.split("/overrides", 1)[1].split("/visualizers", 1)[0]
+                labels[entity] = [n for row in batch.column("SeriesLines:names").to_pylist() for n in row]
+    return len(reader.blueprints()), labels
+
+
+def rrd_content(path: Path, recording: str | None = None) -> dict[str, dict]:
     """entity path -> {"rows": samples over time, "timelines": set, "static": [column names], "chunks": [...]}
-    read back with Rerun's own RRD reader."""
+    read back with Rerun's own RRD reader (`recording`: the one of that name, else the file's first)."""
     content: dict[str, dict] = {}
-    for chunk in RrdReader(path).stream():
+    store = None if recording is None else rrd_recordings(path)[recording]
+    for chunk in RrdReader(path).stream(store=store):
         entry = content.setdefault(chunk.entity_path, {"rows": 0, "timelines": set(), "static": [], "chunks": []})
         if chunk.is_static:
             entry["static"].extend(chunk.to_record_batch().schema.names)

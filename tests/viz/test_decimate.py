@@ -121,8 +121,9 @@ def test_the_moving_tool_keeps_one_position_per_display_frame():
     assert np.diff(t[keep][:-1]).max() <= 1e9 / 60 + 1_000_000
 
 
-def test_cloud_spacing_never_below_the_point_radius():
+def test_cloud_spacing_never_below_the_smallest_step():
     s = np.linspace(0, 10.0, 10_001)  # a 10 mm line sampled every 1 um: a pixel of it is 10 um
     xyz = np.c_[s, np.zeros_like(s), np.zeros_like(s)]
-    assert 60 <= spacing_keep(xyz, 1000, radius=0.15).sum() <= 70   # every 0.15 mm
+    assert 60 <= spacing_keep(xyz, 1000, min_step=0.15).sum() <= 70   # every 0.15 mm
+    assert 30 <= spacing_keep(xyz, 1000, min_step=0.3).sum() <= 36    # every 0.3 mm: touching 0.15 mm spheres
     assert 990 <= spacing_keep(xyz, 1000).sum() <= 1002              # every pixel

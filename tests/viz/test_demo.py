@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 from tests.viz import synthetic as syn
-from tests.viz.conftest import column_values, rrd_content
+from tests.viz.conftest import column_values, rrd_blueprint_labels, rrd_content, rrd_recordings
 
 import numpy as np
 
@@ -83,10 +83,24 @@ def test_demo_report_names_missing_stages_and_errors(demo_run):
             assert (out / line.split("](")[1].rstrip(")")).is_file(), line
 
 
-def test_demo_writes_an_rrd_per_readable_recording(demo_run):
+def test_demo_writes_one_rrd_with_every_readable_recording_and_one_blueprint(demo_run):
     _, out = demo_run
-    assert sorted(p.name for p in (out / "rerun").iterdir()) == ["square_a.rrd", "square_b.rrd"]
-    content = rrd_content(out / "rerun" / "square_b.rrd")
+    rrd = out / "rerun" / "demo.rrd"
+    assert sorted(p.name for p in (out / "rerun").iterdir()) == ["demo.rrd"]
+    recordings = rrd_recordings(rrd)
+    assert sorted(recordings) == ["square_a", "square_b"]   # broken.mcap has none
+    assert {s.application_id for s in recordings.values()} == {"feedlog-demo"}
+    blueprints, labels = rrd_blueprint_labels(rrd)
+    assert blueprints == 1
+    for name in recordings:
+        content = rrd_content(rrd, recording=name)
+        series = [e for e, c in content.items() if c["rows"] and e.split("/")[1] in ("feed", "axes", "residual", "blocks")]
+        assert {"/feed/measured", "/feed/sim", "/axes/x/measured", "/blocks/measured"} <= set(series)
+        # every series is labelled once, by the blueprint, not by a styling chunk in each recording
+        assert all(labels.get(e) for e in series), [e for e in series if not labels.get(e)]
+        assert not any("SeriesLines:names" in c["static"] for c in content.values())
+    assert labels["/feed/measured"] == ["measured"] and labels["/axes/y/sim"] == ["y simulated"]
+    content = rrd_content(rrd, recording="square_b")
     # downsampled to what the blueprint's series views show (viz.decimate): fewer rows than samples, every
     # row a real sample, the series' highest and lowest feed among them
     full = prepare_view(ViewInputs(syn.recording(lead_s=0.5))).measured
@@ -147,7 +161,7 @@ def test_demo_trains_keeps_the_models_and_predicts_every_recording(recordings_di
     assert "trained models: `models/mlp.pt`" in report
     assert "trained with the quick preset" in report and "--preset full" in report
     # the block-time overlay carries the model's per-block prediction
-    content = rrd_content(out / "rerun" / "square_b.rrd")
+    content = rrd_content(out / "rerun" / "demo.rrd", recording="square_b")
     assert content["/blocks/mlp"]["rows"] == 4
 
 

@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 
 import pytest
-from tests.viz.conftest import rrd_content
+from tests.viz.conftest import rrd_blueprint_labels, rrd_content, rrd_recordings
 
 from feedlog.cli import main
 from feedlog.ingest import read_recording
@@ -81,7 +81,11 @@ def test_demo_end_to_end_on_all_bundled_recordings(tmp_path, capsys):
     for row in rows:
         assert row["measured_s"] == pytest.approx(entries[row["recording"]].expected["cycle_time_s"], abs=0.01)
     out = tmp_path / "demo"
-    assert len(list((out / "rerun").glob("*.rrd"))) == len(entries)
+    # one .rrd: every recording its own recording (named after it) under one blueprint
+    assert [p.name for p in (out / "rerun").glob("*.rrd")] == ["demo.rrd"]
+    assert sorted(rrd_recordings(out / "rerun" / "demo.rrd")) == sorted(entries)
+    blueprints, labels = rrd_blueprint_labels(out / "rerun" / "demo.rrd")
+    assert blueprints == 1 and {"/feed/measured", "/axes/c/measured", "/blocks/measured"} <= set(labels)
     if availability()["train"] is None:
         assert list((out / "models").glob("*.pt"))
     if (RECORDINGS / "mystery").is_dir():  # the mystery machine, diagnosed

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 SCREEN_COLUMNS = 800   # the width of the demo blueprint's series views on a 1920-px screen (3/5 of what the side panels leave)
+SPATIAL_COLUMNS = SCREEN_COLUMNS * 2 // 3   # its 3D view beside them (2 shares to their 3): 533 px
 FRAME_RATE_HZ = 30     # a video frame rate: positions a moving marker shows per second of playback
 SCREEN_ROWS = 1000     # a series' range in 1000 steps: finer than a pixel of the demo's series panels
 
@@ -104,11 +105,11 @@ def linear_keep(t: np.ndarray, values: np.ndarray, columns: int = SCREEN_COLUMNS
     return keep
 
 
-def spacing_keep(xyz: np.ndarray, columns: int = SCREEN_COLUMNS, radius: float = 0.0) -> np.ndarray:
+def spacing_keep(xyz: np.ndarray, columns: int = SPATIAL_COLUMNS, min_step: float = 0.0) -> np.ndarray:
     """Boolean mask over path points keeping the first point of every step along the path of
     1/`columns` of the path's largest extent (a point per pixel of a view `columns` wide that shows
-    the whole path) or `radius`, the larger (points drawn as spheres of that radius spaced at most
-    a radius apart still draw a continuous band at any zoom); the first and last point always.
+    the whole path) or `min_step`, the larger (points drawn as spheres of radius r spaced at most a
+    diameter 2r apart touch: a continuous band at any zoom); the first and last point always.
     A standstill keeps one point."""
     xyz = np.asarray(xyz, dtype=np.float64)
     n = len(xyz)
@@ -120,7 +121,7 @@ def spacing_keep(xyz: np.ndarray, columns: int = SCREEN_COLUMNS, radius: float =
         keep[1:-1] = False
         return keep
     s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(xyz, axis=0), axis=1))]
-    pixel = np.floor(s / max(extent / columns, radius)).astype(np.int64)
+    pixel = np.floor(s / max(extent / columns, min_step)).astype(np.int64)
     keep[:] = False
     keep[np.flatnonzero(np.r_[True, pixel[1:] != pixel[:-1]])] = True
     keep[-1] = True

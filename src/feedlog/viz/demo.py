@@ -2,13 +2,15 @@
 
 Verifies the recordings, aligns them, simulates, trains and predicts with every stage this
 installation has, then writes into DIR: `report.md` (the cycle-time table and PNG plots),
-`cycle_times.json`, one `.rrd` per recording under `rerun/`, the trained models under `models/`.
+`cycle_times.json`, `rerun/demo.rrd` (every recording, each its own Rerun recording, one layout),
+the trained models under `models/`.
 It prints where everything is and how to open it. `--json` prints only the table (JSON rows).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import shutil
 import sys
@@ -21,9 +23,9 @@ from feedlog.errors import FeedlogError
 from feedlog.cli_options import add_output
 from feedlog.execution import add_arguments as add_execution_arguments
 from feedlog.viz.decimate import SCREEN_COLUMNS
-from feedlog.viz.overlay import save_view
+from feedlog.viz.bundle import rrd_bundle
 from feedlog.viz.mystery import Mystery, diagnose_mystery
-from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, discover, run_demo, view_of
+from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, discover, run_demo, trim_heap, view_of
 from feedlog.viz.plots import plot_cycle_times, plot_view
 from feedlog.viz.answer import TERMS, summary_sentences
 from feedlog.viz.report import ReportSection, TableRow, cycle_time_table, headline, table_json, write_report
@@ -32,6 +34,8 @@ DEFAULT_RECORDINGS = Path("recordings")
 DEFAULT_OUT = Path("demo-out")
 MARKER = ".feedlog-demo"   # marks a folder the demo wrote, so a rerun may replace it
 DETAIL_PLOTS = 4  # recordings that get all four plots; the others get the feed plot
+TRIM_EVERY = 4    # recordings written between two trims of the heap (each costs time: pages are faulted in again)
+RRD_NAME = "demo.rrd"       # under rerun/: every recording's overlays in one file (`viz.bundle`)
 OUTPUTS = ("report.md", "cycle_times.json", "plots", "rerun", "models", "diagnose", MARKER)
 
 
@@ -43,7 +47,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print the cycle-time table as JSON rows only")
     parser.add_argument("--no-train", action="store_true", help="skip training and prediction")
     parser.add_argument("--no-rrd", action="store_true",
-                        help="write no Rerun .rrd files (about 0.4 MB per recording; plots and report only)")
+                        help="write no Rerun .rrd (rerun/demo.rrd: about 0.27 MB per recording; plots and report only)")
     parser.add_argument("--models", help="comma-separated model names to train (default: the demo set)")
     parser.add_argument("--detail-plots", type=int, default=DETAIL_PLOTS, metavar="N",
                         help=f"recordings that get all four plots, the rest get the feed plot (default {DETAIL_PLOTS})")
@@ -106,10 +110,11 @@ def detail_runs(result: DemoResult, count: int) -> set[str]:
 def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PLOTS,
                   mystery: Mystery | None = None, rrd: bool = True, started: float | None = None,
                   release: bool = True) -> dict[str, Path]:
-    """Plots, .rrd files, JSON table and the Markdown report; returns what was written (and `answer`,
+    """Plots, the .rrd, JSON table and the Markdown report; returns what was written (and `answer`,
     the sentences the report starts with).
 
-    Every recording gets its feed plot and .rrd; `detail` recordings also get the axis, path and
+    Every recording gets its feed plot and its own recording in `rerun/demo.rrd` (downsampled to the
+    blueprint's views, `viz.decimate`; one blueprint for all); `detail` recordings also get the axis, path and
     block-time plots (matplotlib is the slow part of the demo). `started` (`time.perf_counter()` when
     the demo began): the run time the report and the console both quote, taken before the report is written.
     `release`: drop each recording's samples (`run.data`, `run.gathered`, `run.recording`) once its plots
@@ -120,22 +125,29 @@ def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PL
     model_names = list(result.training.checkpoints) if result.training and result.training.available else []
     table = cycle_time_table(_rows(result), model_names=model_names)
     detailed = detail_runs(result, detail)
-    for k, run in enumerate(result.runs, start=1):
-        run.data = view_of(run)  # built again here when the pipeline did not hold every recording's (peak memory)
-        if run.data is None:
-            continue
-        kinds = None if run.entry.name in detailed else ("feed",)
-        run.plots = plot_view(run.data, plots_dir, stem=run.entry.name, kinds=kinds)
-        if rrd:
-            rerun_dir.mkdir(parents=True, exist_ok=True)
-            run.rrd = rerun_dir / f"{run.entry.name}.rrd"
-            save_view(run.data, run.rrd, columns=SCREEN_COLUMNS)
-        log(f"[{k}/{len(result.runs)}] {run.entry.name}: plots" + (f" and {run.rrd.name}" if rrd else "") + " written")
-        run.view_notes = list(run.data.notes)
-        if release:  # written: the recording's samples are not needed again (peak memory, benchmarks/bench_demo.py)
-            run.data = run.gathered = run.recording = None
-            gc.collect(1)  # matplotlib's figures are young reference cycles: free them now (a full collection takes ~0.5 s)
-            _drop_finished_streams()
+    rrd_path = rerun_dir / RRD_NAME
+    rrd = rrd and any(run.data is not None or run.has_view for run in result.runs)
+    if rrd:
+        rerun_dir.mkdir(parents=True, exist_ok=True)
+    with (rrd_bundle(rrd_path) if rrd else contextlib.nullcontext()) as bundle:
+        for k, run in enumerate(result.runs, start=1):
+            run.data = view_of(run)  # built again here when the pipeline did not hold every recording's (peak memory)
+            if run.data is None:
+                continue
+            kinds = None if run.entry.name in detailed else ("feed",)
+            run.plots = plot_view(run.data, plots_dir, stem=run.entry.name, kinds=kinds)
+            if bundle is not None:
+                bundle.add(run.data, columns=SCREEN_COLUMNS)
+                run.rrd = rrd_path
+            log(f"[{k}/{len(result.runs)}] {run.entry.name}: plots" + (" and Rerun recording" if rrd else "")
+                + " written")
+            run.view_notes = list(run.data.notes)
+            if release:  # written: the recording's samples are not needed again (peak memory, benchmarks/bench_demo.py)
+                run.data = run.gathered = run.recording = None
+                gc.collect(1)  # matplotlib's figures are young reference cycles: free them now (a full collection takes ~0.5 s)
+                _drop_finished_streams()
+                if k % TRIM_EVERY == 0:  # and give the pages back: freed tables leave holes that grow the peak
+                    trim_heap()
     bars = plot_cycle_times(table, plots_dir / "cycle_times.png") if len(table) else None
     result.timings_s["plots_and_rrd"] = time.perf_counter() - plots_started
     if demo_started is not None:
@@ -242,7 +254,8 @@ def _sections(result: DemoResult) -> list[ReportSection]:
         if run.measured_source:
             s.lines.append(f"Measured cycle time from {run.measured_source}.")
         if run.rrd is not None:
-            s.lines.append(f"Rerun: `rerun {run.rrd}`")
+            s.lines.append(f"Rerun: `rerun {run.rrd}`, recording `{run.entry.name}` (full rate: "
+                           f"`feedlog view {run.entry.path} --sim`)")
         s.lines += [f"- error: {e}" for e in run.errors] + [f"- note: {n}" for n in run.notes]
         s.lines += [f"- note: {n}" for n in run.view_notes]
         s.images = [(f"{run.entry.name} {kind}", path) for kind, path in run.plots.items()]
@@ -263,12 +276,13 @@ def run(args: argparse.Namespace) -> int:
     mystery = diagnose_mystery(recordings, args.out, log=log)
     if mystery is not None:
         result.timings_s["diagnose"] = mystery.seconds
+        trim_heap()  # what the diagnosis freed, before the plots and the .rrd (peak memory)
     written = write_outputs(result, args.out, log=log, detail=args.detail_plots, mystery=mystery, rrd=not args.no_rrd,
                             started=started)
     if args.json:
         print(table_json(written["table"]))
         return 0
-    rrds = [r.rrd for r in result.runs if r.rrd is not None]
+    rrds = [r for r in result.runs if r.rrd is not None]
     print()
     print(f"feedlog demo finished in {result.timings_s['total']:.1f} s")
     print("\n".join(written["answer"]).strip("\n"))
@@ -280,9 +294,9 @@ def run(args: argparse.Namespace) -> int:
     if result.training is not None and result.training.available:
         print(f"  trained models:                {written['models']}/<name>.pt  (feedlog predict PROGRAM --model ...)")
     if rrds:
-        print(f"  Rerun recordings:              {written['rerun']}/")
-        print(f"  open them in Rerun with:       rerun {written['rerun']}/*.rrd   (or one: rerun {rrds[0]})")
-        print("  or one recording at a time:    feedlog view RECORDING --sim")
+        print(f"  Rerun (every recording, one layout): rerun {rrds[0].rrd}   (pick a recording in the "
+              "recordings panel)")
+        print(f"  one recording at full rate:    feedlog view {rrds[0].entry.path} --sim")
     if mystery is not None and mystery.report is not None:
         print(f"  the mystery machine diagnosed: {mystery.report.parent}/ (report.md, profile.toml, diagnose.rrd)")
     missing = [s for s, reason in result.stages.items() if reason]

@@ -11,6 +11,7 @@ Entity paths (ENTITY_* below) are the contract the tests check in the saved .rrd
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -65,11 +66,15 @@ class _Indexes:
         return cols
 
 
+Style = tuple[str, tuple[int, int, int]]   # a series' legend label and colour
+
+
 def _series(stream: rr.RecordingStream, entity: str, values: np.ndarray, indexes: _Indexes, *, label: str,
             color: tuple[int, int, int], counts: dict[str, int], block: bool = True, path: bool = False,
-            columns: int | None = None) -> None:
+            columns: int | None = None, styles: dict[str, Style] | None = None) -> None:
     """One scalar series in one `send_columns` call (non-finite samples left out: Rerun draws a gap).
-    `columns`: keep what a view that many pixels wide draws (`viz.decimate.linear_keep`)."""
+    `columns`: keep what a view that many pixels wide draws (`viz.decimate.linear_keep`). `styles`
+    (None: logged with the series): the label and colour go there instead, for a blueprint to carry."""
     values = np.asarray(values, dtype=np.float64)
     keep = np.isfinite(values)
     if not keep.any():
@@ -80,19 +85,28 @@ def _series(stream: rr.RecordingStream, entity: str, values: np.ndarray, indexes
         if not shown.all():
             keep = np.zeros_like(keep)
             keep[finite[shown]] = True
-    stream.log(entity, rr.SeriesLines(colors=[color], names=[label]), static=True)
+    if styles is None:
+        stream.log(entity, rr.SeriesLines(colors=[color], names=[label]), static=True)
+    else:
+        styles.setdefault(f"/{entity}", (label, color))
     stream.send_columns(entity, indexes=indexes(keep, block=block, path=path),
                         columns=rr.Scalars.columns(scalars=values if keep.all() else values[keep]))
     counts[entity] = int(keep.sum())
 
 
-def log_view(data: ViewData, stream: rr.RecordingStream, *, columns: int | None = None) -> dict[str, int]:
+def log_view(data: ViewData, stream: rr.RecordingStream, *, columns: int | None = None,
+             styles: dict[str, Style] | None = None) -> dict[str, int]:
     """Log every overlay of `data` to `stream`; returns entity path -> samples sent over time.
+
+    `styles` (None: each series' legend label and colour are logged with it, a static `SeriesLines`
+    per entity): a dict that collects them instead (entity path -> (label, colour), the first one
+    seen kept), for `series_blueprint` to carry once for many recordings (the demo's .rrd).
 
     `columns` (None: every sample): each time series keeps the first, last, lowest and highest sample
     per `columns`-th of its time span (what a view that many pixels wide draws; straight stretches
     only their ends: `viz.decimate.linear_keep`), the moving tool one position per display frame
-    (`rate_keep`) and the coloured path clouds a point per pixel along the path (`spacing_keep`)."""
+    (`rate_keep`) and the coloured path clouds a point per pixel of the 3D view beside the series views
+    (2/3 of `columns`) along the path, at least a point diameter apart (`spacing_keep`)."""
     counts: dict[str, int] = {}
     m = data.measured
     measured = _Indexes(m["t_rel_ns"].to_numpy(), m["block"].to_numpy(), m["s_mm"].to_numpy())
@@ -104,7 +118,10 @@ def log_view(data: ViewData, stream: rr.RecordingStream, *, columns: int | None 
         stream.log(ENTITY_PROGRAMMED, rr.LineStrips3D([pts], colors=[source_color("programmed")], radii=[0.05]),
                    static=True)
     step = max(1, -(-len(m) // MAX_CLOUD_POINTS))  # the static clouds are views, not data: cap their size
-    cloud = slice(None, None, step) if columns is None else spacing_keep(xyz, columns, radius=CLOUD_RADIUS)
+    # downsampled: a point per pixel of the 3D view (2 shares of the width beside the series views' 3),
+    # never closer than touching spheres (a diameter apart: still a continuous band)
+    cloud = (slice(None, None, step) if columns is None
+             else spacing_keep(xyz, columns * 2 // 3, min_step=2 * CLOUD_RADIUS))
     stream.log(ENTITY_MEASURED_PATH, rr.Points3D(xyz[cloud], colors=feed_colors(m["feed_mm_min"].to_numpy()[cloud]),
                                                  radii=[CLOUD_RADIUS]), static=True)
     if data.model_series or data.sim is not None:
@@ -124,38 +141,39 @@ def log_view(data: ViewData, stream: rr.RecordingStream, *, columns: int | None 
 
     # path feed: measured, commanded, simulated, learned (over time, block and path length)
     _series(stream, f"{FEED}/measured", m["feed_mm_min"].to_numpy(), measured, label="measured",
-            color=source_color("measured"), counts=counts, path=True, columns=columns)
+            color=source_color("measured"), counts=counts, path=True, columns=columns, styles=styles)
     if "commanded_feed_mm_min" in m.columns:
         _series(stream, f"{FEED}/commanded", m["commanded_feed_mm_min"].to_numpy(), measured,
-                label="commanded F", color=source_color("commanded"), counts=counts, path=True, columns=columns)
+                label="commanded F", color=source_color("commanded"), counts=counts, path=True, columns=columns, styles=styles)
     if data.sim is not None:
         s = data.sim
         sim = _Indexes(s["t_rel_ns"].to_numpy(), s["block"].to_numpy(), s["s_mm"].to_numpy())
         _series(stream, f"{FEED}/sim", s["feed_mm_min"].to_numpy(), sim, label="simulated",
-                color=source_color("sim"), counts=counts, path=True, columns=columns)
+                color=source_color("sim"), counts=counts, path=True, columns=columns, styles=styles)
         for a in data.axes:
             if f"v{a}" in s.columns:
                 _series(stream, f"{AXES}/{a}/sim", s[f"v{a}"].to_numpy(), sim, label=f"{a} simulated",
-                        color=source_color("sim"), counts=counts, block=False, columns=columns)
+                        color=source_color("sim"), counts=counts, block=False, columns=columns, styles=styles)
     for i, (name, series) in enumerate(data.model_series.items()):
         _series(stream, f"{FEED}/{name}", series["feed_mm_min"].to_numpy(), _Indexes(series["t_rel_ns"].to_numpy()),
-                label=name, color=source_color(name, i), counts=counts, columns=columns)
+                label=name, color=source_color(name, i), counts=counts, columns=columns, styles=styles)
 
     # per-axis feeds (over time) and residuals (over time and block)
     for a in data.axes:
         unit = "deg/min" if AXIS_COLUMNS[a].endswith("deg") else "mm/min"
         _series(stream, f"{AXES}/{a}/measured", m[f"v{a}"].to_numpy(), measured,
-                label=f"{a} measured ({unit})", color=source_color("measured"), counts=counts, block=False, columns=columns)
+                label=f"{a} measured ({unit})", color=source_color("measured"), counts=counts, block=False, columns=columns, styles=styles)
     for i, (name, residual) in enumerate(data.residuals.items()):
         _series(stream, f"{RESIDUAL}/{name}", residual, measured, label=f"measured - {name}",
-                color=source_color(name, i - 1), counts=counts, columns=columns)
+                color=source_color(name, i - 1), counts=counts, columns=columns, styles=styles)
 
     # per block: measured vs predicted block times, on the block timeline and at the block's start time
-    _log_blocks(data, stream, counts, columns)
+    _log_blocks(data, stream, counts, columns, styles)
     return counts
 
 
-def _log_blocks(data: ViewData, stream: rr.RecordingStream, counts: dict[str, int], columns: int | None) -> None:
+def _log_blocks(data: ViewData, stream: rr.RecordingStream, counts: dict[str, int], columns: int | None,
+                styles: dict[str, Style] | None) -> None:
     blocks = data.blocks
     if not len(blocks):
         return
@@ -167,20 +185,35 @@ def _log_blocks(data: ViewData, stream: rr.RecordingStream, counts: dict[str, in
     for i, col in enumerate(c for c in blocks.columns if c.endswith("_s")):
         _series(stream, f"{BLOCKS}/{col[:-2]}", blocks[col].to_numpy(dtype=np.float64)[has_time], index,
                 label=f"{col[:-2]} block time (s)", color=source_color(col[:-2], i - 2), counts=counts,
-                columns=columns)
+                columns=columns, styles=styles)
 
 
 def view_blueprint(data: ViewData) -> rrb.Blueprint:
     """The default layout: 3D paths left, feeds/axes/residuals/blocks right."""
-    series_views = [rrb.TimeSeriesView(origin=f"/{FEED}", name="path feed (mm/min)")]
-    series_views.append(rrb.Tabs(*[rrb.TimeSeriesView(origin=f"/{AXES}/{a}", name=f"{a} feed")
-                                   for a in data.axes], name="axis feeds"))
-    if data.residuals:
-        series_views.append(rrb.TimeSeriesView(origin=f"/{RESIDUAL}", name="feed residual (mm/min)"))
-    series_views.append(rrb.TimeSeriesView(origin=f"/{BLOCKS}", name="block times (s)"))
+    return series_blueprint(data.axes, residuals=bool(data.residuals), title=f"{data.name}: toolpath")
+
+
+def series_blueprint(axes: Sequence[str], *, residuals: bool, title: str,
+                     styles: Mapping[str, Style] | None = None) -> rrb.Blueprint:
+    """3D paths left; path feed, a tab per axis in `axes`, residuals and block times right. The views'
+    origins are relative entity paths (`/feed`, `/axes/x`, ...): the layout fits every recording that
+    logs them, so one blueprint serves many recordings of one application id. `styles` (entity path ->
+    (label, colour), from `log_view(styles=...)`): each series' legend label and colour, as view overrides."""
+    styles = styles or {}
+
+    def view(origin: str, name: str) -> rrb.TimeSeriesView:
+        inside = {path: rr.SeriesLines(colors=[color], names=[label]) for path, (label, color) in sorted(styles.items())
+                  if path.startswith(f"{origin}/")}
+        return rrb.TimeSeriesView(origin=origin, name=name, overrides=inside or None)
+
+    series_views = [view(f"/{FEED}", "path feed (mm/min)"),
+                    rrb.Tabs(*[view(f"/{AXES}/{a}", f"{a} feed") for a in axes], name="axis feeds")]
+    if residuals:
+        series_views.append(view(f"/{RESIDUAL}", "feed residual (mm/min)"))
+    series_views.append(view(f"/{BLOCKS}", "block times (s)"))
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(origin="/path", name=f"{data.name}: toolpath"),
+            rrb.Spatial3DView(origin="/path", name=title),
             rrb.Vertical(*series_views),
             column_shares=[2, 3],
         ),

@@ -8,9 +8,10 @@ recordings go on. Nothing is estimated in place of a missing stage.
 
 from __future__ import annotations
 
+import ctypes
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -208,7 +209,30 @@ def prepare_run(run: RecordingRun) -> RecordingRun:
         for note in run.gathered.notes:
             (run.errors if "failed" in note else run.notes).append(note)
     _cam(run)
+    if run.gathered is not None:
+        # its times are taken (cam_s, sim_s) and its series and blocks stay in `gathered.inputs`: the rest of
+        # the simulation (the planner's trajectory) is neither sent back from a worker nor held (peak memory)
+        run.gathered.sim = None
     return run
+
+
+def _release_training_tables(run: RecordingRun) -> None:
+    """Trained: align's per-CL-point tables (`points`, the geometry and line block tables) are not needed
+    again (the overlays take the block times, the report the cycle time): drop them (peak memory)."""
+    aligned = run.gathered.aligned if run.gathered is not None else None
+    if is_dataclass(aligned) and hasattr(aligned, "points"):
+        run.gathered.aligned = replace(aligned, points=aligned.points.iloc[:0], geometry_blocks=None,
+                                       line_blocks=None, geometry_blocks_base=None)
+
+
+def trim_heap() -> None:
+    """Give the heap memory freed so far back to the operating system (glibc's `malloc_trim`; elsewhere
+    nothing): what torch's threads freed after training sits in their own arenas, which the main thread's
+    next allocations do not reuse."""
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):
+        pass
 
 
 def view_of(run: RecordingRun) -> ViewData | None:
@@ -272,10 +296,14 @@ def _run_demo(config: DemoConfig, runner: TaskRunner) -> DemoResult:
     if config.train:
         training = train_models(runs, out_dir=config.out / "models", models=config.models, preset=config.preset,
                                 log=log, runner=runner, progress=config.progress)
+        if not config.keep_views:
+            for run in runs:
+                _release_training_tables(run)
         for run in runs:
             if run.gathered is not None and run.gathered.program is not None:
                 for name, pred in predict_for(training, run).items():
                     run.models[name] = pred
+    trim_heap()
     timings["train_predict"] = time.perf_counter() - t1
 
     t2 = time.perf_counter()
