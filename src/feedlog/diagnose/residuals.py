@@ -81,9 +81,11 @@ def sim_block_ends(case: Case, sim) -> tuple[np.ndarray, np.ndarray, float]:
     """(block ids ascending, their end times from motion start, cycle time) of a SimResult, its motion
     span taken as the recording's was (`sim_span`)."""
     start, end = sim_span(case, sim)
-    blocks = sim.blocks
-    ids = blocks["block"].to_numpy(np.int64)
-    ends = blocks["t_end_ns"].to_numpy(np.int64) / 1e9 - start
+    arrays = getattr(sim, "block_arrays", None)  # a SimResult's table as arrays: no DataFrame per re-simulation
+    if arrays is not None:
+        ids, ends = arrays[0].astype(np.int64, copy=False), arrays[3].astype(np.int64, copy=False) / 1e9 - start
+    else:
+        ids, ends = sim.blocks["block"].to_numpy(np.int64), sim.blocks["t_end_ns"].to_numpy(np.int64) / 1e9 - start
     order = np.argsort(ids, kind="stable")
     return ids[order], np.clip(np.maximum.accumulate(ends[order]), 0.0, end - start), end - start
 
