@@ -150,3 +150,23 @@ def test_a_loss_over_some_units_simulates_only_their_recordings(hidden):
     assert sc.simulations == len(cases) == 2
     assert part == float(whole[first].sum()) and np.isfinite(part)
     assert sc.loss({"axes.x.acc_max": 300.0}, first) < part  # the hidden value fits better: it is a real loss
+
+
+def test_the_motion_span_from_the_grid_ends_is_the_whole_grids(hidden):
+    """The timing residual measures a re-simulation's motion span from the head and tail of its samples
+    (`residuals._span_from_ends`): the same times as from every sample, on profiles that move the span."""
+    from feedlog.diagnose.engine import load_cases
+    from feedlog.diagnose.keys import with_values
+    from feedlog.diagnose.residuals import _span_from_ends, sim_span
+    from feedlog.sim import simulate
+
+    profile, cases = load_cases(hidden("xacc", values={"axes.x.acc_max": 300.0}), None)
+    fast = 0
+    for case in cases:
+        for values in ({}, {"axes.x.acc_max": 150.0}, {"sim.feed_override.override": 0.6, "axes.z.vel_max": 8.0}):
+            sim = simulate(case.sim_input, with_values(profile, values) if values else profile)
+            fast += _span_from_ends(case, sim.trajectory) is not None
+            ends = sim_span(case, sim)
+            sim.trajectory.sample_at = None  # the whole grid
+            assert sim_span(case, sim) == ends
+    assert fast == 3 * len(cases)
