@@ -18,7 +18,7 @@ machines from its shipped configs without new INI files per draw):
 
 Printed per machine and in all; `--json` prints one object.
 
-    .venv/bin/python benchmarks/bench_diagnose_many.py [--machines 4] [--seed 1] [--kind many|far|both]
+    .venv/bin/python benchmarks/bench_diagnose_many.py [--machines 4] [--seed 1] [--kind many|far|both] [--rows]
 """
 
 from __future__ import annotations
@@ -152,6 +152,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--kind", choices=("many", "far", "both"), default="both")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--rows", action="store_true", help="also print each machine's row as one JSON line when done")
     args = ap.parse_args()
     rng = random.Random(args.seed)
     rows = []
@@ -159,6 +160,8 @@ def main() -> None:
         if args.kind in ("many", "both"):
             r = run_many(rng, i)
             rows.append(r)
+            if args.rows:
+                print(json.dumps(r), flush=True)
             if not args.json:
                 print(f"many m{i}: changed {r['changed']} on {', '.join(r['programs'])}\n"
                       f"  found {{{', '.join(f'{k}: {v:.4g}' for k, v in r['found'].items())}}}; named {len(r['named'])}/4 "
@@ -168,6 +171,8 @@ def main() -> None:
         if args.kind in ("far", "both"):
             r = run_far(rng, i)
             rows.append(r)
+            if args.rows:
+                print(json.dumps(r), flush=True)
             if not args.json:
                 print(f"far m{i}: {r['true']} fitted on {', '.join(r['fitted_on'])}: {len(r['constrained'])} "
                       f"constrained ({len(r['constrained_within_5pct'])} within 5 %), own error "
