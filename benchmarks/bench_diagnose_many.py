@@ -18,7 +18,7 @@ machines from its shipped configs without new INI files per draw):
 
 Printed per machine and in all; `--json` prints one object.
 
-    .venv/bin/python benchmarks/bench_diagnose_many.py [--machines 4] [--seed 1] [--kind many|far|both]
+    .venv/bin/python benchmarks/bench_diagnose_many.py [--machines 4] [--seed 1] [--kind many|far|both] [--rows]
 """
 
 from __future__ import annotations
@@ -97,8 +97,10 @@ def run_many(rng: random.Random, i: int) -> dict:
 
     values = draw_many(rng)
     programs = rng.sample(POOL[:6], 3)
-    t0 = time.perf_counter()
-    dx = diagnose(record(values, programs, "linuxcnc-xyz", 100 * i), "linuxcnc-xyz", config=DiagnoseConfig(learned=False))
+    recs = record(values, programs, "linuxcnc-xyz", 100 * i)
+    t0, c0 = time.perf_counter(), time.process_time()
+    dx = diagnose(recs, "linuxcnc-xyz", config=DiagnoseConfig(learned=False))
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     found = {f.parameter: float(f.fitted_value) for f in dx.findings}
     named = [k for k, v in values.items() if k in found and abs(found[k] / v - 1) <= 0.05]
     wrong = [k for k, v in found.items() if k not in values or abs(v / values[k] - 1) > 0.15]
@@ -107,7 +109,7 @@ def run_many(rng: random.Random, i: int) -> dict:
     return {"kind": "many", "machine": i, "changed": values, "programs": programs, "found": found, "named": named,
             "observable": seen, "missed": [k for k in values if k not in found], "wrong": wrong,
             "error_before_pct": cyc["error_before_pct"], "error_after_pct": cyc["error_after_pct"],
-            "seconds": time.perf_counter() - t0}
+            "seconds": seconds, "cpu_seconds": cpu}
 
 
 def run_far(rng: random.Random, i: int) -> dict:
@@ -121,10 +123,10 @@ def run_far(rng: random.Random, i: int) -> dict:
     values = draw_far(rng)
     programs = rng.sample(POOL, 6)
     fit_on, judge_on = programs[:3], programs[3:]
-    t0 = time.perf_counter()
-    dx = diagnose(record(values, fit_on, "generic-xyz", 100 * i), "generic-xyz",
-                  config=DiagnoseConfig(learned=False, calibrate=True))
-    seconds = time.perf_counter() - t0
+    recs = record(values, fit_on, "generic-xyz", 100 * i)
+    t0, c0 = time.perf_counter(), time.process_time()
+    dx = diagnose(recs, "generic-xyz", config=DiagnoseConfig(learned=False, calibrate=True))
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     truth, generic = with_values(load_profile("generic-xyz"), values), load_profile("generic-xyz")
     judged = []
     for name in judge_on:
@@ -141,7 +143,7 @@ def run_far(rng: random.Random, i: int) -> dict:
             "constrained_within_5pct": [p.key for p in cal.parameters if p.constrained
                                         and abs(p.fitted_value / values[p.key] - 1) <= 0.05],
             "own_error_before_pct": dx.levels["cycle"]["error_before_pct"],
-            "own_error_after_pct": dx.levels["cycle"]["error_after_pct"], "seconds": seconds}
+            "own_error_after_pct": dx.levels["cycle"]["error_after_pct"], "seconds": seconds, "cpu_seconds": cpu}
 
 
 def main() -> None:
@@ -150,6 +152,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--kind", choices=("many", "far", "both"), default="both")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--rows", action="store_true", help="also print each machine's row as one JSON line when done")
     args = ap.parse_args()
     rng = random.Random(args.seed)
     rows = []
@@ -157,19 +160,24 @@ def main() -> None:
         if args.kind in ("many", "both"):
             r = run_many(rng, i)
             rows.append(r)
+            if args.rows:
+                print(json.dumps(r), flush=True)
             if not args.json:
                 print(f"many m{i}: changed {r['changed']} on {', '.join(r['programs'])}\n"
                       f"  found {{{', '.join(f'{k}: {v:.4g}' for k, v in r['found'].items())}}}; named {len(r['named'])}/4 "
                       f"({len(r['observable'])} observable), missed {r['missed']}, wrong {r['wrong']}; error "
                       f"{r['error_before_pct']:+.2f} % -> "
-                      f"{r['error_after_pct']:+.2f} %; {r['seconds']:.0f} s", flush=True)
+                      f"{r['error_after_pct']:+.2f} %; {r['seconds']:.0f} s ({r['cpu_seconds']:.0f} s CPU)", flush=True)
         if args.kind in ("far", "both"):
             r = run_far(rng, i)
             rows.append(r)
+            if args.rows:
+                print(json.dumps(r), flush=True)
             if not args.json:
                 print(f"far m{i}: {r['true']} fitted on {', '.join(r['fitted_on'])}: {len(r['constrained'])} "
                       f"constrained ({len(r['constrained_within_5pct'])} within 5 %), own error "
-                      f"{r['own_error_before_pct']:+.2f} % -> {r['own_error_after_pct']:+.2f} %; {r['seconds']:.0f} s",
+                      f"{r['own_error_before_pct']:+.2f} % -> {r['own_error_after_pct']:+.2f} %; {r['seconds']:.0f} s "
+                      f"({r['cpu_seconds']:.0f} s CPU)",
                       flush=True)
                 for j in r["judged"]:
                     print(f"  unseen {j['program']}: {j['error_pct']:+.2f} % (generic {j['generic_error_pct']:+.2f} %)"
@@ -186,7 +194,8 @@ def main() -> None:
                          "wrong": sum(len(r["wrong"]) for r in many),
                          "mean_abs_error_before_pct": sum(abs(r["error_before_pct"]) for r in many) / len(many),
                          "mean_abs_error_after_pct": sum(abs(r["error_after_pct"]) for r in many) / len(many),
-                         "max_seconds": max(r["seconds"] for r in many)}
+                         "max_seconds": max(r["seconds"] for r in many),
+                         "max_cpu_seconds": max(r["cpu_seconds"] for r in many)}
     if far:
         judged = [j for r in far for j in r["judged"]]
         quiet = [j for j in judged if not j["warned"]]
@@ -196,7 +205,8 @@ def main() -> None:
                         "warned": len(judged) - len(quiet),
                         "warned_off_by_1pct_or_more": sum(abs(j["error_pct"]) >= 1.0 for j in judged if j["warned"]),
                         "mean_abs_generic_pct": sum(abs(j["generic_error_pct"]) for j in judged) / len(judged),
-                        "max_seconds": max(r["seconds"] for r in far)}
+                        "max_seconds": max(r["seconds"] for r in far),
+                        "max_cpu_seconds": max(r["cpu_seconds"] for r in far)}
     if args.json:
         print(json.dumps({"rows": rows, "total": total}))
     else:

@@ -32,6 +32,9 @@ class QuadraticScorer:
         v = values.get("axes.x.acc_max", 1000.0)
         return self.weights * (np.log(v) - np.log(self.truths)) ** 2 + self.floor
 
+    def loss(self, values, units):
+        return float(self.unit_losses(values)[list(units)].sum())
+
 
 HYP = Hypothesis(key="axes.x.acc_max", family="axis_limits", lower=1000 / 30, upper=3000, baseline=1000.0)
 
@@ -128,3 +131,42 @@ def test_a_material_error_halved_counts_though_it_drops_by_less_than_one_point()
                                         f"{hyp.needs} segments and 5 s"]
     scorer.data_size, scorer.data_s = 100, 2.0       # ... or too short a stretch of motion
     assert judged(3.0, 0.1).reasons[0].startswith("too little data: 100 segments (2.00 s of motion)")
+
+
+def test_a_loss_over_some_units_simulates_only_their_recordings(hidden):
+    """`Scorer.loss` over one recording's units re-simulates that recording alone (a fold's fit leaves the
+    held-out recording out), gives the sum `unit_losses` gives, and a repeated profile is not simulated again."""
+    from feedlog.diagnose.engine import load_cases
+    from feedlog.diagnose.fit import Scorer
+
+    profile, cases = load_cases(hidden("xacc", values={"axes.x.acc_max": 300.0}), None)
+    sc = Scorer(profile, cases, "timing")
+    first = sc.groups[0]
+    values = {"axes.x.acc_max": 330.0}
+    part = sc.loss(values, first)
+    assert sc.simulations == 1
+    assert sc.loss(values, first) == part and sc.simulations == 1
+    whole = sc.unit_losses(values)
+    assert sc.simulations == len(cases) == 2
+    assert part == float(whole[first].sum()) and np.isfinite(part)
+    assert sc.loss({"axes.x.acc_max": 300.0}, first) < part  # the hidden value fits better: it is a real loss
+
+
+def test_the_motion_span_from_the_grid_ends_is_the_whole_grids(hidden):
+    """The timing residual measures a re-simulation's motion span from the head and tail of its samples
+    (`residuals._span_from_ends`): the same times as from every sample, on profiles that move the span."""
+    from feedlog.diagnose.engine import load_cases
+    from feedlog.diagnose.keys import with_values
+    from feedlog.diagnose.residuals import _span_from_ends, sim_span
+    from feedlog.sim import simulate
+
+    profile, cases = load_cases(hidden("xacc", values={"axes.x.acc_max": 300.0}), None)
+    fast = 0
+    for case in cases:
+        for values in ({}, {"axes.x.acc_max": 150.0}, {"sim.feed_override.override": 0.6, "axes.z.vel_max": 8.0}):
+            sim = simulate(case.sim_input, with_values(profile, values) if values else profile)
+            fast += _span_from_ends(case, sim.trajectory) is not None
+            ends = sim_span(case, sim)
+            sim.trajectory.sample_at = None  # the whole grid
+            assert sim_span(case, sim) == ends
+    assert fast == 3 * len(cases)

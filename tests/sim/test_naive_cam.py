@@ -83,3 +83,29 @@ def test_open_chain_is_the_one_holding_the_last_row():
     assert end.tolist() == [100, 201, 302, 399] and open_from == 303   # 101 rows a chain; 303..399 open
     _, _, open_from = chains(p0, p1, np.r_[cand[:-1], False], tol, 100)
     assert open_from == 399                                     # the last row cannot join: alone
+
+
+def test_remembered_chains_are_the_chains_of_exactly_those_inputs():
+    """A fit re-simulates one program thousands of times; the chains are remembered by a digest of the
+    inputs: the same inputs give the same chains, any changed input (a point, a pre-test, a tolerance, the
+    chain length) is computed again, and a caller changing what it got does not change what comes next."""
+    from feedlog.sim.naive_cam import remembered_chains
+
+    rng = np.random.default_rng(11)
+    p0, p1 = polyline(rng, 600, turn=0.0, step=(0.1, 0.1))
+    tol, cand = np.full(600, 0.01), np.ones(599, bool)
+    want = chains(p0, p1, cand, tol, 100)
+    got = remembered_chains(p0, p1, cand, tol, 100)
+    got[0][:] = -1   # the caller's copy
+    again = remembered_chains(p0, p1, cand, tol, 100)
+    for a, b in zip(want[:2], again[:2]):
+        assert np.array_equal(a, b)
+    assert again[2] == want[2]
+    cut = cand.copy()
+    cut[250] = False
+    bent = p1.copy()
+    bent[120, 1] += 0.5
+    for args in ((p0, p1, cut, tol, 100), (p0, bent, cand, tol, 100), (p0, p1, cand, tol * 0, 100),
+                 (p0, p1, cand, tol, 7)):
+        fresh, kept = chains(*args), remembered_chains(*args)
+        assert np.array_equal(fresh[1], kept[1]) and not np.array_equal(kept[1], want[1])

@@ -324,3 +324,23 @@ def test_lookahead_counts_queue_entries_not_consumed_lines():
     # piece 0 may still stop within the next 2 entries: 2 pieces, or 4 when two of them ride with arcs
     assert entries[0] == pytest.approx(2 * 100 * 2)
     assert consumed[0] == pytest.approx(2 * 100 * 4)
+
+
+@pytest.mark.parametrize("program,profile", [("corners_f3000_p001", "linuxcnc-xyz"), ("circle_f3000_p001", "generic-xyz"),
+                                             ("mix_010", "linuxcnc-xyzac")])
+def test_single_grid_rows_are_the_rows_of_the_whole_grid(program, profile):
+    """`Trajectory.sample_at` (diagnose samples only where motion starts and ends) gives the rows the whole
+    grid has there, to the last bit, blends and arcs included; a trajectory a filter passed over has none."""
+    from pathlib import Path
+
+    from feedlog.toolpath import parse_program
+
+    path = Path(__file__).resolve().parents[2] / "recordings" / "programs" / f"{program}.ngc"
+    traj = simulate(parse_program(path), profile).trajectory
+    n, dt = traj.grid
+    assert n == len(traj.t_s) and dt == pytest.approx(traj.t_s[1] - traj.t_s[0])
+    idx = np.unique(np.r_[0, n - 1, np.random.default_rng(3).integers(0, n, 400)])
+    t, pos = traj.sample_at(idx)
+    assert np.array_equal(t, traj.t_s[idx]) and np.array_equal(pos, traj.pos[idx])
+    assert np.ptp(pos[:, 0]) > 1.0  # the rows move: not a grid of rests compared with itself
+    assert traj.map(lambda *s: s).grid is None

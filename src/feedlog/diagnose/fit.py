@@ -39,6 +39,7 @@ FEEDBACK_CHUNK_MIN = 200  # samples per feedback chunk at least
 BRENT_ITER = 20
 XATOL = 2e-3             # Brent's tolerance as a share of the bracket (two grid steps)
 TIE = 1e-6               # losses within this share of the best count as equal
+_MISSING = object()      # a recording's residual not computed yet for some values
 
 
 def _key(values: Mapping[str, Any]) -> tuple:
@@ -65,7 +66,7 @@ class Scorer:
         from feedlog.sim import simulate
 
         self.profile, self.cases, self.level = profile, list(cases), level
-        self._cache: dict[tuple, list[np.ndarray | None]] = {}
+        self._cache: dict[tuple, list[Any]] = {}   # values -> [profile or None, residual per recording]
         self.simulations = 0
         self.segments: list[Segments | None] = []
         if level == "timing":
@@ -140,21 +141,24 @@ class Scorer:
     def chunked(self) -> bool:
         return len(self.groups) == 1
 
-    def residuals(self, values: Mapping[str, Any]) -> list[np.ndarray | None]:
-        """One residual array per recording (None where a recording lacks the level or the profile is invalid)."""
+    def residuals(self, values: Mapping[str, Any], cases: Sequence[int] | None = None) -> list[np.ndarray | None]:
+        """One residual array per recording (None where a recording lacks the level or the profile is invalid).
+        With `cases`, only those recordings' residuals are computed (the others are None): a loss over some
+        units needs no simulation of the recordings it leaves out. Cached per recording and values."""
         key = _key(values)
-        hit = self._cache.get(key)
-        if hit is not None:
-            return hit
-        try:
-            profile = keys.with_values(self.profile, values) if values else self.profile
-        except FeedlogError:
-            profile = None
-        out: list[np.ndarray | None] = []
-        for i, case in enumerate(self.cases):
-            out.append(None if profile is None else self._residual(i, case, profile, bool(values)))
-        self._cache[key] = out
-        return out
+        entry = self._cache.get(key)
+        if entry is None:
+            try:
+                profile = keys.with_values(self.profile, values) if values else self.profile
+            except FeedlogError:
+                profile = None
+            entry = self._cache[key] = [profile, [_MISSING] * len(self.cases)]
+        profile, out = entry
+        wanted = range(len(self.cases)) if cases is None else cases
+        for i in wanted:
+            if out[i] is _MISSING:
+                out[i] = None if profile is None else self._residual(i, self.cases[i], profile, bool(values))
+        return [None if r is _MISSING else r for r in out]
 
     def case_residual(self, i: int, values: Mapping[str, Any]) -> np.ndarray | None:
         """The residual of recording `i` alone for base + `values` (not cached; None where invalid)."""
@@ -187,9 +191,20 @@ class Scorer:
         raise FeedlogError(f"unknown residual level {self.level!r}")
 
     def unit_losses(self, values: Mapping[str, Any]) -> np.ndarray:
-        res = self.residuals(values)
-        out = np.empty(len(self.units))
-        for j, u in enumerate(self.units):
+        """The loss of every unit for base + `values` (inf where the profile is invalid)."""
+        return self._losses(self.residuals(values), range(len(self.units)))
+
+    def loss(self, values: Mapping[str, Any], units: Sequence[int]) -> float:
+        """The summed loss of `units` for base + `values`: only their recordings are simulated (the sum
+        equals `unit_losses(values)[units].sum()`)."""
+        units = list(units)
+        res = self.residuals(values, sorted({self.units[j].case for j in units}))
+        return float(self._losses(res, units)[units].sum())
+
+    def _losses(self, res: list[np.ndarray | None], units: Sequence[int]) -> np.ndarray:
+        out = np.zeros(len(self.units))
+        for j in units:
+            u = self.units[j]
             r = res[u.case]
             if r is None:
                 out[j] = np.inf
@@ -258,7 +273,7 @@ def fit(scorer: Scorer, model: Mapping[str, Any], hyp: Hypothesis, units: Sequen
     units = list(units)
 
     def loss(v: Any) -> float:
-        return float(scorer.unit_losses({**model, **hyp.values(v)})[units].sum())
+        return scorer.loss({**model, **hyp.values(v)}, units)
 
     grid = _grid(hyp)
     losses = np.array([loss(v) for v in grid])

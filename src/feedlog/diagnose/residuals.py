@@ -69,6 +69,9 @@ def sim_span(case: Case, sim) -> tuple[float, float]:
         return traj.motion_start_s, traj.motion_end_s
     from feedlog.align.blocks import motion_span
 
+    ends = _span_from_ends(case, traj)
+    if ends is not None:
+        return ends
     t, pos = traj.t_s, traj.pos
     try:
         span = motion_span(np.rint(t * 1e9).astype(np.int64), pos, still_mm=case.still_mm,
@@ -78,13 +81,50 @@ def sim_span(case: Case, sim) -> tuple[float, float]:
     return span.t_start_ns / 1e9, span.t_end_ns / 1e9
 
 
+SPAN_MARGIN_S = 0.1   # samples kept past the planned motion start (before its end) for `_span_from_ends`
+
+
+def _span_from_ends(case: Case, traj) -> tuple[float, float] | None:
+    """`sim_span` from the head and the tail of the sampled motion only, where the trajectory can sample
+    single grid rows (`Trajectory.sample_at`): the rule of `motion_span` reads the leading and trailing
+    rest and the first and last sample away from them, so on the grid with the middle left out it finds
+    the same times, checked here (each rest run, and the samples the rule reads around the first and
+    last motion, lie inside their part); None when they do not (then the whole grid is sampled)."""
+    from feedlog.align.blocks import motion_span
+
+    grid = traj.grid
+    if grid is None:
+        return None
+    n, dt = grid
+    margin = int(np.ceil(SPAN_MARGIN_S / dt))
+    head = min(n, int(traj.motion_start_s / dt) + margin)
+    tail = max(head, int(traj.motion_end_s / dt) - margin)
+    if n < 2 or tail - head < 4:  # little to leave out: the whole grid
+        return None
+    t, pos = traj.sample_at(np.r_[np.arange(head), np.arange(tail, n)])
+    still = case.still_mm
+    for part in (pos[:head], pos[head:][::-1]):  # each rest run ends inside its part
+        if not (np.abs(part - part[0]).max(axis=1) > 2 * still).any():
+            return None
+    try:
+        span = motion_span(np.rint(t * 1e9).astype(np.int64), pos, still_mm=still, acc_mm_s2=case.span_acc_mm_s2)
+    except FeedlogError:
+        return None
+    # the rule reads samples first_index .. first_index + 2 and last_index - 2 .. last_index
+    if span.first_index + 2 >= head or span.last_index - 2 < head:
+        return None
+    return span.t_start_ns / 1e9, span.t_end_ns / 1e9
+
+
 def sim_block_ends(case: Case, sim) -> tuple[np.ndarray, np.ndarray, float]:
     """(block ids ascending, their end times from motion start, cycle time) of a SimResult, its motion
     span taken as the recording's was (`sim_span`)."""
     start, end = sim_span(case, sim)
-    blocks = sim.blocks
-    ids = blocks["block"].to_numpy(np.int64)
-    ends = blocks["t_end_ns"].to_numpy(np.int64) / 1e9 - start
+    arrays = getattr(sim, "block_arrays", None)  # a SimResult's table as arrays: no DataFrame per re-simulation
+    if arrays is not None:
+        ids, ends = arrays[0].astype(np.int64, copy=False), arrays[3].astype(np.int64, copy=False) / 1e9 - start
+    else:
+        ids, ends = sim.blocks["block"].to_numpy(np.int64), sim.blocks["t_end_ns"].to_numpy(np.int64) / 1e9 - start
     order = np.argsort(ids, kind="stable")
     return ids[order], np.clip(np.maximum.accumulate(ends[order]), 0.0, end - start), end - start
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from feedlog.errors import SimulationError
 from feedlog.profile import MachineProfile
-from feedlog.sim.motion import Plan, grid_counts, sample_plan
+from feedlog.sim.motion import Plan, grid_counts, sample_plan, sample_plan_at
 from feedlog.sim.path import Blocks, Pieces
 
 MAX_SAMPLES = 50_000_000  # one sampled series: 13.9 h at 1 kHz, about 3 GB with six axes
@@ -73,11 +73,19 @@ class Context:
 
 
 class Trajectory:
-    """Interpolated motion: timing now, samples on a regular grid on demand (seconds; axis units)."""
+    """Interpolated motion: timing now, samples on a regular grid on demand (seconds; axis units).
+
+    `grid` (n samples, period) and `sample_at(index) -> (t, pos)`, given only where the samples are
+    each a function of their own time (a planned trajectory, not one a filter has passed over): the
+    grid rows `index` alone, equal to those of `samples`."""
 
     def __init__(self, sampler: Callable[[], Samples], *, block_start_s: np.ndarray, block_end_s: np.ndarray,
-                 motion_start_s: float, motion_end_s: float, plan: Plan | None = None) -> None:
+                 motion_start_s: float, motion_end_s: float, plan: Plan | None = None,
+                 grid: Callable[[], tuple[int, float]] | None = None,
+                 sample_at: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]] | None = None) -> None:
         self._sampler = sampler
+        self._grid = grid
+        self.sample_at = sample_at
         self._samples: Samples | None = None
         self.block_start_s = block_start_s
         self.block_end_s = block_end_s
@@ -90,6 +98,11 @@ class Trajectory:
         if self._samples is None:
             self._samples = self._sampler()
         return self._samples
+
+    @property
+    def grid(self) -> tuple[int, float] | None:
+        """(samples, period s) of the regular grid when `sample_at` is given, else None."""
+        return None if self._grid is None or self.sample_at is None else self._grid()
 
     @property
     def t_s(self) -> np.ndarray:
@@ -191,6 +204,12 @@ def trajectory_from_plan(plan: Plan, pieces: Pieces, blocks: Blocks, dt_s: float
         row = np.repeat(pieces.block, counts)
         return t, pos, speed, row
 
+    def grid() -> tuple[int, float]:
+        return grid_samples(plan.total_s, dt_s), dt_s
+
+    def sample_at(index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return sample_plan_at(plan, pieces, index, grid_samples(plan.total_s, dt_s), dt_s)
+
     b_start, b_end = block_times(pieces.block, switch, plan.t_end + plan.hold - half, len(blocks))
     moving = pieces.length > 0
     if moving.any():
@@ -199,7 +218,7 @@ def trajectory_from_plan(plan: Plan, pieces: Pieces, blocks: Blocks, dt_s: float
     else:
         m_start = m_end = 0.0
     return Trajectory(sample, block_start_s=b_start, block_end_s=b_end, motion_start_s=m_start,
-                      motion_end_s=m_end, plan=plan)
+                      motion_end_s=m_end, plan=plan, grid=grid, sample_at=sample_at)
 
 
 def hold_end(traj: Trajectory, extra_s: float, dt_s: float) -> Trajectory:

@@ -187,8 +187,14 @@ def _checked(mechanism: str, name: str, value: Any, default: Any, *, signed: boo
     return value
 
 
+_CLASSES: dict[str, type[Mechanism]] = {}   # found once: a simulation looks every mechanism up each run
+
+
 def mechanism_class(name: str) -> type[Mechanism]:
-    return REGISTRY.get(name)
+    cls = _CLASSES.get(name)
+    if cls is None:
+        cls = _CLASSES[name] = REGISTRY.get(name)
+    return cls
 
 
 def mechanism_params(profile: MachineProfile | None, name: str) -> dict[str, Any]:

@@ -235,6 +235,22 @@ def sample_plan(plan: Plan, pieces: Pieces, t: np.ndarray) -> tuple[np.ndarray, 
     return pos, speed, g >> 2
 
 
+def sample_plan_at(plan: Plan, pieces: Pieces, index: np.ndarray, n: int, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Times and positions of the samples `index` (ascending) of the `n`-sample grid k * dt_s: the rows
+    `sample_plan` gives there, to the last bit, without evaluating the others (a caller that needs only
+    the start and end of the motion, diagnose's motion span, samples those)."""
+    index = np.asarray(index, dtype=np.int64)
+    t = index.astype(np.float64) * dt_s
+    if not len(pieces):
+        return t, np.zeros((len(t), pieces.p0.shape[1]), order="F")
+    phases = _phases(plan, pieces)
+    # sample i is in the phase np.repeat gives it in sample_plan: the first whose cumulative count exceeds i
+    ends = np.cumsum(grid_counts(phases[0], n, dt_s))
+    g = np.searchsorted(ends, index, side="right").astype(np.int32)
+    pos, _ = evaluate_phases(plan, pieces, phases, t, g)
+    return t, pos
+
+
 def evaluate_phases(plan: Plan, pieces: Pieces, phases, t: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Positions (len(t), k) and path speed at times t, sample i in phase g[i] of `phases` (`_phases`):
     np.take of the phase coefficients, positions written column by column into a Fortran-ordered array

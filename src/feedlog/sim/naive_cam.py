@@ -30,6 +30,8 @@ a failed test, as opposed to after a row that could not join).
 
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,6 +70,33 @@ def _fails(p0: np.ndarray, p1: np.ndarray, tol: np.ndarray, c: np.ndarray, t: np
     out = np.zeros(len(t), dtype=bool)
     out[pair[bad]] = True
     return out
+
+
+MEMO_SIZE = 64   # chain results kept (`remembered_chains`): a fit re-simulates a few programs thousands of times
+_MEMO: OrderedDict[bytes, tuple[np.ndarray, np.ndarray, int]] = OrderedDict()
+
+
+def remembered_chains(p0: np.ndarray, p1: np.ndarray, cand: np.ndarray, tol: np.ndarray, max_chain: int, *,
+                      lead_candidate: bool = False) -> tuple[np.ndarray, np.ndarray, int]:
+    """`chains`, remembered by a digest of its inputs: the chains follow from the geometry, the pre-test
+    and the tolerances alone, which a fit that changes limits or the feed override leaves as they were."""
+    digest = hashlib.blake2b(digest_size=20)
+    for a in (p0, p1, cand, tol):
+        a = np.ascontiguousarray(a)
+        digest.update(f"{a.dtype.str}{a.shape}".encode())
+        digest.update(a.tobytes())
+    digest.update(f"{int(max_chain)} {bool(lead_candidate)}".encode())
+    key = digest.digest()
+    hit = _MEMO.get(key)
+    if hit is None:
+        hit = chains(p0, p1, cand, tol, max_chain, lead_candidate=lead_candidate)
+        _MEMO[key] = hit
+        if len(_MEMO) > MEMO_SIZE:
+            _MEMO.popitem(last=False)
+    else:
+        _MEMO.move_to_end(key)
+    start, end, open_from = hit
+    return start.copy(), end.copy(), open_from
 
 
 def chains(p0: np.ndarray, p1: np.ndarray, cand: np.ndarray, tol: np.ndarray, max_chain: int, *,
@@ -239,7 +268,7 @@ class NaiveCamMerge(Mechanism):
             lead = False
         lin = b.linear_index
         tol = np.nan_to_num(b.merge_tol, nan=0.0)
-        start, end, open_from = chains(b.p0[:, lin], b.p1[:, lin], cand, tol, self.max_chain,
+        start, end, open_from = remembered_chains(b.p0[:, lin], b.p1[:, lin], cand, tol, self.max_chain,
                                        lead_candidate=lead)
         if window is not None:
             if not window.last:  # the chain holding the last row may still grow: it is redone with the next rows

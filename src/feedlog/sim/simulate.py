@@ -29,7 +29,8 @@ class SimResult:
     """Simulated motion.
 
     `series`: t_ns, axis positions, feed_mm_min, block, line at the interpolation period (sampled on
-    first access); `blocks`: block, line, t_start_ns, t_end_ns, duration_s per executed block;
+    first access); `blocks`: block, line, t_start_ns, t_end_ns, duration_s per executed block (built on
+    first access; `block_arrays` holds its first four columns as arrays);
     `cycle_time_s` (first motion to end of motion), `cam_time_s` (sum of L / F), `joints` (machine
     joints for five-axis kinematics, else None), `mechanisms` that ran with their parameters.
     """
@@ -42,9 +43,20 @@ class SimResult:
         self.cam_time_s = cam_time_s
         self.notes = ctx.notes
         self._ctx_blocks = ctx.blocks
-        self.blocks = _block_table(ctx.blocks, trajectory)
+        self.block_arrays = _block_arrays(ctx.blocks, trajectory)
+        self._blocks: pd.DataFrame | None = None
         self._series: pd.DataFrame | None = None
         self.trajectory_dt_s = ctx.dt_s
+
+    @property
+    def blocks(self) -> pd.DataFrame:
+        """One row per executed block (built on first access from `block_arrays`, which a caller that
+        re-simulates thousands of times, a fit, reads directly)."""
+        if self._blocks is None:
+            block, line, start_ns, end_ns = self.block_arrays
+            self._blocks = pd.DataFrame({"block": block, "line": line, "t_start_ns": start_ns, "t_end_ns": end_ns,
+                                         "duration_s": (end_ns - start_ns) / 1e9})
+        return self._blocks
 
     @property
     def series(self) -> pd.DataFrame:
@@ -161,11 +173,10 @@ def _series(blocks: Blocks, traj: Trajectory) -> pd.DataFrame:
     return frame
 
 
-def _block_table(blocks: Blocks, traj: Trajectory) -> pd.DataFrame:
+def _block_arrays(blocks: Blocks, traj: Trajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(block, line, t_start_ns, t_end_ns) of every executed block, one row per block."""
     ran = ~np.isnan(traj.block_start_s)
     start_ns = seconds_to_ns(traj.block_start_s[ran])
     end_ns = seconds_to_ns(traj.block_end_s[ran])
     block, line = blocks.block[ran].astype(np.int64), blocks.line[ran].astype(np.int64)
-    block, line, start_ns, end_ns = one_row_per_block(block, line, start_ns, end_ns)
-    return pd.DataFrame({"block": block, "line": line,
-                         "t_start_ns": start_ns, "t_end_ns": end_ns, "duration_s": (end_ns - start_ns) / 1e9})
+    return one_row_per_block(block, line, start_ns, end_ns)
