@@ -24,6 +24,7 @@ from pathlib import Path
 
 from feedlog.ingest.linuxcnc import record_linuxcnc
 from feedlog.ingest.linuxcnc_session import MachineIni, isolation_available
+from feedlog.profile import shipped_profiles
 
 ROOT = Path(__file__).resolve().parents[2]
 # how many LinuxCNC sessions run at once (isolated sessions only); FEEDLOG_TEST_LINUXCNC_SESSIONS overrides
@@ -84,6 +85,10 @@ def record_all(jobs: list[Job], *, timeout_s: float = 120.0) -> list[dict]:
         return key, job.out, summary
 
     order = sorted(todo.items(), key=lambda item: -expected_s(item[1].program))
+    # the shipped profiles' registry loads on first use, and that load is not thread-safe: a second thread
+    # arriving while the first lists the profiles finds none ("unknown machine profile 'linuxcnc-xyzac';
+    # shipped: ", seen once with 4 sessions starting at once). Loaded here, before the threads.
+    shipped_profiles()
     with ThreadPoolExecutor(max(1, min(SESSIONS if isolate else 1, len(order)))) as pool:
         for key, out, summary in pool.map(run, order):
             _DONE[key] = (out, summary)
