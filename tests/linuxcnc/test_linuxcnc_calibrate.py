@@ -12,9 +12,9 @@ import pytest
 
 from feedlog.coverage import program_warnings
 from feedlog.diagnose.engine import DiagnoseConfig, diagnose, load_cases
-from feedlog.ingest.linuxcnc import record_linuxcnc
-from feedlog.ingest.linuxcnc_session import isolation_available
 from feedlog.sim import simulate
+
+from .sessions import Job, record_all
 
 pytestmark = [pytest.mark.linuxcnc, pytest.mark.slow]
 
@@ -35,12 +35,8 @@ JUDGE = {"pocket_f2000_p01": [], "test_p001": ["axes.x.vel_max", "axes.z.vel_max
 
 def test_a_far_machine_calibrated_from_generic_predicts_unseen_programs_or_says_it_cannot(tmp_path):
     ini = derive_machine("xyz", tmp_path / "far", changes=CHANGES)
-    isolate = isolation_available() is None
-    rec = {}
-    for name in (*FIT_ON, *JUDGE):
-        rec[name] = tmp_path / f"far_{name}.mcap"
-        summary = record_linuxcnc(ini, PROGRAMS / f"{name}.ngc", rec[name], isolate=isolate, timeout_s=180)
-        assert summary["status"] == "complete", summary
+    rec = {name: tmp_path / f"far_{name}.mcap" for name in (*FIT_ON, *JUDGE)}
+    record_all([Job(ini, PROGRAMS / f"{name}.ngc", out) for name, out in rec.items()], timeout_s=180)
     dx = diagnose([rec[n] for n in FIT_ON], "generic-xyz", config=DiagnoseConfig(learned=False, calibrate=True))
     params = {p.key: p for p in dx.calibration.parameters}
     for ax, (_, vel, acc) in LIMITS.items():

@@ -14,8 +14,8 @@ import pytest
 
 from feedlog.diagnose.engine import DiagnoseConfig, diagnose
 from feedlog.ingest import read_recording
-from feedlog.ingest.linuxcnc import record_linuxcnc
-from feedlog.ingest.linuxcnc_session import isolation_available
+
+from .sessions import Job, record_all
 
 pytestmark = [pytest.mark.linuxcnc, pytest.mark.slow]
 
@@ -28,15 +28,11 @@ TURN = (3.5, 0.7)   # seconds after the start, dial
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory) -> list[Path]:
     root = tmp_path_factory.mktemp("dial")
-    isolate = isolation_available() is None   # private namespaces where allowed: other sessions may run
-    out = []
-    for program, turns in (("pocket_f3000_p001", (TURN,)), ("corners_f3000_p001", ())):
-        path = root / f"{program}.mcap"
-        summary = record_linuxcnc(CONFIGS / "xyz.ini", PROGRAMS / f"{program}.ngc", path, timeout_s=120,
-                                  feed_override_at=turns, isolate=isolate)
-        assert summary["status"] == "complete", summary
-        out.append(path)
-    return out
+    jobs = [Job(CONFIGS / "xyz.ini", PROGRAMS / "pocket_f3000_p001.ngc", root / "pocket_f3000_p001.mcap",
+                {"feed_override_at": (TURN,)}),
+            Job(CONFIGS / "xyz.ini", PROGRAMS / "corners_f3000_p001.ngc", root / "corners_f3000_p001.mcap")]
+    record_all(jobs)
+    return [job.out for job in jobs]
 
 
 def test_a_dial_turned_mid_program_is_found_as_a_change(recorded):

@@ -9,15 +9,14 @@ box would see them."""
 from __future__ import annotations
 
 import sys
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
 
 from feedlog.diagnose.engine import DiagnoseConfig, diagnose
 from feedlog.ingest import read_recording
-from feedlog.ingest.linuxcnc import record_linuxcnc
-from feedlog.ingest.linuxcnc_session import isolation_available
+
+from .sessions import Job, record_all
 
 pytestmark = [pytest.mark.linuxcnc, pytest.mark.slow]
 
@@ -52,25 +51,18 @@ CONFIG = DiagnoseConfig(learned=False)
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory) -> dict[str, list[Path]]:
-    """Every machine's programs, recorded with LinuxCNC (two sessions at a time when isolation allows)."""
+    """Every machine's programs, recorded with LinuxCNC (many sessions at once when isolation allows)."""
     root = tmp_path_factory.mktemp("machines")
-    isolate = isolation_available() is None
-    jobs = []
+    jobs, names = [], []
     for name, (base, changes, lags, override, programs, _) in MACHINES.items():
         ini = derive_machine(base, root / name, changes=changes, feedback_lag=lags)
-        jobs += [(name, ini, PROGRAMS / f"{p}.ngc", override) for p in programs]
-
-    def run(job):
-        name, ini, program, override = job
-        out = ini.parent / f"{name}_{program.stem}.mcap"
-        summary = record_linuxcnc(ini, program, out, isolate=isolate, timeout_s=120, feed_override=override)
-        assert summary["status"] == "complete", summary
-        return name, out
-
+        options = {"feed_override": override} if override is not None else {}
+        jobs += [Job(ini, PROGRAMS / f"{p}.ngc", ini.parent / f"{name}_{p}.mcap", options) for p in programs]
+        names += [name] * len(programs)
+    record_all(jobs)
     out: dict[str, list[Path]] = {}
-    with ThreadPoolExecutor(2 if isolate else 1) as pool:
-        for name, path in pool.map(run, jobs):
-            out.setdefault(name, []).append(path)
+    for name, job in zip(names, jobs):
+        out.setdefault(name, []).append(job.out)
     return out
 
 

@@ -13,8 +13,8 @@ import pytest
 
 from feedlog.diagnose import keys
 from feedlog.diagnose.engine import DiagnoseConfig, diagnose
-from feedlog.ingest.linuxcnc import record_linuxcnc
-from feedlog.ingest.linuxcnc_session import isolation_available
+
+from .sessions import Job, record_all
 
 pytestmark = [pytest.mark.linuxcnc, pytest.mark.slow]
 
@@ -31,16 +31,11 @@ MACHINES = {"control": {}, "offsets": {"xyzac-trt-kins.y-offset": 22.5, "xyzac-t
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory) -> dict[str, list[Path]]:
     root = tmp_path_factory.mktemp("geometry")
-    isolate = isolation_available() is None   # private namespaces where allowed: other sessions may run
-    out: dict[str, list[Path]] = {}
-    for name, params in MACHINES.items():
-        ini = derive_machine("xyzac", root / name, hal_params=params)
-        for program in P5:
-            path = ini.parent / f"{name}_{program}.mcap"
-            summary = record_linuxcnc(ini, PROGRAMS / f"{program}.ngc", path, timeout_s=120, isolate=isolate)
-            assert summary["status"] == "complete", summary
-            out.setdefault(name, []).append(path)
-    return out
+    jobs = {name: [Job(ini, PROGRAMS / f"{program}.ngc", ini.parent / f"{name}_{program}.mcap") for program in P5]
+            for name, ini in ((name, derive_machine("xyzac", root / name, hal_params=params))
+                              for name, params in MACHINES.items())}
+    record_all([job for machine in jobs.values() for job in machine])
+    return {name: [job.out for job in machine] for name, machine in jobs.items()}
 
 
 def test_changed_trunnion_offsets_are_found_within_a_tenth_of_a_millimetre(recorded):

@@ -6,6 +6,7 @@ feedlog says (the kernel's canon, not the `gcode` module feedlog's reference har
 from __future__ import annotations
 
 import os
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -41,10 +42,13 @@ ENDINGS = {
 def test_the_end_of_a_program_ending_in_canned_cycles_is_seen(tmp_path):
     ini = MachineIni.read(CONFIGS / "xyz.ini")
     for name, text in ENDINGS.items():
-        program = tmp_path / name
-        program.write_text(text)
-        session = run_session(ini, program, isolate=ISOLATE, timeout_s=30)
-        try:
+        (tmp_path / name).write_text(text)
+    # the four sessions at once where isolated: each waits on its own servo thread (tests/linuxcnc/sessions.py)
+    with ThreadPoolExecutor(len(ENDINGS) if ISOLATE else 1) as pool:
+        sessions = list(pool.map(lambda name: run_session(ini, tmp_path / name, isolate=ISOLATE, timeout_s=30),
+                                 ENDINGS))
+    try:
+        for name, session in zip(ENDINGS, sessions):
             report = session.report
             assert report["ok"], (name, report.get("abort"))
             # what LinuxCNC reports when the driver saw the end: every flag of the end condition set
@@ -58,7 +62,8 @@ def test_the_end_of_a_program_ending_in_canned_cycles_is_seen(tmp_path):
             tail_s = (t[-1] - t[span.last]) / 1e9
             assert 0.02 <= tail_s < 0.3, (name, tail_s)        # seen within a few polls, no time-out
             assert streams["line"]["line"].to_numpy()[-1] == 0  # motion.program-line is 0 once it is over
-        finally:
+    finally:
+        for session in sessions:
             cleanup(session)
 
 

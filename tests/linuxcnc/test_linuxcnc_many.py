@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from feedlog.diagnose.engine import DiagnoseConfig, diagnose
-from feedlog.ingest.linuxcnc import record_linuxcnc
-from feedlog.ingest.linuxcnc_session import isolation_available
+
+from .sessions import Job, record_all
 
 pytestmark = [pytest.mark.linuxcnc, pytest.mark.slow]
 
@@ -30,14 +30,9 @@ PROGRAMS_USED = ("corners_f3000_p001", "pocket_f3000_p001", "mix_010")
 
 def test_three_limits_and_an_override_on_linuxcnc_are_all_named(tmp_path):
     ini = derive_machine("xyz", tmp_path / "four", changes=CHANGES)
-    isolate = isolation_available() is None
-    recordings = []
-    for name in PROGRAMS_USED:
-        out = tmp_path / f"four_{name}.mcap"
-        summary = record_linuxcnc(ini, PROGRAMS / f"{name}.ngc", out, isolate=isolate, timeout_s=120,
-                                  feed_override=0.85)
-        assert summary["status"] == "complete", summary
-        recordings.append(out)
+    recordings = [tmp_path / f"four_{name}.mcap" for name in PROGRAMS_USED]
+    record_all([Job(ini, PROGRAMS / f"{name}.ngc", out, {"feed_override": 0.85})
+                for name, out in zip(PROGRAMS_USED, recordings)])
     dx = diagnose(recordings, "linuxcnc-xyz", config=DiagnoseConfig(learned=False))
     found = {f.parameter: f.fitted_value for f in dx.findings}
     assert set(found) == set(EXPECTED), [f.as_dict() for f in dx.findings]
