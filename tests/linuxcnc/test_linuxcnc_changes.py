@@ -61,11 +61,9 @@ def drilled(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("rapid_dial")
     program = root / "drill.ngc"
     program.write_text(drilling(8))
-    path = root / "drill.mcap"
-    summary = record_linuxcnc(CONFIGS / "xyz.ini", program, path, timeout_s=120, rapid_override_at=(RAPID_TURN,),
-                              isolate=isolation_available() is None)
-    assert summary["status"] == "complete", summary
-    return path
+    (summary,) = record_all([Job(CONFIGS / "xyz.ini", program, root / "drill.mcap",
+                                 {"rapid_override_at": (RAPID_TURN,)})])
+    return Path(summary["out"])
 
 
 def test_the_rapid_dial_turned_mid_program_is_found_as_a_change_of_the_rapid_dial(drilled):
