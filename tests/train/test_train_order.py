@@ -22,3 +22,22 @@ def test_table_order_does_not_change_the_trained_model(tmp_path):
     assert fa == fb
     pd.testing.assert_frame_equal(a, b)
     assert a["mlp_s"].notna().all()
+
+
+def test_models_trained_side_by_side_on_workers_are_the_ones_trained_one_after_the_other(tmp_path):
+    """Each model is seeded and trains on one thread, so two worker processes give the weights, and the
+    test figures, that training them here one after the other gives."""
+    from feedlog.execution import task_runner
+
+    tables = synthetic_set(n_train=4, n_test=2, n_blocks=60, seed=11, sim_acc_factor=None)
+    kw = dict(models=["mlp", "bilstm-block", "bilstm-final"], preset="quick", seed=5, progress=False,
+              overrides={m: {"epochs": 3} for m in ("mlp", "bilstm-block", "bilstm-final")}, log=lambda _: None)
+    with task_runner(jobs=1, progress=False) as here:
+        one = train_and_evaluate(tables, out_dir=tmp_path / "one", runner=here, **kw)
+    with task_runner(jobs=2, progress=False) as two:
+        assert two.name == "processes"
+        side = train_and_evaluate(tables, out_dir=tmp_path / "two", runner=two, **kw)
+    pd.testing.assert_frame_equal(one, side, check_exact=True)
+    for name in kw["models"]:
+        assert one.attrs["summary"][name]["fingerprint"] == side.attrs["summary"][name]["fingerprint"]
+        assert one[f"{name}_s"].notna().all()

@@ -37,8 +37,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_overwrite(parser, help="replace existing checkpoints and results")
     add_quiet(parser, help="no progress bars")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
-    add_execution_arguments(parser, jobs_help="local worker processes for reading the aligned folders and the "
-                                              "hybrid's simulations (default: all cores); training runs here")
+    add_execution_arguments(parser, jobs_help="local worker processes for reading the aligned folders, the "
+                                              "hybrid's simulations and training the models side by side "
+                                              "(default: all cores)")
 
 
 def _train(args: argparse.Namespace, models: list[str], tables, runner):

@@ -26,7 +26,8 @@ from feedlog.viz.decimate import SCREEN_COLUMNS
 from feedlog.viz.bundle import rrd_bundle
 from feedlog.viz.mystery import Mystery, diagnose_mystery
 from feedlog.viz.pipeline import DemoConfig, DemoResult, RecordingRun, discover, run_demo, trim_heap, view_of
-from feedlog.viz.plots import plot_cycle_times, plot_view
+from feedlog.viz.plot_worker import PlotWorker
+from feedlog.viz.plots import plot_cycle_times
 from feedlog.viz.answer import TERMS, summary_sentences
 from feedlog.viz.report import ReportSection, TableRow, cycle_time_table, headline, table_json, write_report
 
@@ -109,7 +110,7 @@ def detail_runs(result: DemoResult, count: int) -> set[str]:
 
 def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PLOTS,
                   mystery: Mystery | None = None, rrd: bool = True, started: float | None = None,
-                  release: bool = True) -> dict[str, Path]:
+                  release: bool = True, plot_workers: int = 1) -> dict[str, Path]:
     """Plots, the .rrd, JSON table and the Markdown report; returns what was written (and `answer`,
     the sentences the report starts with).
 
@@ -118,7 +119,8 @@ def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PL
     block-time plots (matplotlib is the slow part of the demo). `started` (`time.perf_counter()` when
     the demo began): the run time the report and the console both quote, taken before the report is written.
     `release`: drop each recording's samples (`run.data`, `run.gathered`, `run.recording`) once its plots
-    and .rrd are written.
+    and .rrd are written. `plot_workers`: processes drawing the PNG plots beside the .rrd logging
+    (`viz.plot_worker`; 0 draws them here).
     """
     demo_started, plots_started = started, time.perf_counter()
     plots_dir, rerun_dir = out / "plots", out / "rerun"
@@ -129,18 +131,19 @@ def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PL
     rrd = rrd and any(run.data is not None or run.has_view for run in result.runs)
     if rrd:
         rerun_dir.mkdir(parents=True, exist_ok=True)
-    with (rrd_bundle(rrd_path) if rrd else contextlib.nullcontext()) as bundle:
+    with ((rrd_bundle(rrd_path) if rrd else contextlib.nullcontext()) as bundle,
+          PlotWorker(plot_workers) as plotter):
         for k, run in enumerate(result.runs, start=1):
             run.data = view_of(run)  # built again here when the pipeline did not hold every recording's (peak memory)
             if run.data is None:
                 continue
             kinds = None if run.entry.name in detailed else ("feed",)
-            run.plots = plot_view(run.data, plots_dir, stem=run.entry.name, kinds=kinds)
+            plotter.submit(run.entry.name, run.data, plots_dir, stem=run.entry.name, kinds=kinds)  # drawn beside
             if bundle is not None:
                 bundle.add(run.data, columns=SCREEN_COLUMNS)
                 run.rrd = rrd_path
-            log(f"[{k}/{len(result.runs)}] {run.entry.name}: plots" + (" and Rerun recording" if rrd else "")
-                + " written")
+            log(f"[{k}/{len(result.runs)}] {run.entry.name}: " + ("Rerun recording written, " if rrd else "")
+                + "plots drawing")
             run.view_notes = list(run.data.notes)
             if release:  # written: the recording's samples are not needed again (peak memory, benchmarks/bench_demo.py)
                 run.data = run.gathered = run.recording = None
@@ -148,6 +151,9 @@ def write_outputs(result: DemoResult, out: Path, *, log, detail: int = DETAIL_PL
                 _drop_finished_streams()
                 if k % TRIM_EVERY == 0:  # and give the pages back: freed tables leave holes that grow the peak
                     trim_heap()
+        drawn = plotter.results()
+    for run in result.runs:
+        run.plots = drawn.get(run.entry.name, run.plots)
     bars = plot_cycle_times(table, plots_dir / "cycle_times.png") if len(table) else None
     result.timings_s["plots_and_rrd"] = time.perf_counter() - plots_started
     if demo_started is not None:
