@@ -266,16 +266,26 @@ def test_spline_biarcs_are_simulated_as_linuxcnc_runs_them(name, within, before)
         assert np.abs(blocks[both] - sim[both]).max() < 3e-3, np.abs(blocks[both] - sim[both]).max()
 
 
+def _line_times(rec) -> pd.Series:
+    """Seconds LinuxCNC's line stream shows each program line (its runs summed)."""
+    line = rec.streams["line"]
+    t, ln = line["t_ns"].to_numpy() / 1e9, line["line"].to_numpy()
+    starts = np.flatnonzero(np.r_[True, ln[1:] != ln[:-1]])
+    return pd.Series(np.diff(np.r_[t[starts], t[-1]]), index=ln[starts]).groupby(level=0).sum()
+
+
+def _per_line(blocks: pd.DataFrame) -> pd.Series:
+    """A simulated block table's seconds per program line."""
+    return pd.Series(blocks["duration_s"].to_numpy(), index=blocks["line"].to_numpy()).groupby(level=0).sum()
+
+
 def test_plasmatest_rapids_between_m5_and_m3_take_linuxcncs_time_with_the_queue_sync():
     """LinuxCNC runs M3/M5 only at rest: the rapid between them is planned with nothing after it and runs
     at half acceleration (docs/sim.md "Queue sync"). Timed from the recorded line stream, each of the 15
     rapids took LinuxCNC about 95 ms more than the model without the rule."""
     rec = _recording("plasmatest")
     program = load_recorded_program(rec, name="plasmatest:program.ngc")
-    line = rec.streams["line"]
-    t, ln = line["t_ns"].to_numpy() / 1e9, line["line"].to_numpy()
-    starts = np.flatnonzero(np.r_[True, ln[1:] != ln[:-1]])
-    measured = pd.Series(np.diff(np.r_[t[starts], t[-1]]), index=ln[starts]).groupby(level=0).sum()
+    measured = _line_times(rec)
     table = program.blocks
     rapids = table.loc[table["kind"].astype(str) == "rapid", "line"].to_numpy()
     assert len(rapids) == 15
@@ -284,7 +294,7 @@ def test_plasmatest_rapids_between_m5_and_m3_take_linuxcncs_time_with_the_queue_
     for sync in (False, True):
         res = simulate(program, _profile(rec), mechanisms={**rules, "blend_arc": {"curved_blend_speed": True,
                                                                                    "sync_stop": sync}})
-        sim = pd.Series(res.blocks["duration_s"].to_numpy(), index=res.blocks["line"].to_numpy()).groupby(level=0).sum()
+        sim = _per_line(res.blocks)
         errors[sync] = (measured[rapids] - sim[rapids]).to_numpy()
     assert np.abs(errors[True]).max() < 0.002, errors[True]
     assert errors[False].min() > 0.05, errors[False]
@@ -297,17 +307,14 @@ def test_plasmatest_star_corners_into_arcs_take_linuxcncs_time_with_its_arc_side
     and the whole program within 0.5 % instead of +1.8 %."""
     rec = _recording("plasmatest")
     program = load_recorded_program(rec, name="plasmatest:program.ngc")
-    line = rec.streams["line"]
-    t, ln = line["t_ns"].to_numpy() / 1e9, line["line"].to_numpy()
-    starts = np.flatnonzero(np.r_[True, ln[1:] != ln[:-1]])
-    measured = pd.Series(np.diff(np.r_[t[starts], t[-1]]), index=ln[starts]).groupby(level=0).sum()
+    measured = _line_times(rec)
     star = list(range(291, 307))
     rules = {"lookahead": {"arc_share_from_speed": True}, "naive_cam": {"arcs_as_lines": True}}
     slow, cycle = {}, {}
     for sides in (False, True):
         res = simulate(program, _profile(rec), mechanisms={**rules, "blend_arc": {
             "curved_blend_speed": True, "sync_stop": True, "arc_side_lengths": sides}})
-        sim = pd.Series(res.blocks["duration_s"].to_numpy(), index=res.blocks["line"].to_numpy()).groupby(level=0).sum()
+        sim = _per_line(res.blocks)
         slow[sides] = float((sim[star] - measured[star]).sum())
         cycle[sides] = res.cycle_time_s / float(rec.metadata["cycle_time_s"]) - 1
     assert abs(slow[True]) < 0.2 and abs(cycle[True]) < 0.005, (slow, cycle)
