@@ -132,3 +132,17 @@ def test_a_still_recording_without_blocks_has_no_holds():
     prog = parse_program("G1 X1 F100\nM2\n", name="p")
     empty = pd.DataFrame(columns=["block", "line", "t_start_ns", "t_end_ns"])
     assert find_holds(axes, empty, prog, span_ns=(0, int(t[-1])), still_mm=0.01).empty
+
+
+def test_a_feed_hold_in_a_5_hz_recording_is_kept_out_of_the_comparison_too():
+    """At 5 Hz the progress timing samples the simulation at the recording's instants: those are taken on
+    the hold-free clock too (a sample inside the hold at its start), so the 4 s are no cycle error and
+    name nothing on the unchanged machine."""
+    recs = make_hidden("hold_5hz", rate_hz=5.0)
+    _, line = insert_hold(recs[1], HOLD_S)
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    holds = dx.cases[1].holds
+    (hold,) = holds[holds["removed"]].to_dict("records")
+    assert hold["line"] == line and hold["duration_s"] == pytest.approx(HOLD_S, abs=0.45)   # +-2 samples
+    assert dx.findings == [] and dx.changes == []
+    assert abs(dx.levels["cycle"]["error_before_pct"]) < 1.0

@@ -346,12 +346,15 @@ def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, pro
     still = float(alignment.report.get("still_mm", 1e-3))
     holds = find_holds(axes, blocks, prog, span_ns=(t0, t0 + int(round(cycle * 1e9))), still_mm=still)
     removed: list[tuple[float, float]] = []
-    if period <= SPARSE_S and holds["removed"].any():
-        # feed holds: out of the motion comparison (block ends and cycle); the sparse path is left as it is
+    timed = axes   # the samples on the comparison's clock (sparse data: the progress timing samples them)
+    if holds["removed"].any():
+        # feed holds: out of the motion comparison (block ends, cycle and, on sparse data, the sampling
+        # instants the simulation is sampled at: a sample inside a hold takes the hold's start)
         removed = [((h["t_start_ns"] - t0) / 1e9, (h["t_end_ns"] - t0) / 1e9)
                    for h in holds[holds["removed"]].to_dict("records")]
         ends = pd.Series(hold_free(ends.to_numpy(np.float64), removed), index=ends.index)
         cycle = float(hold_free(cycle, removed))
+        timed = axes.assign(t_ns=t0 + np.rint(hold_free((t - t0) / 1e9, removed) * 1e9).astype(np.int64))
         notes.append("feed hold(s) taken out of the comparison: " + "; ".join(
             f"{h['duration_s']:.2f} s at line {h['line']} ({(h['t_start_ns'] - t0) / 1e9:.2f} s into the motion)"
             for h in holds[holds["removed"]].to_dict("records")))
@@ -363,11 +366,12 @@ def prepare_case(source: str | Path | Recording, profile: MachineProfile, *, pro
                 line_offsets=line_offsets(alignment),
                 machine=machine_identity(rec), still_mm=float(alignment.report.get("still_mm", 1e-6)),
                 on_path_mm=_on_path(alignment, axes),
-                sample_offsets_s=(t - t0) / 1e9 if period > SPARSE_S else None, cl=cl, notes=notes,
+                sample_offsets_s=(timed["t_ns"].to_numpy(np.int64) - t0) / 1e9 if period > SPARSE_S else None,
+                cl=cl, notes=notes,
                 span_acc_mm_s2=span_acceleration(profile),
                 sparse_sigma_s=sampled_sigma(axes, t0, float(alignment.cycle_time_s),
                                              float(alignment.report.get("still_mm", 1e-3))) if cl is not None else None,
-                span_samples=None if cl is None else moving_samples(axes, t0, float(alignment.cycle_time_s),
+                span_samples=None if cl is None else moving_samples(timed, t0, cycle,
                                                                     cl.machine_xyz[0], cl.machine_xyz[-1]))
 
 
