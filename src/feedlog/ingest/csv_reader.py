@@ -21,7 +21,7 @@ from __future__ import annotations
 import csv
 import os
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +31,7 @@ import pyarrow.csv as pacsv
 
 from feedlog.errors import IngestError
 from feedlog.ingest.mapping import ColumnMap, build_streams, time_to_ns
+from feedlog.ingest.preset_detect import detect_preset
 from feedlog.recording import Recording
 from feedlog.units import MAX_ABS_T_NS, MAX_ABS_VALUE, time_factor
 
@@ -336,4 +337,8 @@ def _backwards(t_ns: np.ndarray, dt: np.ndarray) -> np.ndarray:
 def read_csv_source(path: Path, options) -> Recording:
     """Registry entry (`.csv`, `.tsv`, `csv:`): `options` is an `ImportOptions`."""
     delimiter = options.delimiter or ("\t" if path.suffix.lower() == ".tsv" else None)
-    return read_csv(path, options.column_map(), strict=options.strict, delimiter=delimiter)
+    found = None if options.preset or options.mapping else detect_preset(path)
+    cmap = options.column_map(default_preset=found)
+    if found is not None:   # said in the `mapped:` line `feedlog import` prints
+        cmap = replace(cmap, name=f"preset {found}, found from the header")
+    return read_csv(path, cmap, strict=options.strict, delimiter=delimiter)
