@@ -146,6 +146,23 @@ def run_far(rng: random.Random, i: int) -> dict:
             "own_error_after_pct": dx.levels["cycle"]["error_after_pct"], "seconds": seconds, "cpu_seconds": cpu}
 
 
+def _many_lines(r: dict, i: int) -> list[str]:
+    return [f"many m{i}: changed {r['changed']} on {', '.join(r['programs'])}",
+            f"  found {{{', '.join(f'{k}: {v:.4g}' for k, v in r['found'].items())}}}; named {len(r['named'])}/4 "
+            f"({len(r['observable'])} observable), missed {r['missed']}, wrong {r['wrong']}; error "
+            f"{r['error_before_pct']:+.2f} % -> {r['error_after_pct']:+.2f} %; {r['seconds']:.0f} s "
+            f"({r['cpu_seconds']:.0f} s CPU)"]
+
+
+def _far_lines(r: dict, i: int) -> list[str]:
+    return [f"far m{i}: {r['true']} fitted on {', '.join(r['fitted_on'])}: {len(r['constrained'])} "
+            f"constrained ({len(r['constrained_within_5pct'])} within 5 %), own error "
+            f"{r['own_error_before_pct']:+.2f} % -> {r['own_error_after_pct']:+.2f} %; {r['seconds']:.0f} s "
+            f"({r['cpu_seconds']:.0f} s CPU)"] + [
+        f"  unseen {j['program']}: {j['error_pct']:+.2f} % (generic {j['generic_error_pct']:+.2f} %)"
+        f"{' warned: ' + ', '.join(j['warned']) if j['warned'] else ''}" for j in r["judged"]]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--machines", type=int, default=4, help="machines of each kind")
@@ -157,31 +174,15 @@ def main() -> None:
     rng = random.Random(args.seed)
     rows = []
     for i in range(args.machines):
-        if args.kind in ("many", "both"):
-            r = run_many(rng, i)
+        for kind, run, say in (("many", run_many, _many_lines), ("far", run_far, _far_lines)):
+            if args.kind not in (kind, "both"):
+                continue
+            r = run(rng, i)
             rows.append(r)
             if args.rows:
                 print(json.dumps(r), flush=True)
             if not args.json:
-                print(f"many m{i}: changed {r['changed']} on {', '.join(r['programs'])}\n"
-                      f"  found {{{', '.join(f'{k}: {v:.4g}' for k, v in r['found'].items())}}}; named {len(r['named'])}/4 "
-                      f"({len(r['observable'])} observable), missed {r['missed']}, wrong {r['wrong']}; error "
-                      f"{r['error_before_pct']:+.2f} % -> "
-                      f"{r['error_after_pct']:+.2f} %; {r['seconds']:.0f} s ({r['cpu_seconds']:.0f} s CPU)", flush=True)
-        if args.kind in ("far", "both"):
-            r = run_far(rng, i)
-            rows.append(r)
-            if args.rows:
-                print(json.dumps(r), flush=True)
-            if not args.json:
-                print(f"far m{i}: {r['true']} fitted on {', '.join(r['fitted_on'])}: {len(r['constrained'])} "
-                      f"constrained ({len(r['constrained_within_5pct'])} within 5 %), own error "
-                      f"{r['own_error_before_pct']:+.2f} % -> {r['own_error_after_pct']:+.2f} %; {r['seconds']:.0f} s "
-                      f"({r['cpu_seconds']:.0f} s CPU)",
-                      flush=True)
-                for j in r["judged"]:
-                    print(f"  unseen {j['program']}: {j['error_pct']:+.2f} % (generic {j['generic_error_pct']:+.2f} %)"
-                          f"{' warned: ' + ', '.join(j['warned']) if j['warned'] else ''}", flush=True)
+                print("\n".join(say(r, i)), flush=True)
     many = [r for r in rows if r["kind"] == "many"]
     far = [r for r in rows if r["kind"] == "far"]
     total: dict = {"seed": args.seed}

@@ -17,12 +17,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
-import pyarrow.compute as pc
 
 from feedlog.errors import SimulationError
 from feedlog.profile import LINEAR_AXES, MachineProfile
-from feedlog.sim.queue_sync import syncs_after
+from feedlog.sim.queue_sync import m_code_rows, syncs_after
 from feedlog.toolpath import schema
 from feedlog.toolpath.limits import check_axes
 
@@ -259,13 +257,7 @@ class ProgramArrays:
 
 def m6_rows(table: pd.DataFrame) -> np.ndarray:
     """Row positions of the block table's tool changes (an M6 among a row's M codes)."""
-    if "mcodes" not in table.columns:
-        return np.zeros(0, dtype=np.int64)
-    codes = table["mcodes"]
-    # most rows carry no M code: look at the others only (a regex over a million empty strings costs 25 ms)
-    some = np.flatnonzero(np.asarray(pc.greater(pc.binary_length(pa.array(codes, type=pa.string(), from_pandas=True)), 0)
-                                     .fill_null(False), dtype=bool))
-    return some[codes.iloc[some].astype(str).str.contains(r"(?i)\bM0*6\b").to_numpy(bool)] if len(some) else some
+    return m_code_rows(table, {6})
 
 
 def _tool_changes_after(table: pd.DataFrame, sel: np.ndarray) -> np.ndarray:
