@@ -14,7 +14,7 @@ speed 133.4 mm/s, capped to 100 at 100 %) ran at 66.72 mm/s at 50 % and 33.36 mm
 25. The rapid rate (here the TRAJ cap) applies after the dial. The dial's factor is kept per block
 (`feed_scale`, `feedlog.sim.path.feed_scale`) as the feed override's is: the planner sizes a blend arc
 between two rapids for their requested speeds and runs it at the request times the dial, as LinuxCNC
-does (blend arcs take the traverse type of the segment before them, tp.c tpCreateBlendArc).
+does (blend arcs take the traverse type of the segment before them, tp.c tpInitBlendArcFromPrev).
 """
 
 from __future__ import annotations
