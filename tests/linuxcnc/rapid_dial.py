@@ -1,8 +1,8 @@
 """Programs for LinuxCNC's rapid dial and the comparison of a recording with the simulation line by line
 (tests/linuxcnc/test_linuxcnc_rapid_dial.py and benchmarks/bench_rapid_dial.py).
 
-`G0_G1`: rapids (single-axis, XY and XYZ diagonals) into and out of G1 moves under G64 P0.01, G61 and
-G64 P0.1. `ZIG`: chains of rapids blended under G64 P1 (rapid-to-rapid blend arcs) with a G1 pair between.
+`G0_G1`: rapids (single-axis, XY and XYZ diagonals) into and out of G1 moves (F4000) under G64 P0.01,
+G61 and G64 P0.1. `ZIG`: chains of rapids blended under G64 P1 (rapid-to-rapid blend arcs) with a G1 pair between.
 The XYZ diagonals ask for more than the 100 mm/s TRAJ cap at 100 % (their axis-limited speed is up to
 133 mm/s), so the dial's place before or after that cap shows in their times.
 """
@@ -21,29 +21,29 @@ from tests.sim.test_linuxcnc_accuracy import _line_times_ms
 G0_G1 = """G21 G90 G64 P0.01
 G0 X0 Y0 Z5
 G0 X40 Y10
-G1 X80 Y10 F1200
+G1 X80 Y10 F4000
 G1 X80 Y40
 G0 X20 Y40 Z10
 G0 X20 Y5
-G1 X20 Y0 Z0 F2400
+G1 X20 Y0 Z0 F4000
 G1 X50 Y0
 G0 X50 Y30
 G0 X90 Y30
 G0 X90 Y60 Z15
-G1 X60 Y60 F3000
+G1 X60 Y60 F4000
 G1 X60 Y50
 G61
 G0 X60 Y0
-G1 X60 Y30 F1800
-G0 X0 Y30 Z5
-G0 X0 Y0
-G1 X30 Y0 F1500
+G1 X60 Y30 F4000
+G0 X40 Y30 Z5
+G0 X40 Y10
+G1 X30 Y0 F4000
 G64 P0.1
 G0 X100 Y60 Z20
 G0 X100 Y0 Z0
-G1 X120 Y0 F2400
+G1 X120 Y0 F4000
 G1 X120 Y20
-G0 X0 Y0 Z5
+G0 X100 Y30 Z10
 M2
 """
 

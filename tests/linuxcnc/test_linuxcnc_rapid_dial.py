@@ -2,7 +2,7 @@
 the same dial must give LinuxCNC's cycle time within 0.3 % and the time on every program line within
 5 ms. Two programs (tests/linuxcnc/rapid_dial.py) at 50 %: rapids into and out of G1 moves in G64 and
 G61, and chains of rapids blended under G64 P1. Before the LinuxCNC rule of sim/rapid_override.py
-(`scale_axis_speed`) the simulation was 2.99 % and 6.94 % long (lines up to 465 ms), and with the dial
+(`scale_axis_speed`) the simulation was 5.00 % and 6.94 % long (lines up to 465 ms), and with the dial
 placed before the TRAJ cap but the blend arcs between rapids sized at the dialed speed, 0.21 % long with
 lines up to 150 ms (docs/sim.md "The rapid dial")."""
 
