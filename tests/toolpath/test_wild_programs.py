@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from feedlog.errors import ProgramError
 from feedlog.toolpath import load_program
@@ -113,3 +115,27 @@ def test_wild_rs274_program_matches_linuxcnc_move_by_move(entry, tmp_path):
     assert len(plain) == len(program.motion)
     for axis in ("x_mm", "y_mm", "z_mm"):
         assert np.allclose(plain[axis].to_numpy(), program.motion[axis].to_numpy(), atol=1e-6), axis
+
+
+SMALL = sorted(e["file"] for e in PROGRAMS if (WILD / e["file"]).stat().st_size < 8000)
+
+
+@settings(max_examples=80, derandomize=True, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(name=st.sampled_from(SMALL), cut=st.integers(0, 8000), flips=st.lists(
+    st.tuples(st.integers(0, 8000), st.sampled_from(list(b"()[];=#<>%:$\"'GXYZIJKRFNOM0123456789.- \n\r\x00\xff"))),
+    max_size=6))
+def test_damaged_wild_programs_give_a_table_or_one_program_error(tmp_path_factory, name, cut, flips):
+    """Real programs of every dialect, truncated and with bytes replaced: dialect detection and
+    load_program end in a block table or one ProgramError naming the file, nothing else."""
+    data = bytearray((WILD / name).read_bytes()[:max(cut, 1)])
+    for at, byte in flips:
+        data[at % len(data)] = byte
+    path = tmp_path_factory.mktemp("wild") / name
+    path.write_bytes(bytes(data))
+    assert detect(bytes(data).decode("utf-8", errors="replace"), path) in ("rs274ngc", "fanuc", "sinumerik")
+    try:
+        program = load_program(path)
+    except ProgramError as error:
+        assert error.file is not None and "\n" not in str(error)
+    else:
+        assert program.blocks is not None
