@@ -155,3 +155,19 @@ def test_a_program_with_a_full_circle_is_refused_where_linuxcnc_refuses_it():
     with pytest.raises(ProgramError) as info:
         load_program("G21 G90 G17\nG0 X-5 Y0\nG2 I5 J0 F200\nG2 X1\nM2\n")
     assert info.value.line == 4 and "R, I, J, and K words all missing" in str(info.value)
+
+
+HAAS = "%\nO1001\nT1 M6\nG187 P3 E0.01\nG103 P1\nG10 L20 P2 X100. Y-20.\n{select} G0 X1. Y2.\nG0 X5.\nM30\n%\n"
+
+
+@pytest.mark.parametrize("select", ["G154 P2", "G111"])
+def test_haas_g154_and_g110_g129_select_the_extended_offsets_and_smoothing_is_dropped(select):
+    """What Fusion 360's Haas post writes: G187 smoothing and G103 look-ahead (no effect on the path: dropped,
+    noted), G154 P1-P99 work offsets (G110-G129 = G154 P1-P20), here set by G10 L20 P2 (X100 Y-20)."""
+    program = load_program(HAAS.format(select=select), name="haas.nc")
+    assert program.metadata["dialect"] == "fanuc"
+    motion = program.motion
+    assert (motion["x_mm"] + motion["wx_mm"]).tolist() == [101.0, 105.0]
+    assert (motion["y_mm"] + motion["wy_mm"]).tolist() == [-18.0, -18.0]
+    assert motion["coord_system"].tolist() == [11, 11]          # 9 + P, as for G54.1 P2
+    assert any("G187" in w for w in program.warnings) and any("G103" in w for w in program.warnings)

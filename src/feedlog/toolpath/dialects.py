@@ -27,7 +27,7 @@ Anything else (parameters, `IF`/`GOTO`, `AC()`/`IC()`) is left as it is, for the
 (or skip with --lenient).
 
 `detect(text, name)` picks the dialect: `.mpf`/`.spf` or Sinumerik-only words -> sinumerik; Fanuc-only
-constructs (`G28`, `G53`, `G0G80`, `G05.1 Q`, `G4 X`) -> fanuc; else rs274ngc, which leaves the text alone
+constructs (`G28`, `G53`, `G0G80`, `G05.1 Q`, `G4 X`, Haas `G103`/`G187`/`G154`) -> fanuc; else rs274ngc, which leaves the text alone
 (a LinuxCNC program with a lone `G80` or `G4 P0.5` is RS274/NGC and read unchanged). Sinumerik words count
 only outside `( )` comments (Fusion 360 writes `(T1 D=6. CR=0. - ZMIN=...)` into every header; a
 `MSG(`/`CYCLE832(` call and `%_N_`/`; $PATH` headers count anywhere); an `.ngc` file, or a program with
@@ -56,6 +56,7 @@ _RS274_HINTS = re.compile(r"\bo\s*<|#\s*<", re.IGNORECASE)
 # Fanuc-only constructs: G28/G53 (the parser reads neither), G05.1 Q (without Q: LinuxCNC's G5.1 spline), G4 X, and G80 beside a motion code
 # (`G0G80`: two motion codes to RS274/NGC, a cycle cancel beside G0 to Fanuc). A lone G80 is RS274/NGC too.
 _FANUC_HINTS = re.compile(r"G\s*0*28(?![.\d])|G\s*0*53(?![.\d])|G\s*0?5\.1[^\n;(]*Q|G\s*0?4\s*X|"
+                          r"G\s*0*(?:103|187|154)(?![.\d])|"   # Haas look-ahead, smoothing, extended offsets
                           r"G\s*0*[0-3](?![.\d])[^\n;(]*G\s*80(?![.\d])|G\s*80(?![.\d])[^\n;(]*G\s*0*[0-3](?![.\d])",
                           re.IGNORECASE)
 
