@@ -455,7 +455,7 @@ def parse_line(raw: str, number: int) -> FLine:
         line.target = compile_code(t.word_value())
         _end(t)
         return line
-    if t.at("WHILE") or t.at("WH["):    # WH: the abbreviation a Fanuc 0i also reads (real 0i-MD macros use it)
+    if t.at("WHILE") or t.at("WH["):    # WH: the abbreviation real 0i-MD macros use
         t.pos += 5 if t.at("WHILE") else 2
         if t.peek() != "[":
             raise InterpError("'[' expected after WHILE")
