@@ -27,8 +27,11 @@ Anything else (parameters, `IF`/`GOTO`, `AC()`/`IC()`) is left as it is, for the
 (or skip with --lenient).
 
 `detect(text, name)` picks the dialect: `.mpf`/`.spf` or Sinumerik-only words -> sinumerik; Fanuc-only
-constructs (`G28`, `G53`, `G0G80`, `G05.1 Q`, `G4 X`) -> fanuc; else rs274ngc, which leaves the text alone
-(a LinuxCNC program with a lone `G80` or `G4 P0.5` is RS274/NGC and read unchanged).
+constructs (`G28`, `G53`, `G0G80`, `G05.1 Q`, `G4 X`, Haas `G103`/`G187`/`G154`) -> fanuc; else rs274ngc, which leaves the text alone
+(a LinuxCNC program with a lone `G80` or `G4 P0.5` is RS274/NGC and read unchanged). Sinumerik words count
+only outside `( )` comments (Fusion 360 writes `(T1 D=6. CR=0. - ZMIN=...)` into every header; a
+`MSG(`/`CYCLE832(` call and `%_N_`/`; $PATH` headers count anywhere); an `.ngc` file, or a program with
+LinuxCNC-only words (`o<name>`, `#<name>`), is rs274ngc even where it uses `G28`/`G53`.
 """
 
 from __future__ import annotations
@@ -43,11 +46,17 @@ AXES = "XYZABC"
 _WORD = re.compile(r"([A-Z])\s*([-+]?(?:\d+\.?\d*|\.\d+))")
 _COMMENT = re.compile(r"\([^()\n]*\)|;.*$")
 _SEMICOLON = re.compile(r";.*$")
-_SINUMERIK_HINTS = re.compile(r"\bG7[01]0\b|\bMSG\s*\(|\bCYCLE\d{3}\s*\(|%_N_|;\s*\$PATH|\bTRAORI\b|\bG64[1-5]\b|"
-                              r"\bCR\s*=|\bSOFT\b|\bBRISK\b|\bG500\b", re.IGNORECASE)
+# Sinumerik calls and headers (anywhere: a call's brackets are no comment there) and words (outside `( )`)
+_SINUMERIK_CALLS = re.compile(r"\bMSG\s*\(|\bCYCLE\d{3}\s*\(|%_N_|;\s*\$PATH", re.IGNORECASE)
+_SINUMERIK_HINTS = re.compile(r"\bG7[01]0\b|\bTRAORI\b|\bG64[1-5]\b|\bCR\s*=|\bSOFT\b|\bBRISK\b|\bG500\b",
+                              re.IGNORECASE)
+_PAREN_COMMENT = re.compile(r"\([^()\n]*\)")
+# LinuxCNC-only words: O-word subroutines, named parameters (a Hurco writes `G64 P` too)
+_RS274_HINTS = re.compile(r"\bo\s*<|#\s*<", re.IGNORECASE)
 # Fanuc-only constructs: G28/G53 (the parser reads neither), G05.1 Q (without Q: LinuxCNC's G5.1 spline), G4 X, and G80 beside a motion code
 # (`G0G80`: two motion codes to RS274/NGC, a cycle cancel beside G0 to Fanuc). A lone G80 is RS274/NGC too.
 _FANUC_HINTS = re.compile(r"G\s*0*28(?![.\d])|G\s*0*53(?![.\d])|G\s*0?5\.1[^\n;(]*Q|G\s*0?4\s*X|"
+                          r"G\s*0*(?:103|187|154)(?![.\d])|"   # Haas look-ahead, smoothing, extended offsets
                           r"G\s*0*[0-3](?![.\d])[^\n;(]*G\s*80(?![.\d])|G\s*80(?![.\d])[^\n;(]*G\s*0*[0-3](?![.\d])",
                           re.IGNORECASE)
 
@@ -80,9 +89,14 @@ class _Notes:
 def detect(text: str, name: str | Path | None = None) -> str:
     """The dialect of a program (see the module docstring)."""
     suffix = Path(str(name)).suffix.lower() if name else ""
-    if suffix in (".mpf", ".spf") or _SINUMERIK_HINTS.search(text):
+    if suffix in (".mpf", ".spf") or _SINUMERIK_CALLS.search(text):
+        return "sinumerik"
+    uncommented = _PAREN_COMMENT.sub(" ", text) if "(" in text else text
+    if _SINUMERIK_HINTS.search(uncommented):
         return "sinumerik"
     code = _COMMENT.sub("", text) if "(" in text or ";" in text else text
+    if suffix == ".ngc" or _RS274_HINTS.search(code):
+        return "rs274ngc"
     if _FANUC_HINTS.search(code):
         return "fanuc"
     return "rs274ngc"

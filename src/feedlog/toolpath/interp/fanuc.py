@@ -710,6 +710,13 @@ class FanucInterpreter:
         g = []
         dropped = False
         for code in g_codes:
+            if code == 1540 or (1100 <= code <= 1290 and code % 10 == 0):
+                # Haas: G154 P1-P99 and G110-G129 (= G154 P1-P20) select the extended offsets of G54.1
+                if code != 1540:
+                    if "P" in letters:
+                        raise InterpError(f"G{code // 10} with a P word (it is G154 P{code // 10 - 109})")
+                    letters["P"] = float(code // 10 - 109)
+                code = 541
             if code in DROPPED_G:
                 self._note(f"{DROPPED_G[code]} dropped: it does not move the programmed path")
                 dropped = True
@@ -1064,6 +1071,8 @@ def interpret_fanuc(source: str | Path, *, name: str | None = None, options=None
 _FAST_LETTERS = frozenset("XYZABCF")
 _MACRO = re.compile(r"#|\bIF\s*\[|\bGOTO|\bWHILE\s*\[|\bEND\s*[123]\b|\bDO\s*[123]\b|M\s*0*9[789](?!\d)|"
                     r"G\s*0*6[56](?![\d.])|G\s*0*54\s*\.\s*1|G\s*0*68(?![\d.])|"
+                    # Haas codes the line translation does not read: look-ahead, smoothing, G154/G110-G129
+                    r"G\s*0*(?:103|187|154|11\d|12\d)(?![\d.])|"
                     r"G\s*0*(?:7[346]|8[1-9])(?![\d.])", re.IGNORECASE)
 _STRIP = re.compile(r"\([^)\n]*\)")
 
@@ -1071,7 +1080,8 @@ _STRIP = re.compile(r"\([^)\n]*\)")
 def needs_macro(text: str) -> bool:
     """Whether a Fanuc-style program uses what the line translation cannot read: variables, macro
     statements, subprogram and macro calls, canned cycles (Fanuc's K
-    repeats and P in milliseconds), G54.1, G68 (a G69 alone, as in safety lines, is plain)."""
+    repeats and P in milliseconds), G54.1 (Haas: G154, G110-G129), G68 (a G69 alone, as in safety lines, is
+    plain), Haas G103/G187."""
     return _MACRO.search(_STRIP.sub(" ", text)) is not None
 
 

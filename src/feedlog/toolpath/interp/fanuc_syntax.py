@@ -5,7 +5,7 @@ case-insensitive, `( ... )` is a comment and `;` ends the block (the manuals pri
 block). After an optional `/` and `N` sequence number (an `O`/`:` number starts a program), a block is
 one of:
 
-- a macro statement: `IF [cond] GOTO n`, `IF [cond] THEN #i = expr`, `GOTO n`, `WHILE [cond] DO m`,
+- a macro statement: `IF [cond] GOTO n`, `IF [cond] THEN #i = expr`, `GOTO n`, `WHILE [cond] DO m` (or `WH`),
   `DO m`, `END m`, or one or more assignments `#i = expr`;
 - NC words: a letter and a value, the value a number, `#i`, `-#i`, `#[expr]` or `[expr]`.
 
@@ -455,8 +455,8 @@ def parse_line(raw: str, number: int) -> FLine:
         line.target = compile_code(t.word_value())
         _end(t)
         return line
-    if t.at("WHILE"):
-        t.pos += 5
+    if t.at("WHILE") or t.at("WH["):    # WH: the abbreviation real 0i-MD macros use
+        t.pos += 5 if t.at("WHILE") else 2
         if t.peek() != "[":
             raise InterpError("'[' expected after WHILE")
         line.test = compile_code(t.bracket())

@@ -11,6 +11,7 @@ motion goes to the Canon collector in mm.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from feedlog.toolpath.arcwords import (CENTER_ARC_RADIUS_TOLERANCE_INCH, CENTER_ARC_RADIUS_TOLERANCE_MM,
                                        spiral_too_large)
@@ -402,7 +403,10 @@ class Machine:
 
     def _g10(self, v: dict) -> None:
         lw = int(v.get("l", -1))
-        if lw in (0, 1, 10, 11):
+        if lw == 1:
+            self._g10_l1(v)
+            return
+        if lw in (0, 10, 11):
             raise InterpError(f"G10 L{lw} (tool table data) is not supported")
         if "i" in v or "j" in v:
             raise InterpError("I J words not allowed with G10 L2")
@@ -460,6 +464,22 @@ class Machine:
                 self.pos[k] -= vals[k]
             self.pos[0], self.pos[1] = rotate(self.pos[0], self.pos[1], -r)
             self.rotation = r
+
+    def _g10_l1(self, v: dict) -> None:
+        """G10 L1 P<tool>: the tool table entry's offsets (X-C, program units) and radius R, as LinuxCNC's
+        `convert_setup_tool` sets them; a G43 later in the program reads the new entry."""
+        number = round(v.get("p", 0.0))
+        entry = self.tools.get(number) if number else None
+        if entry is None:
+            raise InterpError(f"requested tool {number} not found in the tool table")
+        if not any(a in v for a in "xyzabcrqij"):
+            raise InterpError("G10 L1 without offsets has no effect")
+        offset = list(entry.offset)
+        for k, a in enumerate("xyzabc"):
+            if a in v:
+                offset[k] = self._program_to_user(v[a], k)
+        diameter = self._program_to_user(v["r"], 0) * 2.0 if "r" in v else entry.diameter
+        self.tools.tools[number] = replace(entry, offset=tuple(offset), diameter=diameter)
 
     def _axis_offsets(self, code: int, v: dict) -> None:
         p = self.P.p

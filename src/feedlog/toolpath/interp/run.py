@@ -23,8 +23,10 @@ _NEEDS = re.compile(rb"[#\[\]<>@^=]|"
                     rb"o\s*[0-9]+\s*(?:sub|endsub|call|do|while|repeat|if|elseif|else|endif|break|continue|"
                     rb"endwhile|endrepeat|return)|"
                     rb"g\s*0*(?:28|30|33|38|4[1-3]|5[23]|5[5-9]|7[36]|8[1-9]|92\s*\.\s*[23]|5(?:\s*\.\s*[0-3])?)(?![0-9])|"
-                    rb"g\s*0*10(?![0-9.])[^\n]*r|m\s*0*(?:61|98|99)(?![0-9])",
-                    re.IGNORECASE)
+                    rb"g\s*0*10(?![0-9.])[^\n]*(?:r|l\s*0*1(?![0-9]))|m\s*0*(?:61|98|99)(?![0-9])|"
+                    # I/J/K on a line without axis words: a full circle back to where the tool is
+                    rb"^(?![^\n]*[xyzabc]\s*[-+.0-9])[^\n]*[ijk]\s*[-+.0-9]",
+                    re.IGNORECASE | re.MULTILINE)
 _COMMENT = re.compile(rb"\([^)\n]*\)|;[^\n]*")
 
 

@@ -110,6 +110,9 @@ class SFile:
                 return fail(i, "PROC must be the first statement of a subprogram file")
         if stack:
             kw, j = stack[-1]
+            if first_error is not None:   # a line that could not be read may be the structure's end
+                self.error = (first_error.number, first_error.error)
+                return
             fail(j, f"{kw} without its {_OPEN[kw]} (the file ends first)")
 
 
@@ -926,6 +929,12 @@ def interpret_sinumerik(source: str | Path, *, name: str | None = None, options=
     return Program(blocks=blocks, path=it.main.path, warnings=list(it.warnings), metadata=meta)
 
 
+# an address given a value that is not a plain number (`X=SIN(30)`, `Y=2*R1`), outside strings
+_COMPUTED_WORD = re.compile(r"=\s*(?![-+]?(?:\d+\.?\d*|\.\d+)(?:\s|$))\S")
+_QUOTED = re.compile(r'"[^"]*"')
+_SPLINE = re.compile(r"\s*(?:/?\s*N\d+\s*)?(?:ASPLINE|BSPLINE|CSPLINE|POLY)\b", re.IGNORECASE)
+
+
 def needs_sinumerik_interpreter(text: str) -> bool:
     """Whether a Sinumerik program uses what the line-by-line translation does not read: parameters,
     variables, control flow, calls, cycles, frames, AC/IC."""
@@ -934,6 +943,10 @@ def needs_sinumerik_interpreter(text: str) -> bool:
         if _SIMPLE_LINE.fullmatch(raw):
             continue        # address letters with numbers and a comment: plain, without parsing
         line = parse_line(raw, i + 1, names)
+        if line.error is not None and _SPLINE.match(raw):
+            return True     # the front-end names what it refuses; the translation would misread it
+        if line.error is None and line.plain and _COMPUTED_WORD.search(_QUOTED.sub("0", raw.split(";", 1)[0])):
+            return True     # `X=SIN(30)`: the parser folds it to a number, the translation cannot
         if line.error is None and not line.plain:
             if line.control is None and line.call is not None and line.call[0].startswith("CYCLE") \
                     and line.call[0] not in CALL_CYCLES and all(item[0] != "set" for item in line.items):

@@ -32,7 +32,7 @@ EQ_ADDRESSES = frozenset(("CR", "TURN", "RPL", "AP", "RP", "AR", "RND", "RNDM", 
 CONTROL = frozenset(("IF", "ELSE", "ENDIF", "LOOP", "ENDLOOP", "FOR", "ENDFOR", "WHILE", "ENDWHILE", "REPEAT",
                      "UNTIL", "GOTOF", "GOTOB", "GOTO", "GOTOC", "DEF", "PROC", "RET", "MCALL", "TRANS", "ATRANS",
                      "ROT", "AROT", "SCALE", "ASCALE", "MIRROR", "AMIRROR", "EXTERN", "CALL", "PCALL", "CASE",
-                     "ENDPROC"))
+                     "ENDPROC", "ASPLINE", "BSPLINE", "CSPLINE", "POLY"))
 # words that set dynamics, look-ahead, transformations or the display: no effect on the programmed path
 IGNORED = frozenset(("SOFT", "BRISK", "DRIVE", "FFWON", "FFWOF", "COMPCAD", "COMPCURV", "COMPSURF", "COMPOF",
                      "UPATH", "SPATH", "STOPRE", "CFC", "CFTCP", "CFIN", "FNORM", "FLIN", "FCUB", "SUPA", "DISPLOF",
@@ -539,6 +539,8 @@ def _control(kw: str, c: Cursor, line: SLine) -> tuple:
         return ("FRAME", kw, words)
     if kw in ("SCALE", "ASCALE", "MIRROR", "AMIRROR"):
         raise InterpError(f"{kw} frames (scaling, mirroring) are not simulated")
+    if kw in ("ASPLINE", "BSPLINE", "CSPLINE", "POLY"):
+        raise InterpError(f"{kw} (spline or polynomial interpolation) is not simulated")
     if kw in ("CALL", "PCALL", "CASE"):
         raise InterpError(f"{kw} (indirect or computed calls) is not read")
     return (kw,)   # ELSE ENDIF LOOP ENDLOOP ENDFOR ENDWHILE REPEAT RET ENDPROC
