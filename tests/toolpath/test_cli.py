@@ -38,7 +38,8 @@ def test_text_summary_and_parquet_output_refuses_to_overwrite(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "CAM time" in text and "motion blocks" in text
     table = pd.read_parquet(out)
-    assert len(table) == 30 and table["kind"].astype(str).eq("arc_cw").sum() == 3
+    assert len(table) == 29 and table["kind"].astype(str).eq("arc_cw").sum() == 3  # to the M30; its closing % not a row
+    assert table["line"].max() == len((EXAMPLES / "pocket.ngc").read_text().splitlines()) - 1
     before = out.stat().st_mtime_ns
     assert main(["program", str(EXAMPLES / "pocket.ngc"), "--parquet", str(out)]) == 2
     assert "exists" in capsys.readouterr().err and out.stat().st_mtime_ns == before

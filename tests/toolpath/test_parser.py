@@ -91,11 +91,11 @@ def test_comments_line_numbers_n_words_percent_and_m_codes():
     text = "%\n(title here)\n\nN10 G1 X1 F100 (move) ; trailing\nn20 m3 s1200\nM30\n%\n"
     p = parse_program(text)
     b = p.blocks
-    assert b["line"].tolist() == [1, 2, 4, 5, 6, 7]  # blank line 3 has no row
-    assert b["comment"].tolist() == ["", "title here", "move trailing", "", "", ""]
-    assert b["n_word"].tolist() == [-1, -1, 10, 20, -1, -1]
-    assert b["mcodes"].tolist() == ["", "", "", "M3", "M30", ""]
-    assert b["spindle_rpm"].tolist() == [0, 0, 0, 1200, 1200, 1200]
+    assert b["line"].tolist() == [1, 2, 4, 5, 6]  # blank line 3 has no row; the table ends at the M30
+    assert b["comment"].tolist() == ["", "title here", "move trailing", "", ""]
+    assert b["n_word"].tolist() == [-1, -1, 10, 20, -1]
+    assert b["mcodes"].tolist() == ["", "", "", "M3", "M30"]
+    assert b["spindle_rpm"].tolist() == [0, 0, 0, 1200, 1200]
     assert p.metadata["percent_lines"] == [1, 7]
     assert p.metadata["title"] == "title here"
     assert p.metadata["end_line"] == 6
@@ -219,10 +219,10 @@ def test_byte_order_mark_crlf_and_text_after_the_end(tmp_path):
     path = tmp_path / "win.ngc"
     path.write_bytes("\ufeff%\r\nG1 X1 F100\r\n%\r\nG1 X2\r\n".encode("utf-8"))
     p = parse_program(path)
-    assert p.motion["x_mm"].tolist() == [1, 2] and p.motion["line"].tolist() == [2, 4]
+    assert p.motion["x_mm"].tolist() == [1] and p.motion["line"].tolist() == [2]  # not run after the '%'
     assert any("closing '%'" in w for w in p.warnings)
     q = parse_program("G1 X1 F1\nM30\nG1 X3\n")
-    assert any("program end" in w for w in q.warnings)
+    assert any("program end" in w for w in q.warnings) and q.motion["x_mm"].tolist() == [1]
 
 
 @pytest.mark.parametrize("tail", ["", "\nG1 X9 ; semicolon comment forces the line-by-line path"])
@@ -239,3 +239,19 @@ def test_lenient_skipped_parameter_line_does_not_shift_later_numbers():
     p = parse_program("G21 F100\n#5=1 [2]\nG90 G0 X1.5\nG1 X2.25 Y-3\n", lenient=True)
     assert [(u.line, u.code) for u in p.unsupported] == [(2, "#5=1 [2]")]
     assert p.motion[["x_mm", "y_mm"]].to_numpy().tolist() == [[1.5, 0], [2.25, -3]]
+
+
+@pytest.mark.parametrize("chunk_bytes", [16, 1 << 20])
+def test_moves_after_the_program_end_are_not_in_the_table(chunk_bytes):
+    """A controller stops at the first M2/M30 (or the closing '%'): the moves after it are counted in a
+    warning, not simulated, also when the end falls in an earlier chunk than the moves."""
+    from feedlog.toolpath.stream import open_program_reader
+
+    tail = "".join(f"G1 X{i} Y{i % 3}\n" for i in range(2, 9))
+    for text, end in (("G21 G90\nG1 X1 F100\nM30\n" + tail, 3), ("%\nG21 G90\nG1 X1 F100\n%\n" + tail, 4)):
+        with open_program_reader(text, name="end.ngc", chunk_bytes=chunk_bytes) as reader:
+            program = reader.program()
+        assert program.blocks["line"].max() == end
+        assert (program.blocks["kind"] == "linear").sum() == 1
+        assert reader.motion_rows == 1
+        assert any(w.startswith("7 motion blocks after the") and "not run" in w for w in program.warnings)

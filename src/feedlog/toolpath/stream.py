@@ -68,6 +68,9 @@ class ProgramReader:
         for text in self._chunks:
             blocks, facts, self.state = parse_chunk(text, self.state, file=self.name, lenient=self.lenient)
             self._gather(facts)
+            end = self._program_end()
+            if end is not None and len(blocks) and int(blocks["line"].iat[-1]) > end:
+                blocks = blocks[blocks["line"].to_numpy() <= end].reset_index(drop=True)
             self.chars += len(text)
             self.rows += len(blocks)
             self.batches += 1
@@ -97,7 +100,15 @@ class ProgramReader:
                              self._no_feed[1] if self._no_feed else line)
         self.unsupported += sorted(f.unsupported, key=lambda u: u.line)  # syntax and codes of a line together
         self._lines += f.lines
-        self.motion_rows += f.motion_rows
+        end = self._program_end()
+        self.motion_rows += f.motion_rows - (f.motion_after(end) if end is not None else 0)  # rows a controller runs
+
+    def _program_end(self) -> int | None:
+        """The line a controller stops reading at: the first M2/M30 or the closing '%', if seen yet."""
+        ends = [self._meta["end_line"]] if "end_line" in self._meta else []
+        if len(self._percent) >= 2:
+            ends.append(self._percent[1])
+        return min(ends) if ends else None
 
     @property
     def metadata(self) -> dict[str, Any]:
@@ -118,10 +129,10 @@ class ProgramReader:
             out.append(f"{self._no_feed[0]} feed moves without a feed rate (first at line {self._no_feed[1]})")
         if self._after_end:
             out.append(f"{self._after_end} motion blocks after the program end (M2/M30) at line "
-                       f"{self._meta['end_line']}; a controller would not run them")
+                       f"{self._meta['end_line']}: not run (a controller stops there)")
         if self._after_percent:
             out.append(f"{self._after_percent} motion blocks after the closing '%' at line {self._percent[1]}; "
-                       "a controller would not run them")
+                       "not run (a controller stops there)")
         if self._block_delete:
             out.append(f"{len(self._block_delete)} lines start with '/' (block delete); kept as if the "
                        "block-delete switch were off")
