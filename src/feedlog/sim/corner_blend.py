@@ -56,6 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from feedlog.profile import MachineProfile
+from feedlog.sim.blend_choice import parabolic_performance
 from feedlog.sim.blend_geometry import arc_sides, place_curved
 from feedlog.sim.context import Context
 from feedlog.sim.mechanism import Mechanism
@@ -125,6 +126,8 @@ class BlendArcCorner(Mechanism):
     curved_blend_turn: float = 0.1    # ... where the arc turns at most this (rad) over the blend's length
     arc_side_lengths: bool = False    # ... with LinuxCNC's blend lengths on the arc sides instead of that gate
     curved_blend_geometry: bool = False  # ... and the blend arc placed there, run under the next line (blend_geometry)
+    parabolic_choice: bool = False    # a parabolic blend where LinuxCNC rates it above the arc and kink (blend_choice)
+    open_end_entry: bool = False      # enter a move nothing is queued after at most at its triangle speed sqrt(a L)
     sync_stop: bool = False           # stop, parabolic end, before words executed at rest (queue_sync)
 
     def __post_init__(self) -> None:
@@ -233,12 +236,28 @@ class BlendArcCorner(Mechanism):
         if self.arc_side_lengths:
             short = np.ones(m - 1, bool)
         use_curved = curved & arcs["ok"] & short & (arcs["v_arc"] >= kink_vel)
+        chosen = np.zeros(m - 1, bool)
+        if self.parabolic_choice:      # LinuxCNC rates a parabolic blend against the arc and the kink speed
+            chosen = self._parabolic_choice(pc, blocks, cand & ~g61 & ~tangent, use_arc | use_curved, arcs, kink_vel,
+                                            u1, u2, v_tc, v_seg, lin)
+            use_arc &= ~chosen
+            use_curved &= ~chosen
+            jq = np.flatnonzero(chosen)
+            overlap[jq] = True
+            # both moves at half acceleration: the one ending in the blend (its parabolic end condition) and
+            # the one entered through it, for its whole length (tc.c tcSetTermCond sets blend_prev, which
+            # LinuxCNC 2.9 clears only when that junction is changed again)
+            both = np.union1d(jq, jq + 1)
+            fresh = both[~halved[both]]
+            halved[fresh] = True
+            a_max[fresh] *= 0.5
+            v_end[jq] = self._parabolic_speed(pc, blocks, jq, u1[jq], u2[jq], a_max, v_req, moves_xyz[jq])
         placed = None
         if self.curved_blend_geometry and arcs["sides"] is not None and use_curved.any():
             jc = np.flatnonzero(use_curved)
             placed = place_curved(pc, jc, u1, u2, arcs["sides"], arcs["r"], arcs["tol"], lin)
             use_curved[jc[~placed.ok]] = False          # LinuxCNC gives the blend up: the tangent/kink rule
-        use_kink = cand & ~use_arc & ~use_curved & ~(g61 & ~tangent)   # tangent, incl. arcs worse than the kink
+        use_kink = cand & ~use_arc & ~use_curved & ~chosen & ~(g61 & ~tangent)   # tangent, incl. arcs worse than the kink
         jk = np.flatnonzero(use_kink)
         v_end[jk] = kink_vel[jk]
         # G61 corners that are not tangent stop, but keep LinuxCNC's kink acceleration reduction
@@ -262,8 +281,16 @@ class BlendArcCorner(Mechanism):
         if placed is None:
             jb = np.flatnonzero(use_curved)
             v_end[jb] = np.minimum(arcs["v_run"][jb], np.minimum(pc.v_max[jb], pc.v_max[jb + 1]))
+        # the queue drains after the piece (a word run at rest, a dwell next): LinuxCNC never finalizes it
+        open_end = pc.open_end.copy()
+        open_end[:-1] |= sync | ((length[1:] <= 0) & (pc.hold_s[1:] > 0))
+        if ctx.window is None or ctx.window.last:
+            open_end[-1] = True                      # the program's last move
+        pc = with_columns(pc, open_end=open_end)
         ctx.pieces, line_clamp = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1,
                                                    u2, placed)
+        if self.open_end_entry:
+            ctx.pieces = self._enter_open_end(ctx.pieces)
         # counts over the junctions after the pieces a window keeps (all of them when not windowed)
         lo, hi = ctx.window.core if ctx.window is not None and ctx.window.core is not None else (0, m)
         ctx.notes.update(blend_arcs=int(use_arc[lo:hi].sum()), curved_blends=int(use_curved[lo:hi].sum()),
@@ -271,10 +298,42 @@ class BlendArcCorner(Mechanism):
                          parabolic_blends=int(overlap[lo:hi].sum()), consumed_lines=int((line_clamp[lo:hi] == 0).sum()))
 
     @staticmethod
+    def _enter_open_end(pc: Pieces) -> Pieces:
+        """LinuxCNC's optimizer lets the move before an unfinalized one (nothing queued after it) end at no
+        more than that move's triangle speed sqrt(a L), a blend being free to take half of it (tp.c
+        tpRunOptimization, tpCalculateOptimizationInitialVel); a programmed arc's acceleration there is its
+        fixed tangential share."""
+        k = np.flatnonzero(pc.open_end[1:])
+        if not len(k):
+            return pc
+        a_tan = pc.a_max[k + 1] * np.where(pc.radius[k + 1] > 0, ACC_RATIO_TANGENTIAL, 1.0)
+        v_end = pc.v_end.copy()
+        v_end[k] = np.minimum(v_end[k], np.sqrt(a_tan * pc.length[k + 1]))
+        return with_columns(pc, v_end=v_end)
+
+    @staticmethod
     def _continuous(blocks, b: np.ndarray) -> np.ndarray:
         """Blocks programmed in G64 (their `stop_after` may only come from being last or a dwell)."""
         mode = blocks.extra.get("continuous")
         return mode[b] if mode is not None else ~blocks.exact_path[b]
+
+    def _parabolic_choice(self, pc: Pieces, blocks, rated, arc_ok, arcs, kink_vel, u1, u2, v_tc, v_seg, lin):
+        """Junctions where LinuxCNC's tpChooseBestBlend takes a parabolic blend: rated at least as high as the
+        blend arc (0 where none can be made) and the kink speed (`blend_choice.parabolic_performance`)."""
+        jr = np.flatnonzero(rated)
+        chosen = np.zeros(len(rated), bool)
+        if not len(jr):
+            return chosen
+        # a segment's target speed: feed and axes, one servo cycle, an arc's centripetal speed (the canon's)
+        arc_cap = np.sqrt(math.sqrt(1 - ACC_RATIO_TANGENTIAL ** 2) * pc.a_max * pc.radius)
+        v_target = np.where(pc.radius > 0, np.minimum(v_seg, arc_cap), v_seg)
+        b = pc.block
+        perf = parabolic_performance(pc, jr, u1[jr], u2[jr], feed=(blocks.feed / feed_scale(blocks))[b],
+                                     v_target=v_target, tol=blocks.tol[b[jr]] * self.tolerance_scale,
+                                     kink_ratio=self.kink_ratio, lin=lin)
+        arc_rate = np.where(arc_ok[jr], arcs["v_arc"][jr], 0.0)
+        chosen[jr] = (perf > 0) & (perf >= arc_rate) & (perf >= kink_vel[jr])
+        return chosen
 
     def _parabolic_speed(self, pc: Pieces, blocks, jp, u1, u2, a_half, v_req, moves_xyz) -> np.ndarray:
         """LinuxCNC tpComputeBlendVelocity: blend speed from the half-segment rule and the tolerance."""
@@ -434,12 +493,12 @@ class BlendArcCorner(Mechanism):
         arcp = Pieces(block=pc.block[ja + 1], length=arc_len, p0=geo["start"], dir=np.zeros((na, k)), e1=geo["e1"],
                       e2=geo["e2"], radius=geo["radius"], omega=geo["omega"], v_max=v_run, a_max=arcs["a"][ja],
                       v_end=v_run, hold_s=np.zeros(na), blend=np.ones(na, bool), overlap=np.zeros(na, bool),
-                      clamp_len=arc_len_full)
+                      clamp_len=arc_len_full, open_end=np.zeros(na, bool))
         owner = pc.block.copy()
         owner[jc] = pc.block[jc + 1]   # a consumed line runs inside the arc's queue entry, under the next line
         lines = Pieces(block=owner, length=length, p0=p0, dir=pc.dir, e1=e1_p, e2=e2_p, radius=pc.radius,
                        omega=pc.omega, v_max=v_max, a_max=a_max, v_end=v_end, hold_s=pc.hold_s, blend=pc.blend,
-                       overlap=overlap, clamp_len=clamp)
+                       overlap=overlap, clamp_len=clamp, open_end=pc.open_end)
         # each arc goes right after its piece: piece i moves down by the number of arcs before it
         has_arc = np.zeros(m, np.int64)
         has_arc[ja] = 1
