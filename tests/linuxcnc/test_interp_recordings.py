@@ -365,3 +365,49 @@ def test_spline_lines_take_linuxcncs_time_with_the_blends_placed():
         "curved_blend_speed": True, "sync_stop": True, "arc_side_lengths": True, "curved_blend_geometry": placed}})
         for placed in (False, True)}
     assert errors[True].abs().mean() < 0.001 < 0.002 < errors[False].abs().mean(), errors
+
+
+def test_plasmatest_cut_in_arcs_blend_parabolically_and_cuts_enter_their_last_line_as_linuxcnc_does():
+    """Two more LinuxCNC planner rules, each switched off in turn (docs/sim.md "Blend choice"):
+    - at plasmatest's tight cut-in arcs (0.92 mm and 3.84 mm, 90 deg into their first line) LinuxCNC rates
+      a parabolic blend above the blend arc (blend_arc `parabolic_choice`): each arc and its line take
+      LinuxCNC's time together within 2 ms (the blend arc left them 11-58 ms short);
+    - a cut's last line before the M5 is never finalized, so the move before it may enter it at no more
+      than its triangle speed sqrt(a L) (blend_arc `open_end_entry`): within 1 ms, 11.7 ms short without."""
+    rec = _recording("plasmatest")
+    program = load_recorded_program(rec, name="plasmatest:program.ngc")
+    rules = {"lookahead": {"arc_share_from_speed": True, "finalize_on_next": True},
+             "naive_cam": {"arcs_as_lines": True},
+             "blend_arc": {"curved_blend_speed": True, "sync_stop": True, "arc_side_lengths": True,
+                           "curved_blend_geometry": True, "parabolic_choice": True, "open_end_entry": True}}
+    pairs = [(14, 15), (232, 233), (240, 241)]
+    last_lines = [60, 286, 356]
+
+    def errors(**switch):
+        return _line_errors(rec, program, {**rules, "blend_arc": {**rules["blend_arc"], **switch}})
+
+    both = errors()
+    assert max(abs(both[a] + both[b]) for a, b in pairs) < 0.002, [both[a] + both[b] for a, b in pairs]
+    assert np.abs(both[last_lines]).max() < 0.001, both[last_lines]
+    assert both.abs().mean() < 0.0008          # measured: 0.66 ms over the 362 lines
+    arcs = errors(parabolic_choice=False)
+    assert min(abs(arcs[a] + arcs[b]) for a, b in pairs) > 0.008, [arcs[a] + arcs[b] for a, b in pairs]
+    unbounded = errors(open_end_entry=False)
+    assert (unbounded[last_lines] < -0.01).all(), unbounded[last_lines]
+
+
+FLOWSNAKE = Path("/usr/share/linuxcnc/ncfiles/flowsnake.ngc")
+
+
+@pytest.mark.skipif(not FLOWSNAKE.is_file(), reason="LinuxCNC's example programs are not installed")
+def test_flowsnake_cycle_time_with_linuxcncs_blend_choice():
+    """flowsnake.ngc (3072 moves of about 0.015 mm at F10 mm/min turning 60 or 120 deg, G64 without P) took
+    268.689 s on the real kernel (docs/interpreter.md, measured with scripts/make_interp_recordings.py
+    --long; the recording is not vendored). LinuxCNC blends its corners parabolically (blend_arc
+    `parabolic_choice`): 268.614 s simulated (-0.03 %); with blend arcs it was 270.033 s (+0.50 %)."""
+    program = load_program(FLOWSNAKE)
+    measured = 268.689
+    res = simulate(program, "linuxcnc-xyz")
+    assert res.cycle_time_s == pytest.approx(measured, rel=0.001)
+    old = simulate(program, "linuxcnc-xyz", mechanisms={"blend_arc": {"parabolic_choice": False}})
+    assert old.cycle_time_s > measured * 1.004

@@ -181,3 +181,41 @@ def test_windows_give_the_whole_runs_block_table_with_placed_blends():
         res, blocks, _ = simulate_windowed(program, PROFILE, window=size)
         assert res.cycle_time_s == pytest.approx(whole.cycle_time_s, abs=1e-9), size
         assert np.allclose(blocks["t_end_ns"], table["t_end_ns"], atol=2), size
+
+
+def _arc_into_line(radius: float) -> str:
+    """A quarter circle from rest (after a rapid) turning left into an 18.4 mm line down: a 90 deg corner
+    (plasmatest's cut-in: radius 0.922 mm, F5840)."""
+    return (f"G21 G90 G64\nG0 X{radius} Y0\nG3 X0 Y{radius} I{-radius} J0 F5840\nG1 X0 Y{radius - 18.4}\nM2\n")
+
+
+@pytest.mark.parametrize("radius", [0.922, 10.0])
+def test_linuxcnc_takes_a_parabolic_blend_where_it_rates_it_above_the_blend_arc(radius):
+    a, feed = 1000.0, 5840 / 60
+    arc_len, line_len = math.pi / 2 * radius, 18.4
+    # the blend arc (blendInit3FromArcLine): the arc bends away from the corner, phi = min(2/3 sweep,
+    # 45 deg), its length along the chord sin(phi / 4) r, the half-angle 45 deg - phi / 4, within the
+    # default tolerance (a quarter of the shorter move) for both radii here
+    phi = min(2 / 3 * math.pi / 2, math.pi / 4)
+    theta = math.pi / 4 - phi / 4
+    r_blend = math.tan(theta) * math.sin(phi / 4) * radius
+    v_arc = min(math.sqrt(a * math.sqrt(0.75) * r_blend), feed)
+    # the parabolic blend (estimateParabolicBlendPerformance): the kink share off (0.9), halved by the
+    # parabolic end condition, the unfinalized arc's tangential share 0.5; each move's triangle speed
+    # over half its length, one blend time, half the net speed at the 45 deg half-angle
+    acc1, acc2 = a * 0.9 * 0.5 * 0.5, a * 0.9 * 0.5
+    v1 = min(math.sqrt(acc1 * arc_len / 2), math.sqrt(a * math.sqrt(0.75) * radius), feed)
+    v2 = min(math.sqrt(acc2 * line_len / 2), feed)
+    t_blend = min(arc_len / v1, line_len / v2, max(v1 / acc1, v2 / acc2))
+    perf = math.sin(math.pi / 4) * (min(v1, t_blend * acc1) + min(v2, t_blend * acc2)) / 4
+    program = load_program(_arc_into_line(radius), name="cut_in.ngc")
+    res = simulate(program, PROFILE)
+    arc_only = simulate(program, PROFILE, mechanisms={"blend_arc": {"parabolic_choice": False}})
+    assert arc_only.notes["curved_blends"] == 1 and arc_only.notes["parabolic_blends"] == 0
+    if radius < 1:       # the tight cut-in arc: 11.9 mm/s parabolic against a 10.2 mm/s blend arc
+        assert perf > v_arc, (perf, v_arc)
+        assert res.notes["parabolic_blends"] == 1 and res.notes["curved_blends"] == 0
+    else:                # a wide arc leaves room for a fast blend arc
+        assert v_arc > perf, (perf, v_arc)
+        assert res.notes["curved_blends"] == 1 and res.notes["parabolic_blends"] == 0
+        assert res.cycle_time_s == arc_only.cycle_time_s

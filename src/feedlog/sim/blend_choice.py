@@ -73,3 +73,21 @@ def parabolic_performance(pc, j: np.ndarray, u1: np.ndarray, u2: np.ndarray, *, 
     b2 = np.where(capped, np.minimum(b2, v_tol), b2)
     v_net = np.sin(theta) * (b1 + b2) / 2.0
     return np.nan_to_num(v_net / 2.0)
+
+
+def parabolic_chosen(pc, rated: np.ndarray, arc_rate: np.ndarray, kink_vel: np.ndarray, u1, u2, *,
+                     feed: np.ndarray, v_seg: np.ndarray, tol: np.ndarray, kink_ratio: float, lin) -> np.ndarray:
+    """Per junction, whether LinuxCNC takes a parabolic blend there: among the `rated` junctions (where it
+    tries a blend arc), those whose parabolic rating is at least the blend arc's (`arc_rate`, 0 where none
+    can be made) and the kink speed. `v_seg`: per piece, the feed capped by the axes and one servo cycle;
+    an arc's target speed is further capped at the canon's centripetal speed."""
+    jr = np.flatnonzero(rated)
+    chosen = np.zeros(len(rated), bool)
+    if not len(jr):
+        return chosen
+    arc_cap = np.sqrt(math.sqrt(1 - BLEND_ACC_RATIO_TANGENTIAL ** 2) * pc.a_max * pc.radius)
+    v_target = np.where(pc.radius > 0, np.minimum(v_seg, arc_cap), v_seg)
+    perf = parabolic_performance(pc, jr, u1[jr], u2[jr], feed=feed, v_target=v_target, tol=tol[jr],
+                                 kink_ratio=kink_ratio, lin=lin)
+    chosen[jr] = (perf > 0) & (perf >= arc_rate[jr]) & (perf >= kink_vel[jr])
+    return chosen

@@ -205,3 +205,21 @@ def place_curved(pc, jb: np.ndarray, u1, u2, sides: ArcSides, r_plan, tol, lin) 
     k = np.flatnonzero(ok)
     return Placement(ok=ok, j=jb[k], trim_end=trim_end[k], trim_start=trim_start[k], centre=centre[k],
                      radius=r[k], angle=angle[k])
+
+
+def arc_frames(pc, placed: Placement) -> dict[str, np.ndarray]:
+    """The placed blend arcs as path pieces: from the cut on the first side to the cut on the second about
+    the placed centre (start point, e1 = centre -> start, e2 = the tangent there, radius, length, omega),
+    with what each cuts off its sides (`feedlog.sim.corner_blend` inserts them)."""
+    j, k = placed.j, pc.p0.shape[1]
+    start = pc.position(j, pc.length[j] - placed.trim_end)
+    end = pc.position(j + 1, placed.trim_start)
+    xyz = slice(0, 3)       # profiles list x, y, z first (feedlog.profile.MachineProfile.axis_names)
+    e1 = np.zeros((len(j), k))
+    e2 = np.zeros((len(j), k))
+    e1[:, xyz] = _unit(start[:, xyz] - placed.centre)
+    out2 = end[:, xyz] - placed.centre
+    e2[:, xyz] = _unit(out2 - _dot(out2, e1[:, xyz])[:, None] * e1[:, xyz])
+    arc_len = placed.radius * placed.angle
+    return {"j": j, "trim_end": placed.trim_end, "trim_start": placed.trim_start, "start": start, "e1": e1,
+            "e2": e2, "radius": placed.radius, "length": arc_len, "omega": placed.angle / arc_len}

@@ -15,6 +15,13 @@ blendmath.c `blendComputeParameters`, `blendCheckConsume`), re-derived here in v
   with `arc_side_lengths`, with the lengths LinuxCNC allows on an arc side: a third of the next arc's
   sweep (two thirds of the previous arc's), capped by the corner's half-angle where the arc bends away
   from the corner (then along its chord) and by a quarter turn where it bends into it;
+- `curved_blend_geometry`: those blend arcs are placed where LinuxCNC puts them, touching both sides,
+  the sides cut there (`feedlog.sim.blend_geometry`), and run under the next line;
+- `parabolic_choice`: where LinuxCNC rates a parabolic blend above the blend arc and the kink speed
+  (tp.c `tpChooseBestBlend`, `feedlog.sim.blend_choice`) the corner is blended parabolically, both moves
+  at half acceleration (LinuxCNC 2.9 keeps `blend_prev` on the entered move);
+- `open_end_entry`: the move before one nothing is queued after (a word run at rest, a dwell, the
+  program's end; never finalized) ends at most at that move's triangle speed sqrt(a L);
 - a line shorter than `gap_cycles` servo cycles at the arc speed is "consumed" by the arc;
 - a blend arc, and a line it consumes, run under the *next* line: LinuxCNC 2.9's
   `motion.program-line` switches to the next line where the tool leaves the straight line into the
@@ -56,8 +63,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from feedlog.profile import MachineProfile
-from feedlog.sim.blend_choice import parabolic_performance
-from feedlog.sim.blend_geometry import arc_sides, place_curved
+from feedlog.sim.blend_choice import parabolic_chosen
+from feedlog.sim.blend_geometry import arc_frames, arc_sides, place_curved
 from feedlog.sim.context import Context
 from feedlog.sim.mechanism import Mechanism
 from feedlog.sim.path import KIND_RAPID, Pieces, feed_scale, rows, with_columns
@@ -238,8 +245,9 @@ class BlendArcCorner(Mechanism):
         use_curved = curved & arcs["ok"] & short & (arcs["v_arc"] >= kink_vel)
         chosen = np.zeros(m - 1, bool)
         if self.parabolic_choice:      # LinuxCNC rates a parabolic blend against the arc and the kink speed
-            chosen = self._parabolic_choice(pc, blocks, cand & ~g61 & ~tangent, use_arc | use_curved, arcs, kink_vel,
-                                            u1, u2, v_tc, v_seg, lin)
+            chosen = parabolic_chosen(pc, cand & ~g61 & ~tangent, np.where(use_arc | use_curved, arcs["v_arc"], 0.0),
+                                      kink_vel, u1, u2, feed=(blocks.feed / feed_scale(blocks))[b], v_seg=v_seg,
+                                      tol=blocks.tol[b1] * self.tolerance_scale, kink_ratio=self.kink_ratio, lin=lin)
             use_arc &= ~chosen
             use_curved &= ~chosen
             jq = np.flatnonzero(chosen)
@@ -316,24 +324,6 @@ class BlendArcCorner(Mechanism):
         """Blocks programmed in G64 (their `stop_after` may only come from being last or a dwell)."""
         mode = blocks.extra.get("continuous")
         return mode[b] if mode is not None else ~blocks.exact_path[b]
-
-    def _parabolic_choice(self, pc: Pieces, blocks, rated, arc_ok, arcs, kink_vel, u1, u2, v_tc, v_seg, lin):
-        """Junctions where LinuxCNC's tpChooseBestBlend takes a parabolic blend: rated at least as high as the
-        blend arc (0 where none can be made) and the kink speed (`blend_choice.parabolic_performance`)."""
-        jr = np.flatnonzero(rated)
-        chosen = np.zeros(len(rated), bool)
-        if not len(jr):
-            return chosen
-        # a segment's target speed: feed and axes, one servo cycle, an arc's centripetal speed (the canon's)
-        arc_cap = np.sqrt(math.sqrt(1 - ACC_RATIO_TANGENTIAL ** 2) * pc.a_max * pc.radius)
-        v_target = np.where(pc.radius > 0, np.minimum(v_seg, arc_cap), v_seg)
-        b = pc.block
-        perf = parabolic_performance(pc, jr, u1[jr], u2[jr], feed=(blocks.feed / feed_scale(blocks))[b],
-                                     v_target=v_target, tol=blocks.tol[b[jr]] * self.tolerance_scale,
-                                     kink_ratio=self.kink_ratio, lin=lin)
-        arc_rate = np.where(arc_ok[jr], arcs["v_arc"][jr], 0.0)
-        chosen[jr] = (perf > 0) & (perf >= arc_rate) & (perf >= kink_vel[jr])
-        return chosen
 
     def _parabolic_speed(self, pc: Pieces, blocks, jp, u1, u2, a_half, v_req, moves_xyz) -> np.ndarray:
         """LinuxCNC tpComputeBlendVelocity: blend speed from the half-segment rule and the tolerance."""
@@ -429,31 +419,12 @@ class BlendArcCorner(Mechanism):
         return {"j": ja, "trim_end": d, "trim_start": d, "start": start, "e1": e1, "e2": e2, "radius": r,
                 "length": arc_len, "omega": phi / arc_len}
 
-    @staticmethod
-    def _curved_arcs(pc: Pieces, placed) -> dict[str, np.ndarray]:
-        """Blend arcs placed at line-arc, arc-line and arc-arc junctions (`blend_geometry.place_curved`):
-        from the cut on the first side to the cut on the second, about the placed centre."""
-        j, k = placed.j, pc.p0.shape[1]
-        start = pc.position(j, pc.length[j] - placed.trim_end)
-        end = pc.position(j + 1, placed.trim_start)
-        lin_idx = slice(0, 3)
-        out1 = start[:, lin_idx] - placed.centre
-        e1 = np.zeros((len(j), k))
-        e2 = np.zeros((len(j), k))
-        e1[:, lin_idx] = out1 / _norm(out1)[:, None]
-        out2 = end[:, lin_idx] - placed.centre
-        perp = out2 - np.einsum("ij,ij->i", out2, e1[:, lin_idx])[:, None] * e1[:, lin_idx]
-        e2[:, lin_idx] = perp / _norm(perp)[:, None]
-        arc_len = placed.radius * placed.angle
-        return {"j": j, "trim_end": placed.trim_end, "trim_start": placed.trim_start, "start": start, "e1": e1,
-                "e2": e2, "radius": placed.radius, "length": arc_len, "omega": placed.angle / arc_len}
-
     def _insert_arcs(self, pc: Pieces, ja, arcs, v_end, a_max, overlap, u1, u2, placed=None) -> Pieces:
         m = len(pc)
         k = pc.p0.shape[1]
         geo = self._line_line_arcs(pc, ja, arcs, u1, u2)
         if placed is not None and len(placed.j):
-            curved = self._curved_arcs(pc, placed)
+            curved = arc_frames(pc, placed)
             order = np.argsort(np.concatenate([ja, placed.j]), kind="stable")
             geo = {f: np.concatenate([geo[f], curved[f]])[order] for f in geo}
         ja = geo["j"]
