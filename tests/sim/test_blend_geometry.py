@@ -47,6 +47,16 @@ def _end(pc, i: int) -> np.ndarray:
     return pc.position(np.array([i]), np.array([pc.length[i]]))[0, :2]
 
 
+def _convex_blend(phi: float) -> tuple[float, float]:
+    """At the 90 deg corner (20, 0) between the X axis and the circle of radius R_ARC about (10, 0), a
+    blend allowed `phi` of the arc (which bends away from the corner): LinuxCNC plans it along the chord,
+    sin(phi / 4) R_ARC, at the half-angle 45 deg - phi / 4, so its radius is tan(half-angle) times that.
+    It touches the X axis (centre R above it) and the circle from inside (centre R_ARC - R from (10, 0));
+    of the two such circles, the one near the corner. Returns the radius and the centre's x."""
+    radius = math.tan(math.pi / 4 - phi / 4) * math.sin(phi / 4) * R_ARC
+    return radius, 10.0 + math.sqrt((R_ARC - radius) ** 2 - radius ** 2)
+
+
 # a 20 mm line along +X into a quarter circle of radius 10 turning left (centre (10, 0)): a 90 deg
 # corner, no G64 P; then a tangent line back along -X
 R_ARC = 10.0
@@ -58,16 +68,9 @@ def test_a_line_arc_blend_touches_the_line_and_the_circle_where_linuxcnc_cuts_th
     blend = np.flatnonzero(pc.blend)
     assert len(blend) == 1
     i = int(blend[0])
-    # the arc side bounds the blend (blendInit3FromLineArc): the arc bends away from the corner, so
-    # phi = min(sweep / 3, 45 deg) = 30 deg, the length along its chord sin(phi / 4) R_ARC, the
-    # half-angle 45 deg - phi / 4; the radius is what that length allows at that half-angle
-    phi = math.pi / 6
-    theta = math.pi / 4 - phi / 4
-    radius = math.tan(theta) * math.sin(phi / 4) * R_ARC
+    # the arc side bounds the blend (blendInit3FromLineArc): phi = min(sweep / 3, 45 deg) = 30 deg
+    radius, cx = _convex_blend(math.pi / 6)
     assert pc.radius[i] == pytest.approx(radius, rel=1e-9)
-    # the blend circle touches the line (centre R above it) and the arc from inside (centre R_ARC - R
-    # from the arc's centre (10, 0)); of the two such circles the one near the corner (20, 0)
-    cx = 10.0 + math.sqrt((R_ARC - radius) ** 2 - radius ** 2)
     assert _centre(pc, i) == pytest.approx([cx, radius], abs=1e-9)
     # the line is cut where the blend leaves it, the arc where the blend joins it
     assert _end(pc, i - 1) == pytest.approx([cx, 0.0], abs=1e-9)
@@ -97,11 +100,8 @@ def test_an_arc_line_blend_cuts_the_arc_and_runs_under_the_line():
     pc, blocks = _pieces(text)
     i = int(np.flatnonzero(pc.blend)[0])
     # the previous arc may lose two thirds of its sweep (60 deg), capped at the half-angle (45 deg)
-    phi = math.pi / 4
-    theta = math.pi / 4 - phi / 4
-    radius = math.tan(theta) * math.sin(phi / 4) * R_ARC
+    radius, cx = _convex_blend(math.pi / 4)
     assert pc.radius[i] == pytest.approx(radius, rel=1e-9)
-    cx = 10.0 + math.sqrt((R_ARC - radius) ** 2 - radius ** 2)
     assert _centre(pc, i) == pytest.approx([cx, radius], abs=1e-9)
     assert pc.p0[i + 1, :2] == pytest.approx([cx, 0.0], abs=1e-9)
     assert blocks.line[pc.block[i]] == 4
