@@ -135,6 +135,9 @@ def test_subroutine_attachments_follow_calls_along_the_path(tmp_path):
 
 # LinuxCNC blends plasmatest's star corners (no G64 P: as fast as it can) up to 8.4 mm off the program
 ALIGN_TOL_MM = {"plasmatest": 10.0}   # --unstated-tol-mm: G64 without P
+# align's geometry against the line stream, median per block: 2 ms, but blend_corners_p005, whose 21 blended
+# corners (6 and 8 mm arcs at F3000, P0.05) leave each block's end 2.02 ms from the line switch at the median
+DURATION_MEDIAN_S = {"blend_corners_p005": 0.0025}
 # programs whose moves end on their end points (canned cycles run in exact path, G64 P0.01 or single moves);
 # in the blended ones the line switches where the blend into the next move begins, up to ~2 mm before it
 EXACT = ["drill_cycles", "hole-circle", "polar", "subs_loops", "toplevel"]
@@ -153,7 +156,7 @@ def test_align_finds_every_block_as_linuxcnc_ran_it(name):
     line = result.report.get("line_stream")
     assert line is not None, "the line stream was not used"
     cmp = line["geometry_vs_line"]
-    assert cmp["duration_err_median_s"] <= 0.002 and cmp["duration_err_p95_s"] <= 0.011, cmp
+    assert cmp["duration_err_median_s"] <= DURATION_MEDIAN_S.get(name, 0.002) and cmp["duration_err_p95_s"] <= 0.011, cmp
     if name in EXACT:   # and the tool is at each block's end point when align says the block ended
         axes = rec.streams["axes"]
         t = axes["t_ns"].to_numpy()
@@ -411,3 +414,24 @@ def test_flowsnake_cycle_time_with_linuxcncs_blend_choice():
     assert res.cycle_time_s == pytest.approx(measured, rel=0.001)
     old = simulate(program, "linuxcnc-xyz", mechanisms={"blend_arc": {"parabolic_choice": False}})
     assert old.cycle_time_s > measured * 1.004
+
+
+def test_blend_corners_take_linuxcncs_time_per_line():
+    """blend_corners_p005 (recorded after the blend rules were written, to check them: four times a line
+    into a quarter circle at 90 deg, a 60 deg arc-arc kink, 30 deg into a line, G64 P0.05 F3000): with the
+    shipped LinuxCNC rules (docs/sim.md "Blend geometry", "Blend choice", "Unfinalized last move") each of
+    its 21 lines takes LinuxCNC's time within 1 ms (mean 0.36 ms) and the cycle within 0.01 %; without
+    them the mean was 7.0 ms, the worst line 14 ms, the cycle -1.46 %."""
+    rec = _recording("blend_corners_p005")
+    program = load_recorded_program(rec, name="blend_corners_p005:program.ngc")
+    measured = float(rec.metadata["cycle_time_s"])
+    rules = {"lookahead": {"finalize_on_next": True}, "blend_arc": {
+        "curved_blend_geometry": True, "parabolic_choice": True, "open_end_entry": True}}
+    off = {name: {key: False for key in params} for name, params in rules.items()}
+    errors = {on: _line_errors(rec, program, rules if on else off) for on in (True, False)}
+    assert len(errors[True]) == 21
+    assert errors[True].abs().max() < 0.001 and errors[True].abs().mean() < 0.0006, errors[True]
+    assert errors[False].abs().mean() > 0.005, errors[False]
+    res = simulate(program, _profile(rec), mechanisms=rules)
+    assert res.cycle_time_s == pytest.approx(measured, rel=1e-4)
+    assert simulate(program, _profile(rec), mechanisms=off).cycle_time_s < measured * 0.99
