@@ -101,6 +101,12 @@ class Placement:
     radius: np.ndarray
     angle: np.ndarray
 
+    def keep(self, rows: np.ndarray) -> Placement:
+        """The placed blends `rows` (a mask over `j`) only."""
+        k = np.flatnonzero(rows)
+        return Placement(ok=self.ok, j=self.j[k], trim_end=self.trim_end[k], trim_start=self.trim_start[k],
+                         centre=self.centre[k], radius=self.radius[k], angle=self.angle[k])
+
 
 def _arc_circle(pc, p: np.ndarray, at_end: bool, lin) -> tuple[np.ndarray, np.ndarray]:
     """Centre (x, y, z) of arc pieces p at their end (or start) and their plane's unit normal."""

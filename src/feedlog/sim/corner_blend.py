@@ -243,6 +243,11 @@ class BlendArcCorner(Mechanism):
         if self.arc_side_lengths:
             short = np.ones(m - 1, bool)
         use_curved = curved & arcs["ok"] & short & (arcs["v_arc"] >= kink_vel)
+        placed = None
+        if self.curved_blend_geometry and arcs["sides"] is not None and use_curved.any():
+            jc = np.flatnonzero(use_curved)
+            placed = place_curved(pc, jc, u1, u2, arcs["sides"], arcs["r"], arcs["tol"], lin)
+            use_curved[jc[~placed.ok]] = False          # LinuxCNC gives the blend up: parabolic or kink
         chosen = np.zeros(m - 1, bool)
         if self.parabolic_choice:      # LinuxCNC rates a parabolic blend against the arc and the kink speed
             chosen = parabolic_chosen(pc, cand & ~g61 & ~tangent, np.where(use_arc | use_curved, arcs["v_arc"], 0.0),
@@ -250,6 +255,8 @@ class BlendArcCorner(Mechanism):
                                       tol=blocks.tol[b1] * self.tolerance_scale, kink_ratio=self.kink_ratio, lin=lin)
             use_arc &= ~chosen
             use_curved &= ~chosen
+            if placed is not None:
+                placed = placed.keep(~chosen[placed.j])
             jq = np.flatnonzero(chosen)
             overlap[jq] = True
             # both moves at half acceleration: the one ending in the blend (its parabolic end condition) and
@@ -260,11 +267,6 @@ class BlendArcCorner(Mechanism):
             halved[fresh] = True
             a_max[fresh] *= 0.5
             v_end[jq] = self._parabolic_speed(pc, blocks, jq, u1[jq], u2[jq], a_max, v_req, moves_xyz[jq])
-        placed = None
-        if self.curved_blend_geometry and arcs["sides"] is not None and use_curved.any():
-            jc = np.flatnonzero(use_curved)
-            placed = place_curved(pc, jc, u1, u2, arcs["sides"], arcs["r"], arcs["tol"], lin)
-            use_curved[jc[~placed.ok]] = False          # LinuxCNC gives the blend up: the tangent/kink rule
         use_kink = cand & ~use_arc & ~use_curved & ~chosen & ~(g61 & ~tangent)   # tangent, incl. arcs worse than the kink
         jk = np.flatnonzero(use_kink)
         v_end[jk] = kink_vel[jk]
