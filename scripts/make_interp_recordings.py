@@ -50,12 +50,16 @@ VENDORED = {
     "splines_g64_f3000": (OWN / "splines_g64_f3000.ngc", "ours: two G5, two G5.1 (biarcs), G64 P0.01 F3000"),
     "splines_g611_f1200": (OWN / "splines_g611_f1200.ngc", "ours: two G5, two G5.1 (biarcs), exact stop G61.1 "
                                                            "F1200"),
+    "blend_corners_p005": (OWN / "blend_corners_p005.ngc", "ours: line-arc, arc-arc, arc-line corners, G64 P0.05 "
+                                                           "F3000"),
 }
 # not recorded: skeleton.ngc and tort.ngc stop at M0/M00 for the operator (the driver does not press
 # cycle start: tort waited 12 minutes at its line 4); daisy.ngc and b-index.ngc move A and B, which the
 # bundled machine lacks; the others of ncfiles have no motion, use probing, lathe codes, or cutter
 # compensation that is refused before it moves (entry too short)
 # examples that run for minutes: recorded and measured with --long, not vendored (size)
+# the blend corners in G64 without P (programs/blend_corners_g64.ngc, 110 kB): measured once with --only after
+# adding it to VENDORED, not vendored (size; docs/sim.md "Blend geometry")
 # the same splines in G64 P0.01 F1200 (160 kB): not vendored (size), recorded live by
 # tests/linuxcnc/test_linuxcnc_interp_live.py
 LONG = {

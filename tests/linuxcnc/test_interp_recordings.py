@@ -135,6 +135,9 @@ def test_subroutine_attachments_follow_calls_along_the_path(tmp_path):
 
 # LinuxCNC blends plasmatest's star corners (no G64 P: as fast as it can) up to 8.4 mm off the program
 ALIGN_TOL_MM = {"plasmatest": 10.0}   # --unstated-tol-mm: G64 without P
+# align's geometry against the line stream, median per block: 2 ms, but blend_corners_p005, whose 21 blended
+# corners (6 and 8 mm arcs at F3000, P0.05) leave each block's end 2.02 ms from the line switch at the median
+DURATION_MEDIAN_S = {"blend_corners_p005": 0.0025}
 # programs whose moves end on their end points (canned cycles run in exact path, G64 P0.01 or single moves);
 # in the blended ones the line switches where the blend into the next move begins, up to ~2 mm before it
 EXACT = ["drill_cycles", "hole-circle", "polar", "subs_loops", "toplevel"]
@@ -153,7 +156,7 @@ def test_align_finds_every_block_as_linuxcnc_ran_it(name):
     line = result.report.get("line_stream")
     assert line is not None, "the line stream was not used"
     cmp = line["geometry_vs_line"]
-    assert cmp["duration_err_median_s"] <= 0.002 and cmp["duration_err_p95_s"] <= 0.011, cmp
+    assert cmp["duration_err_median_s"] <= DURATION_MEDIAN_S.get(name, 0.002) and cmp["duration_err_p95_s"] <= 0.011, cmp
     if name in EXACT:   # and the tool is at each block's end point when align says the block ended
         axes = rec.streams["axes"]
         t = axes["t_ns"].to_numpy()
@@ -319,3 +322,116 @@ def test_plasmatest_star_corners_into_arcs_take_linuxcncs_time_with_its_arc_side
         cycle[sides] = res.cycle_time_s / float(rec.metadata["cycle_time_s"]) - 1
     assert abs(slow[True]) < 0.2 and abs(cycle[True]) < 0.005, (slow, cycle)
     assert slow[False] > 1.0 and cycle[False] > 0.015, (slow, cycle)
+
+
+def _line_errors(rec, program, mechanisms) -> pd.Series:
+    """Simulated minus measured seconds per program line (the lines both show)."""
+    sim = _per_line(simulate(program, _profile(rec), mechanisms=mechanisms).blocks)
+    measured = _line_times(rec)
+    both = sim.index.intersection(measured.index)
+    return sim[both] - measured[both]
+
+
+def test_plasmatest_star_lines_take_linuxcncs_time_with_the_blends_placed():
+    """With the blend arcs of the star's line-arc and arc-line corners placed where LinuxCNC puts them
+    (blend_arc `curved_blend_geometry`, docs/sim.md "Blend geometry"), each star line takes LinuxCNC's
+    time within 2 ms (measured: within 0.6 ms); with the blend's speed alone, time moved between
+    neighbouring lines (a line before an arc 97 ms long, the line after it 60 ms short). The star's last
+    arc (line 306) ends at rest before an M5: LinuxCNC never finalizes it, so it keeps the fixed
+    tangential share (lookahead `finalize_on_next`); with the share from its speed it was 70 ms short."""
+    rec = _recording("plasmatest")
+    program = load_recorded_program(rec, name="plasmatest:program.ngc")
+    star = list(range(291, 307))
+    rules = {"lookahead": {"arc_share_from_speed": True, "finalize_on_next": True},
+             "naive_cam": {"arcs_as_lines": True},
+             "blend_arc": {"curved_blend_speed": True, "sync_stop": True, "arc_side_lengths": True}}
+    errors = {}
+    for placed in (False, True):
+        errors[placed] = _line_errors(rec, program, {**rules, "blend_arc": {**rules["blend_arc"],
+                                                                            "curved_blend_geometry": placed}})
+    assert np.abs(errors[True][star]).max() < 0.002, errors[True][star]
+    assert np.abs(errors[False][star]).max() > 0.05, errors[False][star]
+    # over the whole program (362 lines) the mean |error| drops from 4.1 ms to 1.0 ms
+    assert errors[True].abs().mean() < 0.0012 < 0.0035 < errors[False].abs().mean()
+    shared = _line_errors(rec, program, {**rules, "lookahead": {"arc_share_from_speed": True,
+                                                                "finalize_on_next": False},
+                                         "blend_arc": {**rules["blend_arc"], "curved_blend_geometry": True}})
+    assert shared[306] < -0.05 and abs(errors[True][306]) < 0.002, (shared[306], errors[True][306])
+
+
+def test_spline_lines_take_linuxcncs_time_with_the_blends_placed():
+    """The G64 spline run's five lines (112 biarcs, their near-tangent corners blended): the blends placed,
+    mean |error| per line 0.36 ms (2.28 ms with the blend's speed alone)."""
+    rec = _recording("splines_g64_f3000")
+    program = load_recorded_program(rec, name="splines_g64_f3000:program.ngc")
+    errors = {placed: _line_errors(rec, program, {**ARC_RULES, "blend_arc": {
+        "curved_blend_speed": True, "sync_stop": True, "arc_side_lengths": True, "curved_blend_geometry": placed}})
+        for placed in (False, True)}
+    assert errors[True].abs().mean() < 0.001 < 0.002 < errors[False].abs().mean(), errors
+
+
+def test_plasmatest_cut_in_arcs_blend_parabolically_and_cuts_enter_their_last_line_as_linuxcnc_does():
+    """Two more LinuxCNC planner rules, each switched off in turn (docs/sim.md "Blend choice"):
+    - at plasmatest's tight cut-in arcs (0.92 mm and 3.84 mm, 90 deg into their first line) LinuxCNC rates
+      a parabolic blend above the blend arc (blend_arc `parabolic_choice`): each arc and its line take
+      LinuxCNC's time together within 2 ms (the blend arc left them 11-58 ms short);
+    - a cut's last line before the M5 is never finalized, so the move before it may enter it at no more
+      than its triangle speed sqrt(a L) (blend_arc `open_end_entry`): within 1 ms, 11.7 ms short without."""
+    rec = _recording("plasmatest")
+    program = load_recorded_program(rec, name="plasmatest:program.ngc")
+    rules = {"lookahead": {"arc_share_from_speed": True, "finalize_on_next": True},
+             "naive_cam": {"arcs_as_lines": True},
+             "blend_arc": {"curved_blend_speed": True, "sync_stop": True, "arc_side_lengths": True,
+                           "curved_blend_geometry": True, "parabolic_choice": True, "open_end_entry": True}}
+    pairs = [(14, 15), (232, 233), (240, 241)]
+    last_lines = [60, 286, 356]
+
+    def errors(**switch):
+        return _line_errors(rec, program, {**rules, "blend_arc": {**rules["blend_arc"], **switch}})
+
+    both = errors()
+    assert max(abs(both[a] + both[b]) for a, b in pairs) < 0.002, [both[a] + both[b] for a, b in pairs]
+    assert np.abs(both[last_lines]).max() < 0.001, both[last_lines]
+    assert both.abs().mean() < 0.0008          # measured: 0.66 ms over the 362 lines
+    arcs = errors(parabolic_choice=False)
+    assert min(abs(arcs[a] + arcs[b]) for a, b in pairs) > 0.008, [arcs[a] + arcs[b] for a, b in pairs]
+    unbounded = errors(open_end_entry=False)
+    assert (unbounded[last_lines] < -0.01).all(), unbounded[last_lines]
+
+
+FLOWSNAKE = Path("/usr/share/linuxcnc/ncfiles/flowsnake.ngc")
+
+
+@pytest.mark.skipif(not FLOWSNAKE.is_file(), reason="LinuxCNC's example programs are not installed")
+def test_flowsnake_cycle_time_with_linuxcncs_blend_choice():
+    """flowsnake.ngc (3072 moves of about 0.015 mm at F10 mm/min turning 60 or 120 deg, G64 without P) took
+    268.689 s on the real kernel (docs/interpreter.md, measured with scripts/make_interp_recordings.py
+    --long; the recording is not vendored). LinuxCNC blends its corners parabolically (blend_arc
+    `parabolic_choice`): 268.614 s simulated (-0.03 %); with blend arcs it was 270.033 s (+0.50 %)."""
+    program = load_program(FLOWSNAKE)
+    measured = 268.689
+    res = simulate(program, "linuxcnc-xyz")
+    assert res.cycle_time_s == pytest.approx(measured, rel=0.001)
+    old = simulate(program, "linuxcnc-xyz", mechanisms={"blend_arc": {"parabolic_choice": False}})
+    assert old.cycle_time_s > measured * 1.004
+
+
+def test_blend_corners_take_linuxcncs_time_per_line():
+    """blend_corners_p005 (recorded after the blend rules were written, to check them: four times a line
+    into a quarter circle at 90 deg, a 60 deg arc-arc kink, 30 deg into a line, G64 P0.05 F3000): with the
+    shipped LinuxCNC rules (docs/sim.md "Blend geometry", "Blend choice", "Unfinalized last move") each of
+    its 21 lines takes LinuxCNC's time within 1 ms (mean 0.36 ms) and the cycle within 0.01 %; without
+    them the mean was 7.0 ms, the worst line 14 ms, the cycle -1.46 %."""
+    rec = _recording("blend_corners_p005")
+    program = load_recorded_program(rec, name="blend_corners_p005:program.ngc")
+    measured = float(rec.metadata["cycle_time_s"])
+    rules = {"lookahead": {"finalize_on_next": True}, "blend_arc": {
+        "curved_blend_geometry": True, "parabolic_choice": True, "open_end_entry": True}}
+    off = {name: {key: False for key in params} for name, params in rules.items()}
+    errors = {on: _line_errors(rec, program, rules if on else off) for on in (True, False)}
+    assert len(errors[True]) == 21
+    assert errors[True].abs().max() < 0.001 and errors[True].abs().mean() < 0.0006, errors[True]
+    assert errors[False].abs().mean() > 0.005, errors[False]
+    res = simulate(program, _profile(rec), mechanisms=rules)
+    assert res.cycle_time_s == pytest.approx(measured, rel=1e-4)
+    assert simulate(program, _profile(rec), mechanisms=off).cycle_time_s < measured * 0.99

@@ -179,3 +179,25 @@ def test_spline_biarcs_in_g64_at_f1200_simulate_within_half_a_percent(tmp_path):
     measured = float(rec.metadata["cycle_time_s"])
     simulated = simulate(interpret(program), profile).cycle_time_s
     assert simulated == pytest.approx(measured, rel=0.005), (simulated, measured)
+
+
+def test_a_line_leaving_the_arcs_plane_is_not_blended_with_an_arc(tmp_path):
+    """LinuxCNC makes a blend arc between a line and an arc only where both lie in one plane (to 1e-6 rad,
+    tp.c tpCreateLineArcBlend's coplanarity test); elsewhere it blends parabolically or slows to the kink
+    speed (docs/sim.md "Blend geometry", "Blend choice"). recordings/interp/programs/blend_sloped.ngc:
+    16 lines rising 0.002 mm over 3 mm (6.7e-4 rad), kinked 20 deg into and out of flat arcs. Measured
+    2026-11-27: 6.575 s (the same program without the rise: 4.261 s); simulated 6.314 s (-4.0 %), and
+    -37 % with the blends placed regardless of the plane, as the model did before."""
+    from feedlog.sim import simulate
+
+    program = tmp_path / "blend_sloped.ngc"
+    program.write_text((CONFIGS.parent / "interp" / "programs" / "blend_sloped.ngc").read_text())
+    out = tmp_path / "sloped.mcap"
+    summary = record_linuxcnc(CONFIGS / "xyz.ini", program, out, isolate=ISOLATE, timeout_s=60)
+    assert summary["status"] == "complete"
+    measured = float(read_recording(out).metadata["cycle_time_s"])
+    moves = interpret(program)
+    assert simulate(moves, "linuxcnc-xyz").cycle_time_s == pytest.approx(measured, rel=0.06)
+    anyplane = simulate(moves, "linuxcnc-xyz", mechanisms={"blend_arc": {
+        "curved_blend_geometry": False, "parabolic_choice": False, "open_end_entry": False}})
+    assert anyplane.cycle_time_s < measured * 0.8, (anyplane.cycle_time_s, measured)

@@ -15,6 +15,13 @@ blendmath.c `blendComputeParameters`, `blendCheckConsume`), re-derived here in v
   with `arc_side_lengths`, with the lengths LinuxCNC allows on an arc side: a third of the next arc's
   sweep (two thirds of the previous arc's), capped by the corner's half-angle where the arc bends away
   from the corner (then along its chord) and by a quarter turn where it bends into it;
+- `curved_blend_geometry`: those blend arcs are placed where LinuxCNC puts them, touching both sides,
+  the sides cut there (`feedlog.sim.blend_geometry`), and run under the next line;
+- `parabolic_choice`: where LinuxCNC rates a parabolic blend above the blend arc and the kink speed
+  (tp.c `tpChooseBestBlend`, `feedlog.sim.blend_choice`) the corner is blended parabolically, both moves
+  at half acceleration (LinuxCNC 2.9 keeps `blend_prev` on the entered move);
+- `open_end_entry`: the move before one nothing is queued after (a word run at rest, a dwell, the
+  program's end; never finalized) ends at most at that move's triangle speed sqrt(a L);
 - a line shorter than `gap_cycles` servo cycles at the arc speed is "consumed" by the arc;
 - a blend arc, and a line it consumes, run under the *next* line: LinuxCNC 2.9's
   `motion.program-line` switches to the next line where the tool leaves the straight line into the
@@ -56,37 +63,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from feedlog.profile import MachineProfile
+from feedlog.sim.blend_choice import parabolic_chosen
+from feedlog.sim.blend_geometry import arc_frames, arc_sides, place_curved
 from feedlog.sim.context import Context
 from feedlog.sim.mechanism import Mechanism
 from feedlog.sim.path import KIND_RAPID, Pieces, feed_scale, rows, with_columns
 
 ACC_RATIO_TANGENTIAL = 0.5
-
-
-def _arc_sides(pc: Pieces, u1, u2, theta, side1, side2, lin):
-    """Where a junction's side is an arc, the blend length LinuxCNC allows on it and the corner half-angle
-    it plans with (blendmath.c blendInit3FromLineArc / ArcLine / ArcArc): at most a third of the next
-    arc's sweep (two thirds of the previous arc's), no more than the tangents' half-angle where the arc
-    bends away from the corner (convex: along the chord, sin(phi / 4) R, and the half-angle reduced by
-    phi / 4), a quarter turn where it bends into it (phi R)."""
-    theta_tan = theta
-    theta = theta.copy()
-    side1, side2 = side1.copy(), side2.copy()
-    for first, u_other, sweep_share, side in ((True, u2, 2.0 / 3.0, side1), (False, u1, 1.0 / 3.0, side2)):
-        k = np.flatnonzero(pc.radius[:-1] > 0) if first else np.flatnonzero(pc.radius[1:] > 0)
-        if not len(k):
-            continue
-        p = k if first else k + 1                    # the arc piece at junction k
-        r = pc.radius[p]
-        ang = pc.omega[p] * pc.length[p] if first else np.zeros(len(p))
-        radial = (r[:, None] * (np.cos(ang)[:, None] * pc.e1[p] + np.sin(ang)[:, None] * pc.e2[p]))[:, lin]
-        toward = np.einsum("ij,ij->i", radial, u_other[k]) < 0
-        convex = toward if first else ~toward        # arcConvexTest(center, P, u, reverse) as LinuxCNC calls it
-        sweep = np.abs(pc.omega[p] * pc.length[p])
-        phi = np.minimum(sweep * sweep_share, np.where(convex, theta_tan[k], math.pi / 2))
-        side[k] = np.where(convex, np.sin(phi / 4.0) * r, phi * r)
-        theta[k] = np.where(convex, np.minimum(theta[k], theta_tan[k] - phi / 4.0), theta[k])
-    return theta, side1, side2
 
 
 def _interleave(a: np.ndarray, b: np.ndarray, pos_a: np.ndarray, pos_b: np.ndarray) -> np.ndarray:
@@ -149,6 +132,9 @@ class BlendArcCorner(Mechanism):
     curved_blend_speed: bool = False  # line-arc / arc-arc corners: the blend arc's speed, not the kink's
     curved_blend_turn: float = 0.1    # ... where the arc turns at most this (rad) over the blend's length
     arc_side_lengths: bool = False    # ... with LinuxCNC's blend lengths on the arc sides instead of that gate
+    curved_blend_geometry: bool = False  # ... and the blend arc placed there, run under the next line (blend_geometry)
+    parabolic_choice: bool = False    # a parabolic blend where LinuxCNC rates it above the arc and kink (blend_choice)
+    open_end_entry: bool = False      # enter a move nothing is queued after at most at its triangle speed sqrt(a L)
     sync_stop: bool = False           # stop, parabolic end, before words executed at rest (queue_sync)
 
     def __post_init__(self) -> None:
@@ -257,7 +243,31 @@ class BlendArcCorner(Mechanism):
         if self.arc_side_lengths:
             short = np.ones(m - 1, bool)
         use_curved = curved & arcs["ok"] & short & (arcs["v_arc"] >= kink_vel)
-        use_kink = cand & ~use_arc & ~use_curved & ~(g61 & ~tangent)   # tangent, incl. arcs worse than the kink
+        placed = None
+        if self.curved_blend_geometry and arcs["sides"] is not None and use_curved.any():
+            jc = np.flatnonzero(use_curved)
+            placed = place_curved(pc, jc, u1, u2, arcs["sides"], arcs["r"], arcs["tol"], lin)
+            use_curved[jc[~placed.ok]] = False          # LinuxCNC gives the blend up: parabolic or kink
+        chosen = np.zeros(m - 1, bool)
+        if self.parabolic_choice:      # LinuxCNC rates a parabolic blend against the arc and the kink speed
+            chosen = parabolic_chosen(pc, cand & ~g61 & ~tangent, np.where(use_arc | use_curved, arcs["v_arc"], 0.0),
+                                      kink_vel, u1, u2, feed=(blocks.feed / feed_scale(blocks))[b], v_seg=v_seg,
+                                      tol=blocks.tol[b1] * self.tolerance_scale, kink_ratio=self.kink_ratio, lin=lin)
+            use_arc &= ~chosen
+            use_curved &= ~chosen
+            if placed is not None:
+                placed = placed.keep(~chosen[placed.j])
+            jq = np.flatnonzero(chosen)
+            overlap[jq] = True
+            # both moves at half acceleration: the one ending in the blend (its parabolic end condition) and
+            # the one entered through it, for its whole length (tc.c tcSetTermCond sets blend_prev, which
+            # LinuxCNC 2.9 clears only when that junction is changed again)
+            both = np.union1d(jq, jq + 1)
+            fresh = both[~halved[both]]
+            halved[fresh] = True
+            a_max[fresh] *= 0.5
+            v_end[jq] = self._parabolic_speed(pc, blocks, jq, u1[jq], u2[jq], a_max, v_req, moves_xyz[jq])
+        use_kink = cand & ~use_arc & ~use_curved & ~chosen & ~(g61 & ~tangent)   # tangent, incl. arcs worse than the kink
         jk = np.flatnonzero(use_kink)
         v_end[jk] = kink_vel[jk]
         # G61 corners that are not tangent stop, but keep LinuxCNC's kink acceleration reduction
@@ -278,14 +288,38 @@ class BlendArcCorner(Mechanism):
         # tp.c tpGetRealTargetVel) under the TRAJ velocity cap
         v_dial = arcs["v_req"] * feed_scale(blocks)[b1]
         arcs["v_run"] = np.minimum(np.minimum(arcs["v"], v_dial), ctx.profile.interpolator.path_vel_max_mm_s)
-        jb = np.flatnonzero(use_curved)
-        v_end[jb] = np.minimum(arcs["v_run"][jb], np.minimum(pc.v_max[jb], pc.v_max[jb + 1]))
-        ctx.pieces, line_clamp = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1, u2)
+        if placed is None:
+            jb = np.flatnonzero(use_curved)
+            v_end[jb] = np.minimum(arcs["v_run"][jb], np.minimum(pc.v_max[jb], pc.v_max[jb + 1]))
+        # the queue drains after the piece (a word run at rest, a dwell next): LinuxCNC never finalizes it
+        open_end = pc.open_end.copy()
+        open_end[:-1] |= sync | ((length[1:] <= 0) & (pc.hold_s[1:] > 0))
+        if ctx.window is None or ctx.window.last:
+            open_end[-1] = True                      # the program's last move
+        pc = with_columns(pc, open_end=open_end)
+        ctx.pieces, line_clamp = self._insert_arcs(pc, np.flatnonzero(use_arc), arcs, v_end, a_max, overlap, u1,
+                                                   u2, placed)
+        if self.open_end_entry:
+            ctx.pieces = self._enter_open_end(ctx.pieces)
         # counts over the junctions after the pieces a window keeps (all of them when not windowed)
         lo, hi = ctx.window.core if ctx.window is not None and ctx.window.core is not None else (0, m)
         ctx.notes.update(blend_arcs=int(use_arc[lo:hi].sum()), curved_blends=int(use_curved[lo:hi].sum()),
                          tangent_junctions=int(use_kink[lo:hi].sum()),
                          parabolic_blends=int(overlap[lo:hi].sum()), consumed_lines=int((line_clamp[lo:hi] == 0).sum()))
+
+    @staticmethod
+    def _enter_open_end(pc: Pieces) -> Pieces:
+        """LinuxCNC's optimizer lets the move before an unfinalized one (nothing queued after it) end at no
+        more than that move's triangle speed sqrt(a L), a blend being free to take half of it (tp.c
+        tpRunOptimization, tpCalculateOptimizationInitialVel); a programmed arc's acceleration there is its
+        fixed tangential share."""
+        k = np.flatnonzero(pc.open_end[1:])
+        if not len(k):
+            return pc
+        a_tan = pc.a_max[k + 1] * np.where(pc.radius[k + 1] > 0, ACC_RATIO_TANGENTIAL, 1.0)
+        v_end = pc.v_end.copy()
+        v_end[k] = np.minimum(v_end[k], np.sqrt(a_tan * pc.length[k + 1]))
+        return with_columns(pc, v_end=v_end)
 
     @staticmethod
     def _continuous(blocks, b: np.ndarray) -> np.ndarray:
@@ -315,8 +349,10 @@ class BlendArcCorner(Mechanism):
         dot = np.clip(np.einsum("ij,ij->i", u1, u2), -1.0, 1.0)
         theta = np.arccos(-dot) / 2.0
         side1, side2 = 0.5 * n1, 0.5 * n2
+        sides = None
         if self.arc_side_lengths:
-            theta, side1, side2 = _arc_sides(pc, u1, u2, theta, side1, side2, lin)
+            sides = arc_sides(pc, u1, u2, theta, side1, side2, lin)
+            theta, side1, side2 = sides.theta, sides.side1, sides.side2
         ok = ok & (math.pi / 2 - theta >= 1e-6) & (theta >= 1e-6)
         th = np.where(ok, theta, 0.5)
         binormal = np.column_stack([u1[:, 1] * u2[:, 2] - u1[:, 2] * u2[:, 1],
@@ -340,6 +376,8 @@ class BlendArcCorner(Mechanism):
         vm2 = np.minimum(v_tc[1:], v_tc[:-1] / cphi)
         base = _norm(u2 * vm2[:, None] - u1 * vm1[:, None])
         v_alt = vm1 * vm2 * np.sin(phi) / np.where(base > 0, base, np.inf)
+        if self.curved_blend_geometry and sides is not None:    # no altitude rule next to an arc (blendParamKinematics)
+            v_alt = np.where((pc.radius[:-1] > 0) | (pc.radius[1:] > 0), 0.0, v_alt)
         v_goal = np.minimum(v_goal, np.maximum(v_alt, v_plane))
         d_tol = np.cos(th) * tol / (1 - np.sin(th))
         d_geom = np.minimum(np.minimum(side1, side2), d_tol)
@@ -355,35 +393,15 @@ class BlendArcCorner(Mechanism):
         ok = ok & (r_plan > 1e-12) & (s_arc > 1e-6)
         v_arc = np.minimum(v_plan, s_arc / self.servo_period_s)
         return {"ok": ok, "theta": th, "r": r_plan, "d": d_plan, "s": s_arc, "v": v_plan, "v_arc": v_arc, "v_req": v_ask,
-                "a": a_plane}
+                "a": a_plane, "tol": tol, "sides": sides}
 
-    def _insert_arcs(self, pc: Pieces, ja, arcs, v_end, a_max, overlap, u1, u2) -> Pieces:
-        m = len(pc)
-        k = pc.p0.shape[1]
-        trim_end = np.zeros(m)
-        trim_start = np.zeros(m)
-        d = arcs["d"][ja]
-        trim_end[ja] = d
-        trim_start[ja + 1] = d
-        length = pc.length - trim_end - trim_start
-        p0 = pc.p0 + pc.dir * trim_start[:, None]
-        v_max = pc.v_max.copy()
-        # LinuxCNC clamps a line's speed by what the arcs left of it (tcFinalizeLength): a 0.02 mm block
-        # with an arc at one end keeps a 0.01 mm piece of line, a segment of its own
-        clamp = np.where(pc.clamp_len > 0, np.minimum(pc.clamp_len, length), pc.clamp_len)
-        v_end = v_end.copy()
-        # consumed lines: a short remainder before the arc runs at the arc speed, as part of it
-        v_plan = arcs["v"][ja]
-        consumed = (length[ja] / v_plan < self.gap_cycles * self.servo_period_s) & ~overlap[np.maximum(ja - 1, 0)]
-        jc = ja[consumed]
-        v_max[jc] = np.minimum(v_max[jc], v_plan[consumed])
-        clamp[jc] = 0.0
-        v_run = arcs["v_run"][ja]
-        v_end[ja] = v_run
-        # arc pieces
-        na = len(ja)
+    @staticmethod
+    def _line_line_arcs(pc: Pieces, ja, arcs, u1, u2) -> dict[str, np.ndarray]:
+        """Blend arcs between two lines (blendFindPoints3): d along each line from the corner."""
+        na, k = len(ja), pc.p0.shape[1]
         theta = arcs["theta"][ja]
         r = arcs["r"][ja]
+        d = arcs["d"][ja]
         dir_a = rows(pc.dir, ja)
         corner = rows(pc.p0, ja) + dir_a * pc.length[ja, None]  # corner point (end of the untrimmed line)
         start = corner - dir_a * d[:, None]
@@ -399,18 +417,62 @@ class BlendArcCorner(Mechanism):
         e1[:, lin_idx] = -to_centre / _norm(to_centre)[:, None]  # centre -> arc start
         e2[:, lin_idx] = t1                 # tangent at the arc start
         arc_len = arcs["s"][ja]
-        arc_len_full = arc_len + np.where(consumed, length[ja], 0.0)
         phi = math.pi - 2 * theta
-        arcp = Pieces(block=pc.block[ja + 1], length=arc_len, p0=start, dir=np.zeros((na, k)), e1=e1, e2=e2,
-                      radius=r, omega=phi / arc_len, v_max=v_run, a_max=arcs["a"][ja], v_end=v_run,
-                      hold_s=np.zeros(na), blend=np.ones(na, bool), overlap=np.zeros(na, bool),
-                      clamp_len=arc_len_full)
+        return {"j": ja, "trim_end": d, "trim_start": d, "start": start, "e1": e1, "e2": e2, "radius": r,
+                "length": arc_len, "omega": phi / arc_len}
+
+    def _insert_arcs(self, pc: Pieces, ja, arcs, v_end, a_max, overlap, u1, u2, placed=None) -> Pieces:
+        m = len(pc)
+        k = pc.p0.shape[1]
+        geo = self._line_line_arcs(pc, ja, arcs, u1, u2)
+        if placed is not None and len(placed.j):
+            curved = arc_frames(pc, placed)
+            order = np.argsort(np.concatenate([ja, placed.j]), kind="stable")
+            geo = {f: np.concatenate([geo[f], curved[f]])[order] for f in geo}
+        ja = geo["j"]
+        trim_end = np.zeros(m)
+        trim_start = np.zeros(m)
+        trim_end[ja] = geo["trim_end"]
+        trim_start[ja + 1] = geo["trim_start"]
+        length = pc.length - trim_end - trim_start
+        p0 = pc.p0 + pc.dir * trim_start[:, None]
+        e1_p, e2_p = pc.e1, pc.e2
+        turned = np.flatnonzero((trim_start > 0) & (pc.radius > 0))   # arcs cut at their start: turn the frame
+        if len(turned):
+            p0[turned] = pc.position(turned, trim_start[turned])
+            ang = pc.omega[turned] * trim_start[turned]
+            c, s_ = np.cos(ang)[:, None], np.sin(ang)[:, None]
+            e1_p, e2_p = e1_p.copy(), e2_p.copy()
+            e1_p[turned] = c * pc.e1[turned] + s_ * pc.e2[turned]
+            e2_p[turned] = c * pc.e2[turned] - s_ * pc.e1[turned]
+        v_max = pc.v_max.copy()
+        # LinuxCNC clamps a line's speed by what the arcs left of it (tcFinalizeLength): a 0.02 mm block
+        # with an arc at one end keeps a 0.01 mm piece of line, a segment of its own
+        clamp = np.where(pc.clamp_len > 0, np.minimum(pc.clamp_len, length), pc.clamp_len)
+        v_end = v_end.copy()
+        # consumed lines: a short remainder of a line before the arc runs at the arc speed, as part of it
+        v_plan = arcs["v"][ja]
+        consumed = ((length[ja] / v_plan < self.gap_cycles * self.servo_period_s) & ~overlap[np.maximum(ja - 1, 0)]
+                    & (pc.radius[ja] <= 0))
+        jc = ja[consumed]
+        v_max[jc] = np.minimum(v_max[jc], v_plan[consumed])
+        clamp[jc] = 0.0
+        v_run = arcs["v_run"][ja]
+        v_end[ja] = v_run
+        # arc pieces
+        na = len(ja)
+        arc_len = geo["length"]
+        arc_len_full = arc_len + np.where(consumed, length[ja], 0.0)
+        arcp = Pieces(block=pc.block[ja + 1], length=arc_len, p0=geo["start"], dir=np.zeros((na, k)), e1=geo["e1"],
+                      e2=geo["e2"], radius=geo["radius"], omega=geo["omega"], v_max=v_run, a_max=arcs["a"][ja],
+                      v_end=v_run, hold_s=np.zeros(na), blend=np.ones(na, bool), overlap=np.zeros(na, bool),
+                      clamp_len=arc_len_full, open_end=np.zeros(na, bool))
         owner = pc.block.copy()
         owner[jc] = pc.block[jc + 1]   # a consumed line runs inside the arc's queue entry, under the next line
-        lines = Pieces(block=owner, length=length, p0=p0, dir=pc.dir, e1=pc.e1, e2=pc.e2, radius=pc.radius,
+        lines = Pieces(block=owner, length=length, p0=p0, dir=pc.dir, e1=e1_p, e2=e2_p, radius=pc.radius,
                        omega=pc.omega, v_max=v_max, a_max=a_max, v_end=v_end, hold_s=pc.hold_s, blend=pc.blend,
-                       overlap=overlap, clamp_len=clamp)
-        # each arc goes right after its line: line i moves down by the number of arcs before it
+                       overlap=overlap, clamp_len=clamp, open_end=pc.open_end)
+        # each arc goes right after its piece: piece i moves down by the number of arcs before it
         has_arc = np.zeros(m, np.int64)
         has_arc[ja] = 1
         line_pos = np.arange(m) + np.concatenate(([0], np.cumsum(has_arc)[:-1]))

@@ -127,6 +127,11 @@ class Pieces:
     blend: np.ndarray        # piece was inserted by a corner law
     overlap: np.ndarray      # parabolic blend with the next piece (LinuxCNC fallback)
     clamp_len: np.ndarray    # length that must last >= one servo cycle (a consumed line adds to its arc)
+    open_end: np.ndarray | None = None  # nothing is queued after the piece (a word run at rest, a dwell follows)
+
+    def __post_init__(self) -> None:
+        if self.open_end is None:
+            self.open_end = np.zeros(len(self.block), bool)
 
     def __len__(self) -> int:
         return len(self.block)

@@ -50,6 +50,7 @@ class LookAheadPlanner(Mechanism):
     path_acc_max_mm_s2: float = math.inf  # cap on the TCP acceleration of every block (inf: axes only)
     stop_settle_s: float = 0.0  # standstill added at every exact stop inside the program
     arc_share_from_speed: bool = False  # programmed arcs: tangential share from their max speed (LinuxCNC)
+    finalize_on_next: bool = False   # the last move before the queue drains is never finalized (LinuxCNC)
 
     def __post_init__(self) -> None:
         self.check_positive(lookahead_blocks=self.lookahead_blocks, servo_period_s=self.servo_period_s)
@@ -87,9 +88,14 @@ class LookAheadPlanner(Mechanism):
             v_curve = v_curve * np.where(pieces.blend, 1.0, scale)
         v_max = np.where(curved, np.minimum(pieces.v_max, v_curve), pieces.v_max)
         share = np.full(len(pieces), self.arc_acc_ratio_tangential)
+        open_end = pieces.open_end.copy()       # nothing is queued after the piece: LinuxCNC never finalizes it
+        if ends_program and len(pieces):
+            open_end[-1] = True
         if self.arc_share_from_speed and v_axis is not None:
-            share = np.where(curved & ~pieces.blend,
-                             self.programmed_arc_share(pieces, v_axis, v_curve_max), share)
+            programmed = curved & ~pieces.blend
+            if self.finalize_on_next:    # the last arc before the queue drains keeps the fixed share
+                programmed &= ~open_end
+            share = np.where(programmed, self.programmed_arc_share(pieces, v_axis, v_curve_max), share)
         a_max = np.where(curved, pieces.a_max * share, pieces.a_max)
         if self.min_piece_cycles > 0:
             v_sample = pieces.clamp_len / (self.min_piece_cycles * self.servo_period_s)
