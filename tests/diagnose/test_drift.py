@@ -15,7 +15,7 @@ from contextlib import contextmanager
 import numpy as np
 import pytest
 
-from feedlog.diagnose.drift import Interpolated, drift_residuals, fit_drift, ramp_share
+from feedlog.diagnose.drift import Interpolated, approach_share, drift_residuals, fit_drift, ramp_share
 from feedlog.diagnose.engine import DiagnoseConfig, diagnose
 from feedlog.diagnose.summary import summary_lines, to_json
 from feedlog.profile import load_profile
@@ -147,3 +147,94 @@ def test_a_drift_is_fitted_from_residuals_that_hide_it():
     assert drift.before == pytest.approx(1.0, rel=0.01) and drift.after == pytest.approx(0.7, rel=0.01)
     assert drift.t0_s == pytest.approx(3.0, abs=0.1) and drift.t1_s == pytest.approx(7.0, abs=0.1)
     assert np.abs(drift_residuals(model, drift, start, end)).max() < 1e-3
+
+
+def approach(t0: float, tau: float, a: float, b: float):
+    """The dial at time t (s): a until t0, then exponentially towards b with time constant tau."""
+    return lambda t: b + (a - b) * np.exp(-np.maximum(np.asarray(t, float) - t0, 0.0) / tau)
+
+
+TO_END = (2.5, 7.5, 1.0, 0.75)   # still falling when motion ends (6.8 s): never levels off in the recording
+
+
+def test_a_drift_that_runs_to_the_end_of_the_recording_is_a_drift_that_did_not_level_off():
+    """The feed dial falls from 1.0 at 2.5 s towards 0.75 at 7.5 s, but motion ends first: found as a
+    drift still under way at the end (its end value the dial's at the end of motion), not as a step."""
+    recs = cached("to_end", lambda: drifted("to_end", PROGRAM, drift=TO_END, seed=7))
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    (change,) = dx.changes
+    t0, t1, a, b = TO_END
+    assert change.shape == "drift" and change.open_end and not change.open_start
+    assert change.until_s == pytest.approx(change.motion_end_s, abs=0.25)      # it runs to the end
+    true_end = linear(*TO_END)(change.until_s)
+    assert change.before == pytest.approx(a, rel=0.05) and change.after == pytest.approx(true_end, rel=0.05)
+    assert change.at_s == pytest.approx(t0, abs=0.5)
+    assert change.rate_per_min == pytest.approx(60 * (b - a) / (t1 - t0), rel=0.15)
+    assert change.error_change_pct < 0.1 * change.error_single_pct
+    assert "did not level off within the recording" in change.text()
+    assert to_json(dx)["changes"][0]["open_end"] is True
+
+
+WARM = (1.0, 2.0, 1.0, 0.8)   # the feed dial from 1.0 at 1 s towards 0.8, time constant 2 s (95 % at 7 s)
+
+
+def test_a_machine_that_warms_up_exponentially_is_an_approach_not_a_line():
+    recs = cached("warm", lambda: drifted("warm", PROGRAM, dial=approach(*WARM), seed=11))
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    (change,) = dx.changes
+    t0, tau, a, b = WARM
+    assert change.parameter == "sim.feed_override.override" and change.shape == "approach"
+    assert change.before == pytest.approx(a, rel=0.05) and change.after == pytest.approx(b, rel=0.05)
+    assert change.at_s == pytest.approx(t0, abs=0.5) and change.tau_s == pytest.approx(tau, rel=0.2)
+    assert change.until_s == pytest.approx(change.at_s + 3.0 * change.tau_s, rel=0.01)
+    assert change.error_change_pct < 0.1 * change.error_single_pct
+    assert "sim.feed_override.override" not in {f.parameter for f in dx.findings}
+    text = change.text()
+    assert f"approaches {change.after:.4g} from {change.before:.4g}" in text and "time constant" in text
+    assert "reaches 95 % at" in text
+    assert to_json(dx)["changes"][0]["tau_s"] == pytest.approx(change.tau_s)
+
+
+def test_an_unchanged_machine_names_no_change():
+    recs = cached("still", lambda: drifted("still", PROGRAM, dial=lambda t: np.ones_like(np.asarray(t, float)),
+                                           seed=5))
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    assert dx.changes == [] and dx.findings == []
+
+
+def test_an_exponential_approach_is_fitted_from_residuals_that_hide_it():
+    """The fit alone: 30 segments of 0.4 s whose duration goes as 1/value, the value 1.0 until 2 s,
+    then towards 0.75 with a time constant of 3 s. The approach is found; the best line leaves 20 times
+    more."""
+    start = np.arange(30) * 0.4
+    end = start + 0.4
+    true = 1.0 + (0.75 - 1.0) * approach_share(start, end, np.array([2.0]), np.array([3.0]))[0]
+    measured = 0.4 / true
+
+    model = Interpolated(lambda v: 0.4 / v - measured, "log", 0.05, 2.0)
+    model.add(np.geomspace(0.05, 2.0, 17))
+    model.densify(0.95, 0.7)
+    use = np.ones(30, bool)
+    found = fit_drift(model, start, end, use, (0.95, 0.8), kind="approach")
+    assert found.shape == "approach"
+    assert found.before == pytest.approx(1.0, rel=0.01) and found.after == pytest.approx(0.75, rel=0.01)
+    assert found.t0_s == pytest.approx(2.0, abs=0.1) and found.tau_s == pytest.approx(3.0, rel=0.05)
+    line = fit_drift(model, start, end, use, (0.95, 0.8))
+    assert line.loss > 20 * found.loss
+
+
+def test_a_line_held_to_the_recordings_end_is_fitted_from_residuals_that_hide_it():
+    """The value 1.0 until 3 s, then falling at the rate that would reach 0.7 at 12 s, in a recording
+    that ends at 8 s: the line with its end held at the recording's end finds the start and the value
+    at the end (0.8667)."""
+    start = np.arange(20) * 0.4
+    end = start + 0.4
+    true = 1.0 + (0.7 - 1.0) * ramp_share(start, end, np.array([3.0]), np.array([12.0]))[0]
+    measured = 0.4 / true
+
+    model = Interpolated(lambda v: 0.4 / v - measured, "log", 0.05, 2.0)
+    model.add(np.geomspace(0.05, 2.0, 17))
+    model.densify(0.95, 0.85)
+    drift = fit_drift(model, start, end, np.ones(20, bool), (0.95, 0.85), fixed="t1")
+    assert drift.t1_s == pytest.approx(8.0) and drift.t0_s == pytest.approx(3.0, abs=0.1)
+    assert drift.before == pytest.approx(1.0, rel=0.01) and drift.after == pytest.approx(1.0 - 0.3 * 5 / 9, rel=0.01)
