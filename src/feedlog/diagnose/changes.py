@@ -98,11 +98,11 @@ class Change:
                     f"{self.before:.4g} after {self.at_s:.2f} s{where}{began} with time constant {self.tau_s:.3g} s "
                     f"(reaches 95 % at {self.until_s:.2f} s{late}){tail}").replace("  ", " ")
         if self.shape == "drift":
-            end = (f"{self.after:.4g} at {self.until_s:.2f} s, still drifting when motion ended (it did not level "
-                   f"off within the recording)" if self.open_end else f"{self.after:.4g} at {self.until_s:.2f} s")
+            still = (", still drifting when motion ended (it did not level off within the recording)"
+                     if self.open_end else "")
             return (f"drift during {self.recording}: {self.parameter} drifts from {self.before:.4g} at "
-                    f"{self.at_s:.2f} s{where}{began} to {end} "
-                    f"({self.rate_per_min:+.4g} {self.unit} per minute){tail}").replace("  ", " ")
+                    f"{self.at_s:.2f} s{where}{began} to {self.after:.4g} at {self.until_s:.2f} s "
+                    f"({self.rate_per_min:+.4g} {self.unit} per minute){still}{tail}").replace("  ", " ")
         return (f"change during {self.recording}: {self.parameter} {self.before:.4g} -> {self.after:.4g} "
                 f"{self.unit} at {self.at_s:.2f} s{where}, not one value ({self.single_value:.4g}): "
                 f"timing error {self.error_single_pct:.2f} % -> {self.error_change_pct:.2f} %").replace("  ", " ")
