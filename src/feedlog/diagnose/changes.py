@@ -319,9 +319,12 @@ def _gradual(one: _OneRecording, grid: list[float], sq: np.ndarray, even_fold: F
     step, single, floor = np.zeros(2), np.zeros(2), np.zeros(2)
     for j, (fit, (k, first, step[j], single[j], floor[j])) in enumerate(((even, even_fold), (~even, odd_fold))):
         model.densify(*first)
-        model.densify(first[0], first[1] - (first[0] - first[1]))   # an approach's end lies beyond the step's
         for kind, fixed in SHAPES:
             drift = fit_drift(model, start_s, end_s, fit, first, kind=kind, fixed=fixed)
+            if drift is not None and model.at_edge(drift.after):   # an approach's end may lie beyond the step's:
+                beyond = model.from_x(2.0 * model.to_x(first[1]) - model.to_x(first[0]))   # simulate further out
+                model.densify(first[0], float(beyond))
+                drift = fit_drift(model, start_s, end_s, fit, first, kind=kind, fixed=fixed)
             if drift is None or inside(drift, start_s, end_s) < MIN_SIDE:
                 held[kind, fixed][j] = np.inf
                 continue
@@ -339,8 +342,9 @@ def _gradual(one: _OneRecording, grid: list[float], sq: np.ndarray, even_fold: F
     best_line = np.min([held[s] for s in lines], axis=0)            # per fold, the better line there
     approach = min((s for s in SHAPES if s[0] == "approach"), key=lambda s: held[s].sum())
     chosen = line if beats_step(line) else None
-    over_line = best_line.sum() - held[approach].sum()
-    if beats_step(approach) and np.all(held[approach] <= best_line) and over_line >= min_gain * (best_line - floor).sum():
+    if beats_step(approach) and (not np.isfinite(best_line).all() or (   # no line spans MIN_SIDE segments, or
+            np.all(held[approach] <= best_line)
+            and best_line.sum() - held[approach].sum() >= min_gain * (best_line - floor).sum())):
         chosen = approach
     if chosen is None:
         return None

@@ -33,7 +33,7 @@ MAX_DENSE = 40         # at most this many dense values per range (the lattice c
 MAX_TIMES = 24         # candidate drift starts and ends per recording (the segments' ends, thinned)
 SUBSAMPLES = 9         # points per segment at which the drift's value is averaged
 GN_ITER = 10
-REFINE_FROM = 3      # Nelder-Mead refines the best this many pairs
+REFINE_FROM = 3      # Nelder-Mead refines the best this many pairs (one where a time is held: three numbers)
 TAU_RANGE = (0.02, 2.0)  # an approach's time constants tried: these shares of the recording's motion time
 TAUS = 12            # ... this many, log-spaced
 REACH = float(np.log(20.0))  # an approach is 95 % of the way after this many time constants (3.0)
@@ -80,13 +80,19 @@ class Interpolated:
     def densify(self, lo: float, hi: float) -> None:
         """Simulated values from lo to hi, padded by PAD of their span each side, on a fixed lattice
         (DENSE_STEP apart in the scale, doubled until at most MAX_DENSE fit), so a second call reuses
-        the first one's simulations."""
+        the first one's simulations (lo and hi within the hypothesis' bounds)."""
+        lo, hi = (float(np.clip(v, self.lower, self.upper)) for v in (lo, hi))
         a, b = float(self.to_x(min(lo, hi))), float(self.to_x(max(lo, hi)))
         step = DENSE_STEP if self.log else DENSE_STEP * (self.upper - self.lower) / 16.0
         a, b = a - PAD * (b - a) - step, b + PAD * (b - a) + step
         while (b - a) / step > MAX_DENSE:
             step *= 2.0
         self.add(self.from_x(step * np.arange(np.floor(a / step), np.ceil(b / step) + 1)))
+
+    def at_edge(self, v: float) -> bool:
+        """Whether `v` is at the end of the values simulated (a fit held there wants more of them)."""
+        x = float(self.to_x(v))
+        return bool(self._x) and (x <= min(self._x) + 1e-9 or x >= max(self._x) - 1e-9)
 
     def table(self) -> tuple[np.ndarray, np.ndarray]:
         order = np.argsort(self._x)
@@ -219,7 +225,7 @@ def fit_drift(model: Interpolated, start_s: np.ndarray, end_s: np.ndarray, use: 
         return float((ee * ee * w).sum())
 
     best_x, best_loss = None, np.inf
-    for i in np.argsort(loss)[:REFINE_FROM]:   # Nelder-Mead from the best few pairs
+    for i in np.argsort(loss)[:1 if fixed else REFINE_FROM]:   # Nelder-Mead from the best few pairs
         x0 = np.array([a[i], b[i], *shape.to_vector(p[i], q[i])])
         res = minimize(objective, x0, method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-12, "maxiter": 600})
         x, f = (res.x, float(res.fun)) if res.fun < loss[i] else (x0, float(loss[i]))
