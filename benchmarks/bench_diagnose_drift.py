@@ -1,6 +1,7 @@
 """A machine that warms up: seeded simulated sessions whose feed dial drifts, diagnosed with the shipped
 profile. Prints, per session, the true drift, what diagnose found (a drift, a step or nothing), both
-values, the times and the timing error with one value and with the change.
+values, the times (an approach: its start, time constant and 95 % time) and the timing error with one
+value and with the change.
 
 Sessions (seeded): linear drifts from 1.0 to 0.70-0.92 starting 0.5-4 s after motion start and lasting
 2-9 s; an exponential warm-up (the dial from 1.0 towards 0.75-0.9 with a time constant of 2-6 s, the
@@ -71,8 +72,13 @@ def main() -> None:
         if not dx.changes:
             print(f"| {program} | {truth} | nothing{' (named: ' + named + ')' if named else ''} | - | - | - | - | {wall:.1f} s |")
         for c in dx.changes:
-            span = f"{c.at_s:.2f} -> {c.until_s:.2f}" if c.shape == "drift" else f"{c.at_s:.2f}"
-            print(f"| {program} | {truth} | {c.shape} | {c.before:.4f} -> {c.after:.4f} | {span} | {c.single_value:.4f} | "
+            span = f"{c.at_s:.2f}"
+            if c.shape == "drift":
+                span = f"{c.at_s:.2f} -> {c.until_s:.2f}"
+            elif c.shape == "approach":
+                span = f"{c.at_s:.2f}, tau {c.tau_s:.2f} (95 % at {c.until_s:.2f})"
+            found = c.shape + (" (not levelled off)" if c.open_end else "")
+            print(f"| {program} | {truth} | {found} | {c.before:.4f} -> {c.after:.4f} | {span} | {c.single_value:.4f} | "
                   f"{c.error_single_pct:.2f} % -> {c.error_change_pct:.2f} % | {wall:.1f} s |", flush=True)
 
 

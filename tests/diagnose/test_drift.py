@@ -15,7 +15,7 @@ from contextlib import contextmanager
 import numpy as np
 import pytest
 
-from feedlog.diagnose.drift import Interpolated, drift_residuals, fit_drift, ramp_share
+from feedlog.diagnose.drift import Interpolated, approach_share, drift_residuals, fit_drift, ramp_share
 from feedlog.diagnose.engine import DiagnoseConfig, diagnose
 from feedlog.diagnose.summary import summary_lines, to_json
 from feedlog.profile import load_profile
@@ -80,14 +80,20 @@ def cached(name, make):
     return _CACHE[name]
 
 
+def one_change(name, make, shape):
+    """The diagnosis of the recordings `make` gives (cached as `name`) and its one change, a change of
+    the feed dial of `shape`."""
+    dx = diagnose(cached(name, make), "linuxcnc-xyz", config=FAST)
+    (change,) = dx.changes
+    assert change.parameter == "sim.feed_override.override" and change.shape == shape
+    return dx, change
+
+
 def test_a_machine_that_warms_up_is_a_drift_not_a_step_nor_one_value(tmp_path):
     from feedlog.diagnose.write import write_outputs
 
-    recs = cached("drift", lambda: drifted("drift", PROGRAM))
-    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
-    (change,) = dx.changes
+    dx, change = one_change("drift", lambda: drifted("drift", PROGRAM), "drift")
     t0, t1, a, b = DRIFT
-    assert change.parameter == "sim.feed_override.override" and change.shape == "drift"
     assert change.before == pytest.approx(a, rel=0.05) and change.after == pytest.approx(b, rel=0.05)
     assert change.at_s == pytest.approx(t0, abs=0.5) and change.until_s == pytest.approx(t1, abs=0.5)
     assert change.rate_per_min == pytest.approx(60 * (b - a) / (t1 - t0), rel=0.15)
@@ -132,18 +138,104 @@ def test_the_rapid_dial_turned_mid_program_is_a_change_of_the_rapid_dial():
     assert {f.parameter for f in dx.findings} & {"sim.rapid_override.override", "sim.feed_override.override"} == set()
 
 
+def hidden_in_durations(n: int, seconds: float, share, a: float, b: float, dense: tuple[float, float]):
+    """n segments of `seconds` each whose duration goes as 1/value, the value going from a to b by the
+    progress `share` (per segment): (start, end, the interpolated model of their residuals)."""
+    start = np.arange(n) * seconds
+    end = start + seconds
+    measured = seconds / (a + (b - a) * share(start, end))
+    model = Interpolated(lambda v: seconds / v - measured, "log", 0.05, 2.0)
+    model.add(np.geomspace(0.05, 2.0, 17))
+    model.densify(*dense)
+    return start, end, model
+
+
 def test_a_drift_is_fitted_from_residuals_that_hide_it():
     """The drift fit alone, on residuals made from a known drift: 20 segments of 0.5 s whose duration
     goes as 1/value, the value 1.0 until 3 s, then linear to 0.7 at 7 s."""
-    start = np.arange(20) * 0.5
-    end = start + 0.5
-    true = 1.0 + (0.7 - 1.0) * ramp_share(start, end, np.array([3.0]), np.array([7.0]))[0]
-    measured = 0.5 / true
-
-    model = Interpolated(lambda v: 0.5 / v - measured, "log", 0.05, 2.0)
-    model.add(np.geomspace(0.05, 2.0, 17))
-    model.densify(0.95, 0.75)
+    start, end, model = hidden_in_durations(
+        20, 0.5, lambda s, e: ramp_share(s, e, np.array([3.0]), np.array([7.0]))[0], 1.0, 0.7, (0.95, 0.75))
     drift = fit_drift(model, start, end, np.ones(20, bool), (0.95, 0.75))
     assert drift.before == pytest.approx(1.0, rel=0.01) and drift.after == pytest.approx(0.7, rel=0.01)
     assert drift.t0_s == pytest.approx(3.0, abs=0.1) and drift.t1_s == pytest.approx(7.0, abs=0.1)
     assert np.abs(drift_residuals(model, drift, start, end)).max() < 1e-3
+
+
+def approach(t0: float, tau: float, a: float, b: float):
+    """The dial at time t (s): a until t0, then exponentially towards b with time constant tau."""
+    return lambda t: b + (a - b) * np.exp(-np.maximum(np.asarray(t, float) - t0, 0.0) / tau)
+
+
+TO_END = (2.5, 7.5, 1.0, 0.75)   # still falling when motion ends (6.8 s): never levels off in the recording
+
+
+def test_a_drift_that_runs_to_the_end_of_the_recording_is_a_drift_that_did_not_level_off():
+    """The feed dial falls from 1.0 at 2.5 s towards 0.75 at 7.5 s, but motion ends first: found as a
+    drift still under way at the end (its end value the dial's at the end of motion), not as a step.
+    Values within 5 %; the start within 0.5 s (under one long segment of this program), the end
+    within 0.25 s of the end of motion (inside its last, short segment)."""
+    dx, change = one_change("to_end", lambda: drifted("to_end", PROGRAM, drift=TO_END, seed=7), "drift")
+    t0, t1, a, b = TO_END
+    assert change.open_end and not change.open_start
+    assert change.until_s == pytest.approx(change.motion_end_s, abs=0.25)      # it runs to the end
+    true_end = linear(*TO_END)(change.until_s)
+    assert change.before == pytest.approx(a, rel=0.05) and change.after == pytest.approx(true_end, rel=0.05)
+    assert change.at_s == pytest.approx(t0, abs=0.5)
+    assert change.rate_per_min == pytest.approx(60 * (b - a) / (t1 - t0), rel=0.15)
+    assert change.error_change_pct < 0.1 * change.error_single_pct
+    assert "did not level off within the recording" in change.text()
+    assert to_json(dx)["changes"][0]["open_end"] is True
+
+
+WARM = (1.0, 2.0, 1.0, 0.8)   # the feed dial from 1.0 at 1 s towards 0.8, time constant 2 s (95 % at 7 s)
+
+
+def test_a_machine_that_warms_up_exponentially_is_an_approach_not_a_line():
+    """Found as an approach, both values within 5 %. Times: the start within 0.5 s (a long segment of
+    this program lasts 0.55-0.65 s and the start trades against the start value on the few segments
+    before it), the time constant within 20 % (it rests on the five long segments of the first
+    3 tau; the dial is applied per block at the block's middle, the fit averages over segments)."""
+    dx, change = one_change("warm", lambda: drifted("warm", PROGRAM, dial=approach(*WARM), seed=11), "approach")
+    t0, tau, a, b = WARM
+    assert change.before == pytest.approx(a, rel=0.05) and change.after == pytest.approx(b, rel=0.05)
+    assert change.at_s == pytest.approx(t0, abs=0.5) and change.tau_s == pytest.approx(tau, rel=0.2)
+    assert change.until_s == pytest.approx(change.at_s + 3.0 * change.tau_s, rel=0.01)
+    assert change.error_change_pct < 0.1 * change.error_single_pct
+    assert "sim.feed_override.override" not in {f.parameter for f in dx.findings}
+    text = change.text()
+    assert f"approaches {change.after:.4g} from {change.before:.4g}" in text and "time constant" in text
+    assert "reaches 95 % at" in text
+    assert to_json(dx)["changes"][0]["tau_s"] == pytest.approx(change.tau_s)
+
+
+def test_an_unchanged_machine_names_no_change():
+    recs = cached("still", lambda: drifted("still", PROGRAM, dial=lambda t: np.ones_like(np.asarray(t, float)),
+                                           seed=5))
+    dx = diagnose(recs, "linuxcnc-xyz", config=FAST)
+    assert dx.changes == [] and dx.findings == []
+
+
+def test_an_exponential_approach_is_fitted_from_residuals_that_hide_it():
+    """The fit alone: 30 segments of 0.4 s whose duration goes as 1/value, the value 1.0 until 2 s,
+    then towards 0.75 with a time constant of 3 s. The approach is found; the best line leaves 20 times
+    more."""
+    start, end, model = hidden_in_durations(
+        30, 0.4, lambda s, e: approach_share(s, e, np.array([2.0]), np.array([3.0]))[0], 1.0, 0.75, (0.95, 0.7))
+    use = np.ones(30, bool)
+    found = fit_drift(model, start, end, use, (0.95, 0.8), kind="approach")
+    assert found.shape == "approach"
+    assert found.before == pytest.approx(1.0, rel=0.01) and found.after == pytest.approx(0.75, rel=0.01)
+    assert found.t0_s == pytest.approx(2.0, abs=0.1) and found.tau_s == pytest.approx(3.0, rel=0.05)
+    line = fit_drift(model, start, end, use, (0.95, 0.8))
+    assert line.loss > 20 * found.loss
+
+
+def test_a_line_held_to_the_recordings_end_is_fitted_from_residuals_that_hide_it():
+    """The value 1.0 until 3 s, then falling at the rate that would reach 0.7 at 12 s, in a recording
+    that ends at 8 s: the line with its end held at the recording's end finds the start and the value
+    at the end (0.8667)."""
+    start, end, model = hidden_in_durations(
+        20, 0.4, lambda s, e: ramp_share(s, e, np.array([3.0]), np.array([12.0]))[0], 1.0, 0.7, (0.95, 0.85))
+    drift = fit_drift(model, start, end, np.ones(20, bool), (0.95, 0.85), fixed="t1")
+    assert drift.t1_s == pytest.approx(8.0) and drift.t0_s == pytest.approx(3.0, abs=0.1)
+    assert drift.before == pytest.approx(1.0, rel=0.01) and drift.after == pytest.approx(1.0 - 0.3 * 5 / 9, rel=0.01)

@@ -17,11 +17,15 @@ the program line), from what, to what, and what one value would have been. The a
 same parameter is not reported, and the extended profile keeps the profile's value for it.
 
 A gradual change (a machine that warms up) is tried beside the step where the step's held-out gain
-reaches `DRIFT_SCREEN` of `min_gain`: a drift (`drift.py`: one value until t0, linear to another at
-t1) fitted both ways round (even segments -> odd, odd -> even) must span MIN_SIDE whole segments and
-remove `min_gain` of what the step leaves above the noise floor over both folds (and `min_gain` of what
-one value leaves); it is then reported
-as a drift (`shape`, `until_s`, `rate_per_min`) under the same effect and two-segment rules.
+reaches `DRIFT_SCREEN` of `min_gain`: the drifts of `SHAPES` (`drift.py`: one value until t0, linear
+to another at t1, t1 possibly the recording's end or t0 its start; or an exponential approach with
+time constant tau) are fitted both ways round (even segments -> odd, odd -> even) and must span
+MIN_SIDE whole segments. The line must remove `min_gain` of what the step leaves above the noise floor
+over both folds (and `min_gain` of what one value leaves); the approach must too, and must beat the
+line (no worse on either fold, `min_gain` of what the line leaves removed over both). The one chosen
+is reported as a drift (`shape` "drift": `until_s`, `rate_per_min`; "approach": `tau_s`, `until_s` the
+95 % time; both: `open_end` where it had not levelled off when motion ended, `open_start` where it was
+under way when motion started) under the same effect and two-segment rules.
 """
 
 from __future__ import annotations
@@ -58,8 +62,13 @@ class Change:
     error_change_pct: float      # ... with the change
     held_out_gain: float         # share of the held-out loss (odd segments) removed against one value
     single_value: float          # the one value the whole session would be averaged into
-    shape: str = "step"          # "step": a dial turned at at_s; "drift": linear from at_s to until_s
+    shape: str = "step"          # "step": a dial turned at at_s; "drift": linear from at_s to until_s;
+    #                              "approach": exponential from at_s with time constant tau_s (95 % at until_s)
     until_s: float | None = None  # a drift's end (measured time from motion start)
+    tau_s: float | None = None   # an approach's time constant
+    motion_end_s: float | None = None  # the recording's motion ends (measured time from motion start)
+    open_start: bool = False     # a drift under way when motion started (no whole segment before at_s)
+    open_end: bool = False       # ... not levelled off when it ended (no whole segment after until_s)
 
     @property
     def rate_per_min(self) -> float | None:
@@ -74,15 +83,26 @@ class Change:
                 "rate_per_min": self.rate_per_min, "between_s": list(self.between_s),
                 "line": self.line, "segment": self.segment, "error_single_pct": self.error_single_pct,
                 "error_change_pct": self.error_change_pct, "held_out_gain": self.held_out_gain,
-                "single_value": self.single_value}
+                "single_value": self.single_value, "tau_s": self.tau_s, "open_start": self.open_start,
+                "open_end": self.open_end}
 
     def text(self) -> str:
         where = f" (program line {self.line})" if self.line is not None else ""
+        tail = (f", not one value ({self.single_value:.4g}): timing error {self.error_single_pct:.2f} % -> "
+                f"{self.error_change_pct:.2f} %")
+        began = " (under way when motion started; it may have begun before)" if self.open_start else ""
+        if self.shape == "approach":
+            late = (f", after the recording's motion ended at {self.motion_end_s:.2f} s: it did not level off "
+                    f"within the recording" if self.open_end and self.motion_end_s is not None else "")
+            return (f"drift during {self.recording}: {self.parameter} approaches {self.after:.4g} from "
+                    f"{self.before:.4g} after {self.at_s:.2f} s{where}{began} with time constant {self.tau_s:.3g} s "
+                    f"(reaches 95 % at {self.until_s:.2f} s{late}){tail}").replace("  ", " ")
         if self.shape == "drift":
+            still = (", still drifting when motion ended (it did not level off within the recording)"
+                     if self.open_end else "")
             return (f"drift during {self.recording}: {self.parameter} drifts from {self.before:.4g} at "
-                    f"{self.at_s:.2f} s{where} to {self.after:.4g} at {self.until_s:.2f} s "
-                    f"({self.rate_per_min:+.4g} {self.unit} per minute), not one value ({self.single_value:.4g}): "
-                    f"timing error {self.error_single_pct:.2f} % -> {self.error_change_pct:.2f} %").replace("  ", " ")
+                    f"{self.at_s:.2f} s{where}{began} to {self.after:.4g} at {self.until_s:.2f} s "
+                    f"({self.rate_per_min:+.4g} {self.unit} per minute){still}{tail}").replace("  ", " ")
         return (f"change during {self.recording}: {self.parameter} {self.before:.4g} -> {self.after:.4g} "
                 f"{self.unit} at {self.at_s:.2f} s{where}, not one value ({self.single_value:.4g}): "
                 f"timing error {self.error_single_pct:.2f} % -> {self.error_change_pct:.2f} %").replace("  ", " ")
@@ -218,8 +238,8 @@ def _judge(one: _OneRecording, grid: list[float], sq: np.ndarray, *, min_gain: f
         found = _gradual(one, grid, sq, (k_e, (a_e, b_e), change_odd, single_odd, floor_odd), min_gain=min_gain)
         change = None
         if found is not None:
-            model, drift, drift_gain = found
-            change = _drift_change(one, grid, sq, (model, drift), drift_gain, min_effect_pct=min_effect_pct)
+            model, shape, drift, drift_gain = found
+            change = _drift_change(one, grid, sq, (model, shape, drift), drift_gain, min_effect_pct=min_effect_pct)
         if change is not None:
             return change
     if gain < min_gain:
@@ -254,6 +274,7 @@ def _judge(one: _OneRecording, grid: list[float], sq: np.ndarray, *, min_gain: f
 
 
 Fold = tuple[int, tuple[float, float], float, float, float]   # boundary, (before, after), step, single, floor
+SHAPES = (("line", None), ("line", "t1"), ("line", "t0"), ("approach", None), ("approach", "t0"))   # drift.fit_drift
 
 
 def _fold(one: _OneRecording, grid: list[float], sq: np.ndarray, fit: np.ndarray) -> Fold | None:
@@ -274,12 +295,16 @@ def _fold(one: _OneRecording, grid: list[float], sq: np.ndarray, fit: np.ndarray
 
 
 def _gradual(one: _OneRecording, grid: list[float], sq: np.ndarray, even_fold: Fold, *,
-             min_gain: float) -> tuple[Interpolated, Drift, float] | None:
+             min_gain: float) -> tuple[Interpolated, tuple[str, str | None], Drift, float] | None:
     """A drift judged on both folds (fitted on the even segments and scored on the odd ones, and the
-    other way round; each fold's step boundary left out of both scores): it must span at least MIN_SIDE
-    whole segments and remove at least `min_gain` of what the step leaves above the noise floor over
-    both folds (the penalty its fourth parameter pays). Returns (the model, the drift fitted on the even
-    segments, its held-out gain against one value over both folds), or None: the step stands."""
+    other way round; each fold's step boundary left out of both scores). Each shape of `SHAPES` is
+    fitted on each fold and must span at least MIN_SIDE whole segments. The line (free, or running to
+    the recording's end, or from its start: the one with the least held-out loss) must remove at least
+    `min_gain` of what the step leaves above the noise floor over both folds (the penalty its fourth
+    parameter pays); the approach (free, or from the start) must do the same, and beat the line: no
+    worse on either fold, and `min_gain` of what the better line of each fold leaves above the floor
+    removed over both. Returns (the model, the shape, the drift fitted on the even segments,
+    its held-out gain against one value over both folds), or None: the step stands."""
     seg = one.scorer.segments[one.case]
     rows = np.arange(len(seg))
     start_s, end_s = seg.end_s - seg.measured_s, seg.end_s
@@ -289,36 +314,57 @@ def _gradual(one: _OneRecording, grid: list[float], sq: np.ndarray, even_fold: F
         return None
     model = Interpolated(one.residual, one.hyp.scale, one.hyp.lower, one.hyp.upper)
     model.add(grid)
-    step_total = single_total = drift_total = floor_total = 0.0
-    kept = None
-    for fit, (k, first, step_loss, single_loss, floor) in ((even, even_fold), (~even, odd_fold)):
+    held = {shape: np.zeros(2) for shape in SHAPES}    # held-out loss per fold
+    kept: dict = {}
+    step, single, floor = np.zeros(2), np.zeros(2), np.zeros(2)
+    for j, (fit, (k, first, step[j], single[j], floor[j])) in enumerate(((even, even_fold), (~even, odd_fold))):
         model.densify(*first)
-        drift = fit_drift(model, start_s, end_s, fit, first)
-        if drift is None or inside(drift, start_s, end_s) < MIN_SIDE:
-            return None
-        e = drift_residuals(model, drift, start_s, end_s)
-        drift_total += float(np.square(e)[~fit & (rows != k)].sum())
-        step_total, single_total, floor_total = step_total + step_loss, single_total + single_loss, floor_total + floor
-        kept = kept or drift
-    left = step_total - floor_total
-    if left <= 0 or step_total - drift_total < min_gain * left or single_total <= floor_total:
+        for kind, fixed in SHAPES:
+            drift = fit_drift(model, start_s, end_s, fit, first, kind=kind, fixed=fixed)
+            if drift is not None and model.at_edge(drift.after):   # an approach's end may lie beyond the step's:
+                beyond = model.from_x(2.0 * model.to_x(first[1]) - model.to_x(first[0]))   # simulate further out
+                model.densify(first[0], float(beyond))
+                drift = fit_drift(model, start_s, end_s, fit, first, kind=kind, fixed=fixed)
+            if drift is None or inside(drift, start_s, end_s) < MIN_SIDE:
+                held[kind, fixed][j] = np.inf
+                continue
+            held[kind, fixed][j] = float(np.square(drift_residuals(model, drift, start_s, end_s))[~fit & (rows != k)].sum())
+            kept.setdefault((kind, fixed), drift)
+    left = step.sum() - floor.sum()
+    if left <= 0 or single.sum() <= floor.sum():
         return None
-    gain = (single_total - drift_total) / (single_total - floor_total)
-    return (model, kept, gain) if gain >= min_gain else None
+
+    def beats_step(shape) -> bool:
+        return bool(np.isfinite(held[shape]).all() and step.sum() - held[shape].sum() >= min_gain * left)
+
+    lines = [s for s in SHAPES if s[0] == "line"]
+    line = min(lines, key=lambda s: held[s].sum())
+    best_line = np.min([held[s] for s in lines], axis=0)            # per fold, the better line there
+    approach = min((s for s in SHAPES if s[0] == "approach"), key=lambda s: held[s].sum())
+    chosen = line if beats_step(line) else None
+    if beats_step(approach) and (not np.isfinite(best_line).all() or (   # no line spans MIN_SIDE segments, or
+            np.all(held[approach] <= best_line)
+            and best_line.sum() - held[approach].sum() >= min_gain * (best_line - floor).sum())):
+        chosen = approach
+    if chosen is None:
+        return None
+    gain = (single.sum() - held[chosen].sum()) / (single.sum() - floor.sum())
+    return (model, chosen, kept[chosen], gain) if gain >= min_gain else None
 
 
-def _drift_change(one: _OneRecording, grid: list[float], sq: np.ndarray, found: tuple[Interpolated, Drift],
-                  gain: float, *, min_effect_pct: float) -> Change | None:
+def _drift_change(one: _OneRecording, grid: list[float], sq: np.ndarray,
+                  found: tuple[Interpolated, tuple[str, str | None], Drift], gain: float, *,
+                  min_effect_pct: float) -> Change | None:
     """The drift refitted on all segments, reported if it takes the recording's timing error down by
     `min_effect_pct` points and both of its values rest on MIN_SIDE segments they move."""
     scorer, hyp, i = one.scorer, one.hyp, one.case
-    model, held = found
+    model, (kind, fixed), held = found
     case, seg = scorer.cases[i], scorer.segments[i]
     n = len(seg)
     rows = np.arange(n)
     start_s, end_s = seg.end_s - seg.measured_s, seg.end_s
     model.densify(held.before, held.after)
-    drift = fit_drift(model, start_s, end_s, np.ones(n, bool), (held.before, held.after))
+    drift = fit_drift(model, start_s, end_s, np.ones(n, bool), (held.before, held.after), kind=kind, fixed=fixed)
     if drift is None:
         return None
     v0, l0 = one.best(rows, grid, sq)
@@ -331,15 +377,18 @@ def _drift_change(one: _OneRecording, grid: list[float], sq: np.ndarray, found: 
     if r1 is None or r2 is None:
         return None
     moved = np.abs(r1 - r2) * scorer.weights[i] > SENSITIVE * case.segment_sigma_s
-    mid = 0.5 * (drift.t0_s + drift.t1_s)
+    mid = 0.5 * (drift.t0_s + min(drift.t1_s, float(end_s[-1])))
     if moved[end_s <= mid].sum() < MIN_SIDE or moved[start_s >= mid].sum() < MIN_SIDE:
         return None
     k = int(min(np.searchsorted(end_s, drift.t0_s, side="right"), n - 1))   # the segment the drift starts in
     return Change(recording=case.name, parameter=hyp.key, unit=hyp.unit, before=drift.before, after=drift.after,
                   at_s=drift.t0_s, between_s=(drift.t0_s, drift.t1_s), line=_line_of(case, int(seg.anchors[k])),
                   segment=k, error_single_pct=err_single, error_change_pct=err_change,
-                  held_out_gain=float(gain),
-                  single_value=v0, shape="drift", until_s=drift.t1_s)
+                  held_out_gain=float(gain), single_value=v0,
+                  shape="drift" if drift.shape == "line" else "approach", until_s=drift.t1_s, tau_s=drift.tau_s,
+                  motion_end_s=float(end_s[-1]),
+                  open_start=bool(drift.t0_s < float(end_s[0])),          # no whole segment before it
+                  open_end=bool(drift.t1_s > float(start_s[-1])))          # ... nor after it
 
 
 def _line_of(case: Any, block: int) -> int | None:

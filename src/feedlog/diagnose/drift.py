@@ -1,5 +1,8 @@
 """A gradual change during a session (a machine that warms up): a parameter that holds one value until
-t0, drifts linearly to another by t1, and holds that one after it.
+t0 and then moves to another, either linearly (a *line*: reaching it at t1 and holding it after) or as
+an exponential approach (from t0 towards it with time constant tau, the shape thermal growth takes).
+A line may run to the recording's end (t1 held there: it had not levelled off when motion ended) or
+from its start (t0 held at 0: already under way); an approach may start at 0.
 
 The simulation runs one value per session, so a drift is modelled from the segment residuals of many
 values: each segment's weighted residual is interpolated (linearly in the hypothesis' own scale, log or
@@ -9,10 +12,13 @@ The values simulated are the grid plus a dense set (`DENSE_STEP` apart) around t
 so the interpolation error stays far below a segment's timing noise (a duration that
 goes as 1/value: 0.008 % of it midway between two values 2.5 % apart).
 
-Fitting a drift: every pair (t0 <= t1) of candidate times (the segments' ends, at most `MAX_TIMES` of
-them) gets its two values by Gauss-Newton on all pairs at once; the best pair and its values are then
-refined together (Nelder-Mead on t0, t1 and the two values). A step is the drift with t1 = t0, so a
-drift can only be preferred to a step on data the two were not fitted on (`changes._judge`).
+Fitting a drift: every pair of candidate times (a line: t0 <= t1 among the segments' ends, at most
+`MAX_TIMES` of them, or one of them held at the start or end; an approach: t0 among them and tau among
+`TAUS` log-spaced time constants in `TAU_RANGE` of the motion time) gets its two values by Gauss-Newton
+on all pairs at once; the best pairs and their values are then refined together (Nelder-Mead on the
+two values and the free times; tau in log). A step is the line with t1 = t0, and a line is close to
+an approach with a long time constant, so one shape can only be preferred to another on data they
+were not fitted on (`changes._gradual`).
 """
 
 from __future__ import annotations
@@ -27,7 +33,10 @@ MAX_DENSE = 40         # at most this many dense values per range (the lattice c
 MAX_TIMES = 24         # candidate drift starts and ends per recording (the segments' ends, thinned)
 SUBSAMPLES = 9         # points per segment at which the drift's value is averaged
 GN_ITER = 10
-REFINE_FROM = 3      # Nelder-Mead refines the best this many pairs
+REFINE_FROM = 3      # Nelder-Mead refines the best this many pairs (one where a time is held: three numbers)
+TAU_RANGE = (0.02, 2.0)  # an approach's time constants tried: these shares of the recording's motion time
+TAUS = 12            # ... this many, log-spaced
+REACH = float(np.log(20.0))  # an approach is 95 % of the way after this many time constants (3.0)
 
 
 @dataclass(frozen=True)
@@ -37,6 +46,8 @@ class Drift:
     t0_s: float        # the drift starts (measured time from motion start)
     t1_s: float        # ... and ends
     loss: float        # weighted squared residuals over the segments fitted on
+    shape: str = "line"  # "line": linear from t0 to t1; "approach": exponential from t0 (t1: 95 % of the way)
+    tau_s: float | None = None  # an approach's time constant
 
 
 class Interpolated:
@@ -69,13 +80,19 @@ class Interpolated:
     def densify(self, lo: float, hi: float) -> None:
         """Simulated values from lo to hi, padded by PAD of their span each side, on a fixed lattice
         (DENSE_STEP apart in the scale, doubled until at most MAX_DENSE fit), so a second call reuses
-        the first one's simulations."""
+        the first one's simulations (lo and hi within the hypothesis' bounds)."""
+        lo, hi = (float(np.clip(v, self.lower, self.upper)) for v in (lo, hi))
         a, b = float(self.to_x(min(lo, hi))), float(self.to_x(max(lo, hi)))
         step = DENSE_STEP if self.log else DENSE_STEP * (self.upper - self.lower) / 16.0
         a, b = a - PAD * (b - a) - step, b + PAD * (b - a) + step
         while (b - a) / step > MAX_DENSE:
             step *= 2.0
         self.add(self.from_x(step * np.arange(np.floor(a / step), np.ceil(b / step) + 1)))
+
+    def at_edge(self, v: float) -> bool:
+        """Whether `v` is at the end of the values simulated (a fit held there wants more of them)."""
+        x = float(self.to_x(v))
+        return bool(self._x) and (x <= min(self._x) + 1e-9 or x >= max(self._x) - 1e-9)
 
     def table(self) -> tuple[np.ndarray, np.ndarray]:
         order = np.argsort(self._x)
@@ -97,58 +114,126 @@ class Interpolated:
 def ramp_share(start_s: np.ndarray, end_s: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
     """The drift's progress (0 before t0, 1 after t1, linear between) averaged over each segment
     [start_s, end_s): (pairs, segments) for t0, t1 of shape (pairs,)."""
-    u = (np.arange(SUBSAMPLES) + 0.5) / SUBSAMPLES
-    t = start_s[None, :, None] + (end_s - start_s)[None, :, None] * u                  # (1, n, S)
-    t0, t1 = np.asarray(t0, float)[:, None, None], np.asarray(t1, float)[:, None, None]
+    t, t0, t1 = _instants(start_s, end_s, t0, t1)
     span = t1 - t0
     frac = np.where(span > 0, (t - t0) / np.where(span > 0, span, 1.0), (t >= t0).astype(float))
     return np.clip(frac, 0.0, 1.0).mean(axis=2)
 
 
+def approach_share(start_s: np.ndarray, end_s: np.ndarray, t0: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """An exponential approach's progress (0 before t0, then 1 - exp(-(t - t0) / tau)) averaged over
+    each segment: (pairs, segments) for t0, tau of shape (pairs,)."""
+    t, t0, tau = _instants(start_s, end_s, t0, tau)
+    return (1.0 - np.exp(-np.maximum(t - t0, 0.0) / tau)).mean(axis=2)
+
+
+def _instants(start_s, end_s, p, q):
+    """The SUBSAMPLES instants of each segment (1, n, S) and p, q shaped (pairs, 1, 1)."""
+    u = (np.arange(SUBSAMPLES) + 0.5) / SUBSAMPLES
+    t = start_s[None, :, None] + (end_s - start_s)[None, :, None] * u
+    return t, np.asarray(p, float)[:, None, None], np.asarray(q, float)[:, None, None]
+
+
+class _Shape:
+    """One way a drift's two times are chosen: `kind` "line" (t0, t1) or "approach" (t0, tau), with
+    `fixed` "t0" (the drift was under way when motion started: t0 = 0) or "t1" (a line had not ended
+    when motion ended: t1 = the end). Gives the candidate (p, q) pairs, the progress
+    per segment, the refined numbers (Nelder-Mead's vector after the two values) and the Drift."""
+
+    def __init__(self, kind: str, fixed: str | None, start_s: np.ndarray, end_s: np.ndarray) -> None:
+        if kind not in ("line", "approach") or fixed not in (None, "t0", "t1") or (kind, fixed) == ("approach", "t1"):
+            raise ValueError(f"no drift shape {kind!r} with {fixed!r} fixed")
+        self.kind, self.fixed, self.start_s, self.end_s = kind, fixed, start_s, end_s
+        self.end = float(end_s[-1])
+        self.tau_lo, self.tau_hi = TAU_RANGE[0] * self.end, TAU_RANGE[1] * self.end
+
+    def pairs(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.kind == "approach":
+            taus = np.geomspace(self.tau_lo, self.tau_hi, TAUS)
+            starts = times[:1] if self.fixed == "t0" else times[:-1]
+            return np.repeat(starts, len(taus)), np.tile(taus, len(starts))
+        if self.fixed == "t1":
+            return times, np.full(len(times), self.end)
+        if self.fixed == "t0":
+            return np.zeros(len(times)), times
+        i0, i1 = np.triu_indices(len(times))
+        return times[i0], times[i1]
+
+    def share(self, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        if self.kind == "approach":
+            return approach_share(self.start_s, self.end_s, p, q)
+        return ramp_share(self.start_s, self.end_s, p, q)
+
+    def to_vector(self, p: float, q: float) -> list[float]:
+        if self.kind == "approach":
+            return [float(np.log(q))] if self.fixed == "t0" else [p, float(np.log(q))]
+        return {"t0": [q], "t1": [p]}.get(self.fixed, [p, q])
+
+    def from_vector(self, x: np.ndarray) -> tuple[float, float]:
+        """(p, q) from Nelder-Mead's times, within the recording (and the time constants tried)."""
+        x = [float(v) for v in x]
+        if self.kind == "approach":
+            t0 = 0.0 if self.fixed == "t0" else float(np.clip(x[0], 0.0, self.end))
+            return t0, float(np.clip(np.exp(x[-1]), self.tau_lo, self.tau_hi))
+        if self.fixed == "t0":
+            return 0.0, float(np.clip(x[0], 0.0, self.end))
+        if self.fixed == "t1":
+            return float(np.clip(x[0], 0.0, self.end)), self.end
+        p, q = sorted(float(np.clip(v, 0.0, self.end)) for v in x)
+        return p, q
+
+    def drift(self, a: float, b: float, p: float, q: float, loss: float) -> Drift:
+        if self.kind == "approach":
+            return Drift(before=a, after=b, t0_s=p, t1_s=p + REACH * q, loss=loss, shape="approach", tau_s=q)
+        return Drift(before=a, after=b, t0_s=p, t1_s=q, loss=loss)
+
+
 def fit_drift(model: Interpolated, start_s: np.ndarray, end_s: np.ndarray, use: np.ndarray,
-              first: tuple[float, float]) -> Drift | None:
-    """The drift with the least loss over the segments `use`, starting from the values `first` (a
-    step's before and after)."""
+              first: tuple[float, float], *, kind: str = "line", fixed: str | None = None) -> Drift | None:
+    """The drift of shape `kind` ("line" or "approach"; a line's t0 or t1 may be `fixed` at the
+    recording's start or end) with the least loss over the segments `use`, starting from the values
+    `first` (a step's before and after)."""
     X, E = model.table()
     if len(X) < 2 or use.sum() < 4:
         return None
+    shape = _Shape(kind, fixed, start_s, end_s)
     times = np.unique(np.concatenate([[0.0], end_s]))
     if len(times) > MAX_TIMES:
         times = times[np.unique(np.linspace(0, len(times) - 1, MAX_TIMES).round().astype(int))]
-    i0, i1 = np.triu_indices(len(times))
-    t0, t1 = times[i0], times[i1]
-    share = ramp_share(start_s, end_s, t0, t1)                                           # (P, n)
+    p, q = shape.pairs(times)
+    share = shape.share(p, q)                                                            # (P, n)
     w = use.astype(float)
     vmin, vmax = float(model.from_x(X[0])), float(model.from_x(X[-1]))
     a0, b0 = float(first[0]), float(first[1])
+    starts = [(a0, b0), (a0 + 0.25 * (a0 - b0), b0 - 0.5 * (a0 - b0))]   # the step's values, and beyond them
+    if kind == "approach":                                               # an approach's end lies further out
+        starts.append((a0, b0 - 1.5 * (a0 - b0)))
     found = []
-    for start in ((a0, b0), (a0 + 0.25 * (a0 - b0), b0 - 0.5 * (a0 - b0))):   # the step's values, and beyond them
-        a, b = _gauss_newton(model, X, E, share, w, np.full(len(t0), start[0]), np.full(len(t0), start[1]))
+    for start in starts:
+        a, b = _gauss_newton(model, X, E, share, w, np.full(len(p), start[0]), np.full(len(p), start[1]))
         e, _ = model.at(a[:, None] + (b - a)[:, None] * share, X, E)
         found.append((a, b, (e * e * w).sum(1)))
     a = np.concatenate([f[0] for f in found])
     b = np.concatenate([f[1] for f in found])
     loss = np.concatenate([f[2] for f in found])
-    t0, t1 = np.tile(t0, len(found)), np.tile(t1, len(found))
-    end = float(end_s[-1])
+    p, q = np.tile(p, len(found)), np.tile(q, len(found))
 
-    def objective(p: np.ndarray) -> float:
-        p0, p1 = float(np.clip(p[2], 0.0, end)), float(np.clip(p[3], 0.0, end))
-        lo, hi = min(p0, p1), max(p0, p1)
-        sh = ramp_share(start_s, end_s, np.array([lo]), np.array([hi]))[0]
-        ee, _ = model.at(p[0] + (p[1] - p[0]) * sh, X, E)
+    def objective(x: np.ndarray) -> float:
+        pp, qq = shape.from_vector(x[2:])
+        sh = shape.share(np.array([pp]), np.array([qq]))[0]
+        ee, _ = model.at(x[0] + (x[1] - x[0]) * sh, X, E)
         return float((ee * ee * w).sum())
 
-    best_p, best_loss = None, np.inf
-    for i in np.argsort(loss)[:REFINE_FROM]:   # Nelder-Mead from the best few pairs
-        p0 = np.array([a[i], b[i], t0[i], t1[i]])
-        res = minimize(objective, p0, method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-12, "maxiter": 600})
-        p, f = (res.x, float(res.fun)) if res.fun < loss[i] else (p0, float(loss[i]))
+    best_x, best_loss = None, np.inf
+    for i in np.argsort(loss)[:1 if fixed else REFINE_FROM]:   # Nelder-Mead from the best few pairs
+        x0 = np.array([a[i], b[i], *shape.to_vector(p[i], q[i])])
+        res = minimize(objective, x0, method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-12, "maxiter": 600})
+        x, f = (res.x, float(res.fun)) if res.fun < loss[i] else (x0, float(loss[i]))
         if f < best_loss:
-            best_p, best_loss = p, f
-    p2, p3 = sorted((float(np.clip(best_p[2], 0.0, end)), float(np.clip(best_p[3], 0.0, end))))
-    return Drift(before=float(np.clip(best_p[0], vmin, vmax)), after=float(np.clip(best_p[1], vmin, vmax)),
-                 t0_s=p2, t1_s=p3, loss=best_loss)
+            best_x, best_loss = x, f
+    pp, qq = shape.from_vector(best_x[2:])
+    return shape.drift(float(np.clip(best_x[0], vmin, vmax)), float(np.clip(best_x[1], vmin, vmax)), pp, qq,
+                       best_loss)
 
 
 def _gauss_newton(model: Interpolated, X: np.ndarray, E: np.ndarray, share: np.ndarray, w: np.ndarray,
@@ -168,14 +253,21 @@ def _gauss_newton(model: Interpolated, X: np.ndarray, E: np.ndarray, share: np.n
     return a, b
 
 
+def progress(drift: Drift, start_s: np.ndarray, end_s: np.ndarray) -> np.ndarray:
+    """The drift's progress (0 at `before`, 1 at `after`) averaged over each segment."""
+    if drift.shape == "approach":
+        return approach_share(start_s, end_s, np.array([drift.t0_s]), np.array([drift.tau_s]))[0]
+    return ramp_share(start_s, end_s, np.array([drift.t0_s]), np.array([drift.t1_s]))[0]
+
+
 def drift_residuals(model: Interpolated, drift: Drift, start_s: np.ndarray, end_s: np.ndarray) -> np.ndarray:
     """The weighted segment residuals `drift` leaves."""
     X, E = model.table()
-    sh = ramp_share(start_s, end_s, np.array([drift.t0_s]), np.array([drift.t1_s]))[0]
-    e, _ = model.at(drift.before + (drift.after - drift.before) * sh, X, E)
+    e, _ = model.at(drift.before + (drift.after - drift.before) * progress(drift, start_s, end_s), X, E)
     return e
 
 
 def inside(drift: Drift, start_s: np.ndarray, end_s: np.ndarray) -> int:
-    """Segments that lie wholly within the drift: how many a gradual change spans."""
+    """Segments that lie wholly within the drift (an approach: up to 95 % of the way): how many a
+    gradual change spans."""
     return int(((start_s >= drift.t0_s) & (end_s <= drift.t1_s)).sum())

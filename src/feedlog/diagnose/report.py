@@ -271,9 +271,14 @@ def write_report(dx, out: Path) -> Path:
 
 
 def _when(change) -> str:
-    """When a change happened: a step's time, a drift's start and end and its rate."""
+    """When a change happened: a step's time, a drift's start and end and its rate, an approach's
+    start, time constant and 95 % time."""
     line = f" (line {change.line})" if change.line else ""
+    still = " (not levelled off)" if change.open_end else ""
     if change.shape == "drift":
-        return (f"drift {change.at_s:.2f} s{line} to {change.until_s:.2f} s, "
+        return (f"drift {change.at_s:.2f} s{line} to {change.until_s:.2f} s{still}, "
                 f"{change.rate_per_min:+.4g}{(' ' + change.unit) if change.unit else ''} per minute")
+    if change.shape == "approach":
+        return (f"approach from {change.at_s:.2f} s{line}, time constant {change.tau_s:.3g} s, "
+                f"95 % at {change.until_s:.2f} s{still}")
     return f"{change.at_s:.2f} s{line}"
