@@ -66,3 +66,24 @@ def test_a_worker_that_dies_leaves_its_share_here(prepared):
                 assert np.array_equal(x, y)
         assert len(pool.workers) == 1 and pooled.pool is pool
     assert pooled.pool is None
+
+
+def test_a_pool_slower_than_serial_pauses_and_gives_the_same_residuals(prepared, monkeypatch):
+    """Where waking a worker costs more than it saves (a machine busy with other work), the pool pauses
+    after `TRIAL` requests and computes here; its pace is judged from the measured costs."""
+    from feedlog.diagnose import scorer_pool
+    from feedlog.diagnose.fit import Scorer
+
+    profile, cases = prepared
+    serial = Scorer(profile, cases, "timing")
+    for slower, pauses in ((float("inf"), 0), (0.0, 1)):
+        monkeypatch.setattr(scorer_pool, "SLOWER", slower)
+        pooled = Scorer(profile, cases, "timing")
+        with ScorerPool(pooled, 2) as pool:
+            for k in range(scorer_pool.TRIAL + 3):
+                values = {"axes.x.acc_max": 250.0 + 5 * k}
+                for x, y in zip(serial.residuals(values), pooled.residuals(values)):
+                    assert np.array_equal(x, y)
+            assert pool.pauses == pauses and np.isfinite(pool.pace) and pool.pace > 0
+            assert pool.paused == (scorer_pool.PAUSE - 3 if pauses else 0)
+            assert all(c > 0 for c in pool.costs)

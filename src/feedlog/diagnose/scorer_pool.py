@@ -31,6 +31,10 @@ from feedlog.diagnose.fit import Scorer
 from feedlog.profile import MachineProfile
 
 JOIN_S = 5.0   # how long close() waits for a worker to stop before terminating it
+WATCH = 0.1    # weight of the latest request in the running means of costs and of the pool's pace
+SLOWER = 0.95  # the pool pauses when its requests take this share of the serial time or more ...
+PAUSE = 200    # ... for this many requests (doubled after each pause, up to 16 times), then is tried again
+TRIAL = 20     # requests on the pool before its pace is judged
 
 
 def _serve(scorer: Scorer, conn, inherited: Sequence[Any]) -> None:
@@ -51,10 +55,21 @@ def _serve(scorer: Scorer, conn, inherited: Sequence[Any]) -> None:
         try:
             profile = keys.with_values(scorer.profile, values) if values else scorer.profile
             before = scorer.simulations
-            out = scorer.compute_here(values, profile, cases)
-            conn.send((True, (out, scorer.simulations - before)))
+            out, seconds = timed(scorer, values, profile, cases)
+            conn.send((True, (out, scorer.simulations - before, seconds)))
         except Exception as exc:  # noqa: BLE001 - the parent computes the share itself and meets it there
             conn.send((False, repr(exc)))
+
+
+def timed(scorer: Scorer, values: Mapping[str, Any], profile: MachineProfile, cases: Sequence[int]
+          ) -> tuple[dict[int, np.ndarray | None], dict[int, float]]:
+    """`scorer.compute_here` one recording at a time: (residuals, seconds each took)."""
+    out, seconds = {}, {}
+    for i in cases:
+        t0 = time.perf_counter()
+        out.update(scorer.compute_here(values, profile, [i]))
+        seconds[i] = time.perf_counter() - t0
+    return out, seconds
 
 
 def share_out(cases: Sequence[int], costs: Sequence[float], processes: int) -> list[list[int]]:
@@ -76,6 +91,7 @@ class ScorerPool:
     def __init__(self, scorer: Scorer, processes: int) -> None:
         self.scorer = scorer
         self.costs = self._costs(scorer)
+        self.pace, self.requests, self.paused, self.pauses = 0.0, 0, 0, 0
         self.workers: list[tuple[Any, Any]] = []   # (process, this end of its pipe)
         ctx = mp.get_context("fork")
         for _ in range(max(0, min(processes, len(scorer.cases)) - 1)):
@@ -109,10 +125,39 @@ class ScorerPool:
             out.append(time.perf_counter() - t0)
         return out
 
+    def _here(self, values: Mapping[str, Any], profile: MachineProfile, cases: Sequence[int]
+              ) -> dict[int, np.ndarray | None]:
+        out, seconds = timed(self.scorer, values, profile, cases)
+        self._learn(seconds)
+        return out
+
+    def _learn(self, seconds: Mapping[int, float]) -> None:
+        for i, s in seconds.items():
+            self.costs[i] += WATCH * (s - self.costs[i])
+
     def compute(self, values: Mapping[str, Any], profile: MachineProfile, cases: Sequence[int]
                 ) -> dict[int, np.ndarray | None]:
-        """The residuals of recordings `cases` for base + `values` (= `profile`): the workers' shares sent
-        first, this process' own computed meanwhile, then the workers' collected."""
+        """The residuals of recordings `cases` for base + `values` (= `profile`). Here serially while
+        the pool pauses; else the workers' shares sent first, this process' own computed meanwhile, the
+        workers' collected, and the pool's pace measured: on a machine whose cores are busy with other
+        work a worker gets no core of its own and the pool is no faster than serial (measured on this
+        2-core machine while another session kept a core busy: two sides of 3 ms each took 5.7 ms a
+        round trip; the pool's requests 1.06-1.11 of the serial time), and then the pool pauses
+        (`SLOWER`, `PAUSE`). Who computes a residual changes nothing in it."""
+        if self.paused > 0:
+            self.paused -= 1
+            return self._here(values, profile, cases)
+        t0 = time.perf_counter()
+        out = self._pooled(values, profile, cases)
+        pace = (time.perf_counter() - t0) / max(sum(self.costs[i] for i in cases), 1e-9)
+        self.pace = pace if self.requests == 0 else self.pace + WATCH * (pace - self.pace)
+        self.requests += 1
+        if self.requests >= TRIAL and self.pace >= SLOWER:
+            self.paused, self.requests, self.pauses = PAUSE << min(self.pauses, 4), 0, self.pauses + 1
+        return out
+
+    def _pooled(self, values: Mapping[str, Any], profile: MachineProfile, cases: Sequence[int]
+                ) -> dict[int, np.ndarray | None]:
         shares = share_out(cases, self.costs, 1 + len(self.workers))
         sent, out = [], {}
         for (proc, conn), share in zip(list(self.workers), shares[1:]):
@@ -124,7 +169,7 @@ class ScorerPool:
             except (OSError, ValueError):
                 self._lost(proc, conn)
                 shares[0] += share
-        out.update(self.scorer.compute_here(values, profile, shares[0]))
+        out.update(self._here(values, profile, shares[0]))
         for proc, conn, share in sent:
             try:
                 ok, payload = conn.recv()
@@ -132,9 +177,10 @@ class ScorerPool:
                 ok, payload = False, None
                 self._lost(proc, conn)
             if ok:
-                res, sims = payload
+                res, sims, seconds = payload
                 out.update(res)
                 self.scorer.simulations += sims
+                self._learn(seconds)
             else:  # computed here: the same result, or the same error raised here
                 out.update(self.scorer.compute_here(values, profile, share))
         return out
