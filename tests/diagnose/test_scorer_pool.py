@@ -22,10 +22,11 @@ def prepared(hidden):
 
 
 def test_the_costliest_recording_goes_first_to_the_least_loaded_process():
-    assert share_out([0, 1, 2], [1.0, 1.0, 2.0], 2) == [[2], [0, 1]]
-    assert share_out([0, 2], [1.0, 1.0, 2.0], 2) == [[2], [0]]
-    assert share_out([1], [1.0, 1.0, 2.0], 3) == [[1], [], []]
-    assert share_out([0, 1, 2], [3.0, 1.0, 1.0], 3) == [[0], [1], [2]]
+    assert share_out([0, 1, 2], [1.0, 1.0, 2.0], 2) == [[0, 1], [2]]   # a tie: the worker takes it
+    assert share_out([0, 2], [1.0, 1.0, 2.0], 2) == [[0], [2]]
+    assert share_out([0, 1, 2], [1.5, 1.6, 3.7], 2) == [[1, 0], [2]]
+    assert share_out([1], [1.0, 1.0, 2.0], 3) == [[], [1], []]
+    assert share_out([0, 1, 2], [3.0, 1.0, 1.0], 3) == [[2], [0], [1]]
 
 
 def test_a_pool_gives_the_serial_residuals_bit_for_bit(prepared):

@@ -74,9 +74,9 @@ def timed(scorer: Scorer, values: Mapping[str, Any], profile: MachineProfile, ca
 
 def share_out(cases: Sequence[int], costs: Sequence[float], processes: int) -> list[list[int]]:
     """`cases` shared over `processes` (the first is this one): the costliest first, each to the least
-    loaded process (ties: the lowest, so this process takes work before a worker does)."""
+    loaded process; on a tie a worker's (this process also runs the search between requests)."""
     shares: list[list[int]] = [[] for _ in range(processes)]
-    load = [0.0] * processes
+    load = [1e-12] + [0.0] * (processes - 1)
     for i in sorted(cases, key=lambda i: (-costs[i], i)):
         k = int(np.argmin(load))
         shares[k].append(i)
