@@ -61,13 +61,17 @@ class DiagnoseConfig:
     def scorer_processes(self, scorer: Scorer) -> int:
         """Processes the timing level's recordings are re-simulated on at once (`scorer_pool`): at most one
         per recording; `jobs` when given, else (None) the machine's cores when the case is large (two or
-        more recordings, `AUTO_MIN_S` of motion), else 1. On a cluster (`scheduler`) the held-out fits
+        more recordings, `AUTO_MIN_S` of motion; not inside a worker process of a task pool), else 1. On a cluster (`scheduler`) the held-out fits
         are the tasks instead, and each worker's scorer is serial."""
         if self.scheduler is not None or scorer.level != "timing":
             return 1
         n = len(scorer.groups)
         if self.jobs is not None:
             return max(1, min(self.jobs, n))
+        import multiprocessing
+
+        if multiprocessing.parent_process() is not None:  # a task's worker process (a pool's, a Dask worker's)
+            return 1
         cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
         return min(cores, n) if n >= 2 and scorer.data_s >= AUTO_MIN_S else 1
 
