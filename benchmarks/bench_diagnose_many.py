@@ -16,16 +16,22 @@ machines from its shipped configs without new INI files per draw):
   (`--calibrate`) on three programs and judged on three others it never saw: the cycle time the
   calibrated profile predicts against the machine's own, with and without a coverage warning.
 
-Printed per machine and in all; `--json` prints one object.
+Printed per machine and in all; `--json` prints one object. Each case's time: wall seconds, and CPU
+seconds of the diagnose call in this process plus its worker processes (`resource.RUSAGE_CHILDREN`;
+by default diagnose re-simulates the recordings of a large case on the machine's cores, `--jobs 1`:
+serially), with the load average at its end.
 
     .venv/bin/python benchmarks/bench_diagnose_many.py [--machines 4] [--seed 1] [--kind many|far|both] [--rows]
+        [--jobs N]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import random
+import resource
 import time
 from pathlib import Path
 
@@ -92,15 +98,21 @@ def observable(values: dict, programs, base: str, pct: float = 1.0) -> list[str]
     return [k for k in values if abs(total({q: v for q, v in values.items() if q != k}) / full - 1) * 100 >= pct]
 
 
-def run_many(rng: random.Random, i: int) -> dict:
+def _cpu_s() -> float:
+    """CPU seconds of this process and of its children that have ended (diagnose's worker processes)."""
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + kids.ru_utime + kids.ru_stime
+
+
+def run_many(rng: random.Random, i: int, jobs: int | None = None) -> dict:
     from feedlog.diagnose.engine import DiagnoseConfig, diagnose
 
     values = draw_many(rng)
     programs = rng.sample(POOL[:6], 3)
     recs = record(values, programs, "linuxcnc-xyz", 100 * i)
-    t0, c0 = time.perf_counter(), time.process_time()
-    dx = diagnose(recs, "linuxcnc-xyz", config=DiagnoseConfig(learned=False))
-    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
+    t0, c0 = time.perf_counter(), _cpu_s()
+    dx = diagnose(recs, "linuxcnc-xyz", config=DiagnoseConfig(learned=False, jobs=jobs))
+    seconds, cpu = time.perf_counter() - t0, _cpu_s() - c0
     found = {f.parameter: float(f.fitted_value) for f in dx.findings}
     named = [k for k, v in values.items() if k in found and abs(found[k] / v - 1) <= 0.05]
     wrong = [k for k, v in found.items() if k not in values or abs(v / values[k] - 1) > 0.15]
@@ -109,10 +121,10 @@ def run_many(rng: random.Random, i: int) -> dict:
     return {"kind": "many", "machine": i, "changed": values, "programs": programs, "found": found, "named": named,
             "observable": seen, "missed": [k for k in values if k not in found], "wrong": wrong,
             "error_before_pct": cyc["error_before_pct"], "error_after_pct": cyc["error_after_pct"],
-            "seconds": seconds, "cpu_seconds": cpu}
+            "seconds": seconds, "cpu_seconds": cpu, "load": os.getloadavg()[0]}
 
 
-def run_far(rng: random.Random, i: int) -> dict:
+def run_far(rng: random.Random, i: int, jobs: int | None = None) -> dict:
     from feedlog.coverage import program_warnings
     from feedlog.diagnose.engine import DiagnoseConfig, diagnose
     from feedlog.diagnose.keys import with_values
@@ -124,9 +136,9 @@ def run_far(rng: random.Random, i: int) -> dict:
     programs = rng.sample(POOL, 6)
     fit_on, judge_on = programs[:3], programs[3:]
     recs = record(values, fit_on, "generic-xyz", 100 * i)
-    t0, c0 = time.perf_counter(), time.process_time()
-    dx = diagnose(recs, "generic-xyz", config=DiagnoseConfig(learned=False, calibrate=True))
-    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
+    t0, c0 = time.perf_counter(), _cpu_s()
+    dx = diagnose(recs, "generic-xyz", config=DiagnoseConfig(learned=False, calibrate=True, jobs=jobs))
+    seconds, cpu = time.perf_counter() - t0, _cpu_s() - c0
     truth, generic = with_values(load_profile("generic-xyz"), values), load_profile("generic-xyz")
     judged = []
     for name in judge_on:
@@ -143,7 +155,8 @@ def run_far(rng: random.Random, i: int) -> dict:
             "constrained_within_5pct": [p.key for p in cal.parameters if p.constrained
                                         and abs(p.fitted_value / values[p.key] - 1) <= 0.05],
             "own_error_before_pct": dx.levels["cycle"]["error_before_pct"],
-            "own_error_after_pct": dx.levels["cycle"]["error_after_pct"], "seconds": seconds, "cpu_seconds": cpu}
+            "own_error_after_pct": dx.levels["cycle"]["error_after_pct"], "seconds": seconds, "cpu_seconds": cpu,
+            "load": os.getloadavg()[0]}
 
 
 def _many_lines(r: dict, i: int) -> list[str]:
@@ -151,14 +164,14 @@ def _many_lines(r: dict, i: int) -> list[str]:
             f"  found {{{', '.join(f'{k}: {v:.4g}' for k, v in r['found'].items())}}}; named {len(r['named'])}/4 "
             f"({len(r['observable'])} observable), missed {r['missed']}, wrong {r['wrong']}; error "
             f"{r['error_before_pct']:+.2f} % -> {r['error_after_pct']:+.2f} %; {r['seconds']:.0f} s "
-            f"({r['cpu_seconds']:.0f} s CPU)"]
+            f"({r['cpu_seconds']:.0f} s CPU, load {r['load']:.1f})"]
 
 
 def _far_lines(r: dict, i: int) -> list[str]:
     return [f"far m{i}: {r['true']} fitted on {', '.join(r['fitted_on'])}: {len(r['constrained'])} "
             f"constrained ({len(r['constrained_within_5pct'])} within 5 %), own error "
             f"{r['own_error_before_pct']:+.2f} % -> {r['own_error_after_pct']:+.2f} %; {r['seconds']:.0f} s "
-            f"({r['cpu_seconds']:.0f} s CPU)"] + [
+            f"({r['cpu_seconds']:.0f} s CPU, load {r['load']:.1f})"] + [
         f"  unseen {j['program']}: {j['error_pct']:+.2f} % (generic {j['generic_error_pct']:+.2f} %)"
         f"{' warned: ' + ', '.join(j['warned']) if j['warned'] else ''}" for j in r["judged"]]
 
@@ -170,6 +183,8 @@ def main() -> None:
     ap.add_argument("--kind", choices=("many", "far", "both"), default="both")
     ap.add_argument("--json", action="store_true")
     ap.add_argument("--rows", action="store_true", help="also print each machine's row as one JSON line when done")
+    ap.add_argument("--jobs", "-j", type=int, default=None,
+                    help="diagnose's processes (default: its own choice, the cores for a large case; 1: serially)")
     args = ap.parse_args()
     rng = random.Random(args.seed)
     rows = []
@@ -177,7 +192,7 @@ def main() -> None:
         for kind, run, say in (("many", run_many, _many_lines), ("far", run_far, _far_lines)):
             if args.kind not in (kind, "both"):
                 continue
-            r = run(rng, i)
+            r = run(rng, i, args.jobs)
             rows.append(r)
             if args.rows:
                 print(json.dumps(r), flush=True)

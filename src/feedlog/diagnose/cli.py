@@ -46,8 +46,11 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         choices=("auto", "file-lines", "file-lines-no-percent", "n-words", "counter"),
                         help="recordings without positions: what the recorded block values count (default: "
                              "detected from the line times against the program)")
-    add_execution_arguments(parser, jobs_help="worker processes for the recordings and the hypothesis fits "
-                                              "(default: 1, here; FEEDLOG_SCHEDULER or --scheduler: a Dask cluster)")
+    add_execution_arguments(parser, jobs_help="processes: each re-simulation's recordings shared out over them, "
+                                              "the recordings prepared as tasks (default: the machine's cores for "
+                                              "two or more recordings of 10 s of motion or more, else 1; "
+                                              "FEEDLOG_SCHEDULER or --scheduler: the hypothesis fits on a Dask "
+                                              "cluster)")
     add_quiet(parser, help="no progress messages")
 
 
@@ -81,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         refuse_taken_output(args)
         families = tuple(f.strip() for f in args.families.split(",")) if args.families else None
         scheduler = args.scheduler or (os.environ.get("FEEDLOG_SCHEDULER") if args.jobs is None else None)
-        jobs = args.jobs if args.jobs is not None else (None if scheduler else 1)
+        jobs = args.jobs  # None: automatic (DiagnoseConfig.scorer_processes), or the cluster's workers
         config = DiagnoseConfig(min_effect_pct=args.min_effect, min_gain=args.min_gain, families=families,
                                 learned=not args.no_learned, jobs=jobs, calibrate=args.calibrate,
                                 scheduler=None if scheduler in (None, "", "none") else scheduler)

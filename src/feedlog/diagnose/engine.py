@@ -13,7 +13,9 @@
 
 from __future__ import annotations
 
+import os
 import time
+from contextlib import ExitStack
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -32,6 +34,7 @@ from feedlog.recording import Recording
 from feedlog.profile import MachineProfile, load_profile
 
 LEVELS = ("timing", "feedback", "line", "geometry")
+AUTO_MIN_S = 10.0   # seconds of motion over two or more recordings from which `jobs=None` uses the cores
 
 
 @dataclass(frozen=True)
@@ -45,13 +48,32 @@ class DiagnoseConfig:
     families: tuple[str, ...] | None = None
     min_segment_s: float | None = None
     learned: bool = True               # fit a learned correction where a systematic residual is unexplained
-    jobs: int | None = 1               # worker processes for recordings and hypothesis fits (1: here, serially)
+    jobs: int | None = None            # processes (1: here, serially; None: the machine's cores for a large case,
+    #                                    `scorer_processes`; more: the recordings prepared as tasks too)
     scheduler: str | None = None       # a Dask scheduler for them instead (feedlog.execution)
     calibrate: bool = False            # fit every axis limit the recordings constrain first (`calibrate`)
 
     @property
     def parallel(self) -> bool:
-        return self.scheduler is not None or self.jobs != 1
+        """A task runner: the recordings prepared as tasks (and on a cluster the held-out fits)."""
+        return self.scheduler is not None or (self.jobs is not None and self.jobs > 1)
+
+    def scorer_processes(self, scorer: Scorer) -> int:
+        """Processes the timing level's recordings are re-simulated on at once (`scorer_pool`): at most one
+        per recording; `jobs` when given, else (None) the machine's cores when the case is large (two or
+        more recordings, `AUTO_MIN_S` of motion; not inside a worker process of a task pool), else 1. On a cluster (`scheduler`) the held-out fits
+        are the tasks instead, and each worker's scorer is serial."""
+        if self.scheduler is not None or scorer.level != "timing":
+            return 1
+        n = len(scorer.groups)
+        if self.jobs is not None:
+            return max(1, min(self.jobs, n))
+        import multiprocessing
+
+        if multiprocessing.parent_process() is not None:  # a task's worker process (a pool's, a Dask worker's)
+            return 1
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        return min(cores, n) if n >= 2 and scorer.data_s >= AUTO_MIN_S else 1
 
     def select_config(self, level: str, noise: float = 0.0) -> SelectConfig:
         """`noise`: the level's noise scale (feedback: position noise at rest; line: sampling period)."""
@@ -230,16 +252,18 @@ def diagnose(sources: Sequence[str | Path | Recording], profile: MachineProfile 
              progress: Callable[[str], None] | None = None) -> Diagnosis:
     """Diagnose `profile` (default: the one the recordings carry) on the recordings."""
     cfg = config or DiagnoseConfig()
-    if not cfg.parallel:
-        return _diagnose(sources, profile, program, cfg, lenient, progress, runner=None)
-    from feedlog.execution import task_runner
+    with ExitStack() as stack:  # the task runner and the scorers' processes, closed however this ends
+        runner = None
+        if cfg.parallel:
+            from feedlog.execution import task_runner
 
-    with task_runner(jobs=cfg.jobs, scheduler=cfg.scheduler, progress=False,
-                     log=progress or (lambda _msg: None)) as runner:
-        return _diagnose(sources, profile, program, cfg, lenient, progress, runner=runner)
+            runner = stack.enter_context(task_runner(jobs=cfg.jobs, scheduler=cfg.scheduler, progress=False,
+                                                     log=progress or (lambda _msg: None)))
+        return _diagnose(sources, profile, program, cfg, lenient, progress, runner=runner, stack=stack)
 
 
-def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, progress, *, runner) -> Diagnosis:
+def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, progress, *, runner,
+              stack: ExitStack) -> Diagnosis:
     import uuid
 
     laps: dict[str, float] = {}
@@ -282,7 +306,13 @@ def _diagnose(sources, profile, program, cfg: DiagnoseConfig, lenient: bool, pro
         error = level_error(scorer)
         noise = {"feedback": feedback_noise(cases), "line": max(c.period_s for c in cases)}.get(level, 0.0)
         many = None
-        if runner is not None:
+        processes = cfg.scorer_processes(scorer)
+        if processes > 1:  # each re-simulation's recordings shared out over the cores
+            from feedlog.diagnose.scorer_pool import ScorerPool
+
+            stack.enter_context(ScorerPool(scorer, processes))
+            say(f"{level}: {len(scorer.groups)} recordings re-simulated on {processes} processes")
+        elif runner is not None and cfg.scheduler is not None:
             from feedlog.diagnose.parallel import held_out_on
 
             many = held_out_on(runner, f"{token}:{level}", scorer, cfg.min_segment_s)

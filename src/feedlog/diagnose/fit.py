@@ -67,6 +67,7 @@ class Scorer:
 
         self.profile, self.cases, self.level = profile, list(cases), level
         self._cache: dict[tuple, list[Any]] = {}   # values -> [profile or None, residual per recording]
+        self.pool: Any = None                      # processes sharing the recordings out (scorer_pool)
         self.simulations = 0
         self.segments: list[Segments | None] = []
         if level == "timing":
@@ -83,6 +84,10 @@ class Scorer:
                         zip(self.segments or [None] * len(lengths), lengths)]
         self.units = self._units(lengths)
         self.floor = np.array([self._floor(u) for u in self.units])
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without its pool of processes (a copy elsewhere computes serially)."""
+        return {**self.__dict__, "pool": None}
 
     def _floor(self, u: Unit) -> float:
         """The loss a perfect model leaves on a unit: the measurement's own resolution. Timing: each
@@ -155,10 +160,27 @@ class Scorer:
             entry = self._cache[key] = [profile, [_MISSING] * len(self.cases)]
         profile, out = entry
         wanted = range(len(self.cases)) if cases is None else cases
-        for i in wanted:
-            if out[i] is _MISSING:
-                out[i] = None if profile is None else self._residual(i, self.cases[i], profile, bool(values))
+        missing = [i for i in wanted if out[i] is _MISSING]
+        if missing and profile is None:
+            for i in missing:
+                out[i] = None
+        elif missing:
+            for i, r in self._compute(values, profile, missing).items():
+                out[i] = r
         return [None if r is _MISSING else r for r in out]
+
+    def _compute(self, values: Mapping[str, Any], profile: MachineProfile, cases: list[int]
+                 ) -> dict[int, np.ndarray | None]:
+        """The residuals of recordings `cases` for base + `values` (= `profile`): on the scorer's `pool`
+        of processes when it has one (`scorer_pool.ScorerPool`), else here one after another."""
+        if self.pool is not None and len(cases) > 1:
+            return self.pool.compute(values, profile, cases)
+        return self.compute_here(values, profile, cases)
+
+    def compute_here(self, values: Mapping[str, Any], profile: MachineProfile, cases: Sequence[int]
+                     ) -> dict[int, np.ndarray | None]:
+        """The residuals of recordings `cases` for base + `values` (= `profile`), in this process."""
+        return {i: self._residual(i, self.cases[i], profile, bool(values)) for i in cases}
 
     def case_residual(self, i: int, values: Mapping[str, Any]) -> np.ndarray | None:
         """The residual of recording `i` alone for base + `values` (not cached; None where invalid)."""

@@ -2,7 +2,8 @@
 
 Two kinds of task, each a module-level function of one picklable item:
 - `prepare_task`: read and align one recording (a path or URL) into a `Case`;
-- `held_out_task`: fit one hypothesis without each held-out fold and score the fold (`fit.held_out`).
+- `held_out_task`: fit one hypothesis without each held-out fold and score the fold (`fit.held_out`);
+  on a Dask cluster only (locally, `scorer_pool` shares each re-simulation's recordings out instead).
   The item carries the prepared recordings; a worker builds the level's `Scorer` once per diagnosis
   and keeps it (`_SCORERS`, keyed by the diagnosis' token), so a Dask worker that runs several
   hypotheses, or several steps, re-simulates only what it has not simulated yet.
