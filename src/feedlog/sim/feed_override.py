@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from feedlog.sim.mechanism import Mechanism, check_override
-from feedlog.sim.path import KIND_RAPID
+from feedlog.sim.path import KIND_RAPID, apply_feed_scale
 
 
 @dataclass
@@ -45,4 +45,4 @@ class FeedOverride(Mechanism):
         feed_moves = b.kind != KIND_RAPID
         scale = np.where(feed_moves, self.override, 1.0)
         b.feed = np.where(feed_moves, np.minimum(b.feed, b.v_axis) * self.override, b.feed)
-        b.extra["feed_scale"] = b.extra.get("feed_scale", np.ones(len(b))) * scale
+        apply_feed_scale(b, scale)

@@ -390,6 +390,11 @@ def feed_scale(blocks: Blocks) -> np.ndarray:
     return np.ones(len(blocks)) if scale is None else scale
 
 
+def apply_feed_scale(blocks: Blocks, scale: np.ndarray) -> None:
+    """Record a dial's per-block factor on top of any applied before (`feed_scale` reads the product)."""
+    blocks.extra["feed_scale"] = feed_scale(blocks) * scale
+
+
 def build_pieces(blocks: Blocks) -> Pieces:
     """One piece per block. Junction speeds start at 0 (stop); a corner law raises them."""
     n, k = blocks.p0.shape

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from feedlog.sim.mechanism import Mechanism, check_override
-from feedlog.sim.path import KIND_RAPID
+from feedlog.sim.path import KIND_RAPID, apply_feed_scale
 
 
 @dataclass
@@ -48,4 +48,4 @@ class RapidOverride(Mechanism):
             return
         b.feed = np.where(rapid, np.minimum(b.feed, b.v_axis * self.override), b.feed)
         scale = np.where(rapid, self.override, 1.0)
-        b.extra["feed_scale"] = b.extra.get("feed_scale", np.ones(len(b))) * scale
+        apply_feed_scale(b, scale)
